@@ -1,0 +1,65 @@
+"""diffpegasus: differentiable launch-vehicle simulation and system identification."""
+
+import jax as _jax
+
+
+_jax.config.update("jax_enable_x64", True)
+
+from ._aerodynamics import (  # noqa: E402
+    DERIVATIVE_NAMES as DERIVATIVE_NAMES,
+    AeroCoefficients as AeroCoefficients,
+    AeroDatabase as AeroDatabase,
+    AeroDerivatives as AeroDerivatives,
+    body_axis as body_axis,
+    coefficients as coefficients,
+    load_database as load_database,
+    wind_axis as wind_axis,
+)
+from ._atmosphere import Atmosphere as Atmosphere, isa as isa  # noqa: E402
+from ._dynamics import (  # noqa: E402
+    FlightModel as FlightModel,
+    evaluate as evaluate,
+    moment_about_cg as moment_about_cg,
+    pitch_plane_rates as pitch_plane_rates,
+)
+from ._effects import (  # noqa: E402
+    EFFECTS as EFFECTS,
+    AbstractEffect as AbstractEffect,
+    FlightCondition as FlightCondition,
+    effect_names as effect_names,
+    make_effect as make_effect,
+    parse_assignment as parse_assignment,
+)
+from ._gravity import gravity as gravity  # noqa: E402
+from ._inputs import (  # noqa: E402
+    AbstractInput as AbstractInput,
+    Multisine as Multisine,
+    NoInput as NoInput,
+    PulseTrain as PulseTrain,
+    Ramp as Ramp,
+    Schedule as Schedule,
+    Sequence as Sequence,
+    Sine as Sine,
+    Step as Step,
+    Sum as Sum,
+    doublet as doublet,
+    schroeder_multisine as schroeder_multisine,
+    three_two_one_one as three_two_one_one,
+)
+from ._mass import MassModel as MassModel, MassProperties as MassProperties  # noqa: E402
+from ._propulsion import SolidMotor as SolidMotor  # noqa: E402
+from ._sensors import SensorModel as SensorModel  # noqa: E402
+from ._simulate import (  # noqa: E402
+    Flight as Flight,
+    InitialCondition as InitialCondition,
+    PegasusConfig as PegasusConfig,
+    Perturbation as Perturbation,
+    nominal_elevator as nominal_elevator,
+    perturbed_batch as perturbed_batch,
+    simulate as simulate,
+    simulate_batch as simulate_batch,
+)
+from ._vehicle import Vehicle as Vehicle  # noqa: E402
+
+
+__version__ = "0.1.0"
