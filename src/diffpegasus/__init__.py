@@ -46,16 +46,26 @@ from ._inputs import (  # noqa: E402
     schroeder_multisine as schroeder_multisine,
     three_two_one_one as three_two_one_one,
 )
+from ._log import (  # noqa: E402
+    FlightLog as FlightLog,
+    LogError as LogError,
+    read_log as read_log,
+    validate as validate_log,
+    write_log as write_log,
+)
 from ._mass import MassModel as MassModel, MassProperties as MassProperties  # noqa: E402
 from ._propulsion import SolidMotor as SolidMotor  # noqa: E402
 from ._sensors import SensorModel as SensorModel  # noqa: E402
+from ._sharding import shard_batch as shard_batch  # noqa: E402
 from ._simulate import (  # noqa: E402
     Flight as Flight,
     InitialCondition as InitialCondition,
     PegasusConfig as PegasusConfig,
+    elevator_command as elevator_command,
+    flight_to_log as flight_to_log,
     Perturbation as Perturbation,
     nominal_elevator as nominal_elevator,
-    perturbed_batch as perturbed_batch,
+    sample_perturbations as sample_perturbations,
     simulate as simulate,
     simulate_batch as simulate_batch,
 )

@@ -69,6 +69,9 @@ class AeroDatabase(eqx.Module):
     - `tables`: shape `(6, n_alpha + 2, n_mach + 2)`, the derivatives in the order of
       `DERIVATIVE_NAMES` (1/rad), padded with one linearly extrapolated ghost point on
       each side for the cubic stencil.
+    - `scale`: shape `(3,)`, factors on the CL, CD and CM derivatives (Monte Carlo
+      perturbations). Kept apart from the tables so a batch of perturbed vehicles
+      shares one copy of the tables.
 
     Queries outside the grid are clamped to its edge (constant extrapolation).
     """
@@ -78,6 +81,7 @@ class AeroDatabase(eqx.Module):
     mach0: float = eqx.field(static=True)
     dmach: float = eqx.field(static=True)
     tables: Float[Array, "6 na2 nm2"]
+    scale: Float[Array, "3"] = eqx.field(default_factory=lambda: jnp.ones(3))
 
     @property
     def alpha_range(self) -> tuple[float, float]:
@@ -103,17 +107,15 @@ class AeroDatabase(eqx.Module):
         wm = _catmull_rom_weights(xm - im)
         # In the padded tables, grid point i - 1 sits at index i.
         block = lax.dynamic_slice(self.tables, (0, ia, im), (6, 4, 4))
-        values = jnp.einsum("kij,i,j->k", block, wa, wm)
+        values = jnp.einsum("kij,i,j->k", block, wa, wm) * jnp.repeat(self.scale, 2)
         return AeroDerivatives(*values)
 
     def scaled(
         self, lift: ScalarLike = 1.0, drag: ScalarLike = 1.0, moment: ScalarLike = 1.0
     ) -> "AeroDatabase":
-        """A copy with the CL, CD and CM tables multiplied by the given factors."""
-        factors = jnp.repeat(jnp.stack([lift, drag, moment]).astype(float), 2)
-        return eqx.tree_at(
-            lambda d: d.tables, self, self.tables * factors[:, None, None]
-        )
+        """A copy with the CL, CD and CM derivatives multiplied by the given factors."""
+        factors = jnp.stack([jnp.asarray(f, float) for f in (lift, drag, moment)])
+        return eqx.tree_at(lambda d: d.scale, self, self.scale * factors)
 
 
 def load_database(path=None) -> AeroDatabase:
@@ -138,6 +140,8 @@ def load_database(path=None) -> AeroDatabase:
     if len(data) != len(machs) * len(alphas):
         raise ValueError(f"{path}: the (mach, alpha_deg) points do not form a full grid")
     for name, grid in (("mach", machs), ("alpha_deg", alphas)):
+        if len(grid) < 2:
+            raise ValueError(f"{path}: column {name} needs at least two breakpoints")
         steps = np.diff(grid)
         if not np.allclose(steps, steps[0], rtol=1e-6):
             raise ValueError(f"{path}: column {name} is not uniformly spaced")

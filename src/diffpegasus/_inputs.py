@@ -183,3 +183,31 @@ class Sum(AbstractInput):
 
     def __call__(self, t):
         return sum((p(t) for p in self.parts), jnp.zeros(()))
+
+
+def excitation(name: str, start: float = 5.0) -> AbstractInput:
+    """A default excitation by name, from `start` s (default ignition) to the end.
+
+    `pulse` (2 deg, 0.2 s pulses every 0.5 s: the thesis's choice), `sine` (1 deg,
+    2 Hz), `ramp` (0.05 deg/s), `step` (2 deg at 10 s), `doublet` (2 deg, 0.25 s
+    halves, every 1 s), `3211` (2 deg, 0.1 s unit, every 1 s), `multisine` (Schroeder
+    phased, 8 harmonics of 0.5 Hz, about 2 deg peak), `none`.
+    """
+    factories = {
+        "pulse": lambda: PulseTrain(amplitude=2.0, period=0.5, width=0.2, start=start),
+        "sine": lambda: Sine(amplitude=1.0, frequency=2.0, start=start),
+        "ramp": lambda: Ramp(rate=0.05, start=start),
+        "step": lambda: Step(amplitude=2.0, start=max(start, 10.0)),
+        "doublet": lambda: doublet(2.0, 0.25, start=start, repeat=1.0),
+        "3211": lambda: three_two_one_one(2.0, 0.1, start=start, repeat=1.0),
+        "multisine": lambda: schroeder_multisine(2.0, 0.5, 8, start=start),
+        "none": NoInput,
+    }
+    if name not in factories:
+        raise ValueError(
+            f"unknown input {name!r}; choose one of {', '.join(factories)}"
+        )
+    return factories[name]()
+
+
+EXCITATION_NAMES = ("pulse", "sine", "ramp", "step", "doublet", "3211", "multisine", "none")

@@ -38,7 +38,8 @@ class SolidMotor(eqx.Module):
     - `motor_mass_initial`, `motor_mass_burnout`: motor mass (case plus propellant)
       at ignition and burnout, kg; it falls linearly in between.
     - `rise_time`, `tailoff_time`: s; `regression`: fractional plateau fall.
-    - `thrust_scale`: multiplies the thrust (Monte Carlo perturbation), default 1.
+    - `thrust_scale`: multiplies the vacuum and the net thrust (Monte Carlo
+      perturbation), default 1.
     """
 
     ignition_time: float = eqx.field(static=True, default=5.0)
@@ -83,7 +84,7 @@ class SolidMotor(eqx.Module):
     def net_thrust(self, t: ScalarLike, ambient_pressure: ScalarLike) -> Scalar:
         """Net thrust along body +x at time `t` and ambient pressure (Pa), N."""
         loss = self.exit_area * ambient_pressure * self.envelope(t)
-        return self.vacuum_thrust(t) - loss
+        return self.vacuum_thrust(t) - self.thrust_scale * loss
 
     def motor_mass(self, t: ScalarLike) -> Scalar:
         """Motor mass (case plus remaining propellant), kg."""

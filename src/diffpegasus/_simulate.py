@@ -16,7 +16,8 @@ from ._atmosphere import isa
 from ._custom_types import ScalarLike
 from ._dynamics import FlightModel, evaluate
 from ._effects import AbstractEffect
-from ._inputs import AbstractInput, PulseTrain, Schedule, Sum
+from ._inputs import AbstractInput, Schedule, Sum, excitation
+from ._log import FlightLog
 from ._sensors import SensorModel
 from ._vehicle import Vehicle
 
@@ -34,9 +35,9 @@ def nominal_elevator() -> Schedule:
     return Schedule(times=jnp.asarray(times), degrees=jnp.asarray(degrees))
 
 
-def default_excitation() -> PulseTrain:
-    """The default excitation: 2 deg, 0.2 s pulses every 0.5 s after ignition."""
-    return PulseTrain(amplitude=2.0, period=0.5, width=0.2, start=5.0)
+def elevator_command(input_name: str = "pulse") -> Sum:
+    """The nominal pull-up plus the named excitation (see [`excitation`][])."""
+    return Sum((nominal_elevator(), excitation(input_name)))
 
 
 class InitialCondition(eqx.Module):
@@ -69,19 +70,20 @@ class PegasusConfig(eqx.Module):
     - `initial`: drop conditions.
     - `t_final`: end of the flight, s (default burnout, 80.3 s).
     - `sample_rate`: log rate, Hz (default 1000).
-    - `steps_per_sample`: solver steps per log sample (default 1: a 1 ms fixed step).
+    - `dt`: the solver's fixed step, s (default 5 ms; samples between steps come from
+      Tsit5's fourth-order dense output).
     """
 
     vehicle: Vehicle = eqx.field(default_factory=Vehicle)
     elevator: AbstractInput = eqx.field(
-        default_factory=lambda: Sum((nominal_elevator(), default_excitation()))
+        default_factory=elevator_command
     )
     sensors: SensorModel = eqx.field(default_factory=SensorModel)
     effects: tuple[AbstractEffect, ...] = ()
     initial: InitialCondition = eqx.field(default_factory=InitialCondition)
     t_final: float = eqx.field(static=True, default=80.3)
     sample_rate: float = eqx.field(static=True, default=1000.0)
-    steps_per_sample: int = eqx.field(static=True, default=1)
+    dt: float = eqx.field(static=True, default=5e-3)
 
     @property
     def model(self) -> FlightModel:
@@ -125,25 +127,24 @@ def simulate(
     - `noise`: `False` gives the noise-free measurements (biases still apply).
 
     **Returns:** a [`Flight`][] sampled at `config.sample_rate`. One diffrax solve with
-    Tsit5 at a fixed step aligned with the samples.
+    Tsit5 at the fixed step `config.dt`.
     """
     if key is None:
         key = jax.random.key(0)
     times = config.times
     ts = jnp.asarray(times)
-    dt = 1.0 / (config.sample_rate * config.steps_per_sample)
     model = config.model
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(_vector_field),
         diffrax.Tsit5(),
         t0=0.0,
         t1=float(times[-1]),
-        dt0=dt,
+        dt0=config.dt,
         y0=config.initial.state(),
         args=model,
         saveat=diffrax.SaveAt(ts=ts),
         stepsize_controller=diffrax.ConstantStepSize(),
-        max_steps=len(times) * config.steps_per_sample + 16,
+        max_steps=int(times[-1] / config.dt) + 16,
     )
     states = sol.ys
     ev = jax.vmap(lambda t, y: evaluate(t, y, model))(ts, states)
@@ -193,24 +194,47 @@ class Perturbation(eqx.Module):
         return eqx.tree_at(lambda c: c.vehicle, config, vehicle)
 
 
-def perturbed_batch(
-    config: PegasusConfig, key: PRNGKeyArray, n: int
-) -> tuple[PegasusConfig, Perturbation]:
-    """`n` perturbed copies of `config`, stacked along a leading batch axis."""
-    perturbations = jax.vmap(Perturbation.sample)(jax.random.split(key, n))
-    configs = jax.vmap(lambda p: p.apply(config))(perturbations)
-    return configs, perturbations
+def sample_perturbations(key: PRNGKeyArray, n: int) -> Perturbation:
+    """`n` seeded draws of [`Perturbation.sample`][], stacked on a leading axis."""
+    return jax.vmap(Perturbation.sample)(jax.random.split(key, n))
 
 
 @eqx.filter_jit
 def simulate_batch(
-    configs: PegasusConfig, keys: PRNGKeyArray, *, noise: bool = True
+    config: PegasusConfig,
+    keys: PRNGKeyArray,
+    perturbations: Perturbation | None = None,
+    *,
+    noise: bool = True,
 ) -> Flight:
-    """Simulate a stacked batch of configurations in one vmapped call.
+    """Simulate a batch of flights in one vmapped call.
 
-    **Arguments:** `configs` with a leading batch axis on every array leaf (as from
-    [`perturbed_batch`][]), `keys` of shape `(batch,)`.
+    **Arguments:**
 
-    **Returns:** a [`Flight`][] whose arrays have a leading batch axis.
+    - `config`: the common, unbatched configuration.
+    - `keys`: noise keys, shape `(batch,)`.
+    - `perturbations`: a [`Perturbation`][] with a leading batch axis on every field
+      (from [`sample_perturbations`][]), or `None` for the same vehicle throughout.
+    - `noise`: as in [`simulate`][].
+
+    **Returns:** a [`Flight`][] whose arrays have a leading batch axis. Only the
+    perturbed leaves are batched (the tables, inputs and mass model are shared), which
+    keeps the vmapped vector field as cheap as the unbatched one. For other sweeps,
+    `jax.vmap` over [`simulate`][] directly.
     """
-    return jax.vmap(lambda c, k: simulate(c, k, noise=noise))(configs, keys)
+    if perturbations is None:
+        return jax.vmap(lambda k: simulate(config, k, noise=noise))(keys)
+    return jax.vmap(lambda p, k: simulate(p.apply(config), k, noise=noise))(
+        perturbations, keys
+    )
+
+
+def flight_to_log(flight: Flight, metadata: dict | None = None) -> FlightLog:
+    """A single (unbatched) simulated [`Flight`][] as a [`FlightLog`][]."""
+    channels = {"t": np.asarray(flight.t)}
+    channels.update({k: np.asarray(v) for k, v in flight.channels.items()})
+    if channels["t"].ndim != 1:
+        raise ValueError("flight_to_log takes one flight; index a batch first")
+    meta = {"sample_rate_hz": float(1.0 / (channels["t"][1] - channels["t"][0]))}
+    meta.update(metadata or {})
+    return FlightLog(channels=channels, metadata=meta)

@@ -1,0 +1,199 @@
+"""The `diffpegasus` command line."""
+
+import json
+import pathlib
+import sys
+from typing import Annotated
+
+import typer
+
+from ._log import LogError
+
+
+app = typer.Typer(
+    help="Differentiable Pegasus flight simulation and aerodynamic identification.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    add_completion=False,
+)
+
+
+def _fail(message: str) -> None:
+    typer.echo(f"error: {message}", err=True)
+    raise typer.Exit(code=2)
+
+
+def _simulate_to_log(
+    seed: int,
+    input_name: str,
+    hidden: list[str],
+    perturb: bool,
+    duration: float | None,
+    sample_rate: float,
+    noise: bool,
+):
+    import jax
+    import jax.numpy as jnp
+
+    from ._effects import parse_assignment
+    from ._simulate import (
+        PegasusConfig,
+        Perturbation,
+        elevator_command,
+        flight_to_log,
+        simulate,
+    )
+
+    effects = tuple(parse_assignment(h) for h in hidden)
+    config = PegasusConfig(
+        elevator=elevator_command(input_name),
+        effects=effects,
+        sample_rate=sample_rate,
+        **({} if duration is None else {"t_final": duration}),
+    )
+    noise_key, perturb_key = jax.random.split(jax.random.key(seed))
+    metadata = {
+        "seed": seed,
+        "input": input_name,
+        "noise_sigmas": dict(config.sensors.sigma) if noise else {},
+        "hidden_effects": {h.split("=")[0].strip(): float(h.split("=")[1]) for h in hidden},
+        "simulator": "diffpegasus",
+    }
+    if perturb:
+        p = Perturbation.sample(perturb_key)
+        config = p.apply(config)
+        metadata["perturbation"] = {
+            k: float(jnp.asarray(getattr(p, k)))
+            for k in ("lift", "drag", "moment", "mass", "thrust", "cg_shift")
+        }
+    flight = simulate(config, noise_key, noise=noise)
+    return flight_to_log(flight, metadata)
+
+
+@app.command()
+def simulate(
+    out: Annotated[
+        pathlib.Path, typer.Option(help="Log CSV to write (plus .json sidecar, .png)")
+    ] = pathlib.Path("flight.csv"),
+    seed: Annotated[int, typer.Option(help="Seed for noise and perturbations")] = 0,
+    input: Annotated[
+        str,
+        typer.Option(
+            "--input",
+            help="Excitation on top of the nominal pull-up: pulse, sine, ramp, step, "
+            "doublet, 3211, multisine, none",
+        ),
+    ] = "pulse",
+    hidden: Annotated[
+        list[str] | None,
+        typer.Option(
+            help="Plant an effect, NAME=VALUE in SI units (repeatable), e.g. "
+            "pitch_damping=-800 or sensor_bias:az=0.3; see `diffpegasus effects`"
+        ),
+    ] = None,
+    perturb: Annotated[
+        bool, typer.Option(help="Apply a random Monte Carlo perturbation (Table 6.1)")
+    ] = False,
+    duration: Annotated[
+        float | None, typer.Option(help="Flight length, s (default: to burnout)")
+    ] = None,
+    sample_rate: Annotated[float, typer.Option(help="Log rate, Hz")] = 1000.0,
+    noise: Annotated[bool, typer.Option(help="Add sensor noise")] = True,
+    plot: Annotated[bool, typer.Option(help="Write the trajectory PNG")] = True,
+):
+    """Simulate a Pegasus first-stage flight and write its flight log."""
+    from ._log import write_log
+    from ._plotting import plot_trajectory
+
+    try:
+        log = _simulate_to_log(
+            seed, input, hidden or [], perturb, duration, sample_rate, noise
+        )
+    except ValueError as e:
+        _fail(str(e))
+    path = write_log(out, log)
+    typer.echo(f"wrote {path} and {path.with_suffix('.json')}")
+    if plot:
+        plot_trajectory(log, path.with_suffix(".png"))
+        typer.echo(f"wrote {path.with_suffix('.png')}")
+    typer.echo(_summary(log))
+
+
+def _summary(log) -> str:
+    import numpy as np
+
+    i = int(np.argmax(log["qbar"]))
+    return (
+        f"{len(log)} samples at {log.sample_rate:g} Hz over {log.t[-1] - log.t[0]:.1f} s;"
+        f" final: altitude {log['h'][-1] / 1e3:.1f} km, Mach {log['mach'][-1]:.2f};"
+        f" peak dynamic pressure {log['qbar'][i] / 1e3:.1f} kPa at Mach "
+        f"{log['mach'][i]:.2f}; alpha {np.rad2deg(log['alpha'].min()):.1f} to "
+        f"{np.rad2deg(log['alpha'].max()):.1f} deg"
+    )
+
+
+@app.command()
+def check(
+    log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    resample: Annotated[
+        bool, typer.Option(help="Resample a non-uniformly sampled log")
+    ] = False,
+):
+    """Validate a flight log and summarise it."""
+    from ._log import read_log
+
+    try:
+        flight = read_log(log, resample=resample)
+    except LogError as e:
+        _fail(str(e))
+    typer.echo(f"{log}: ok; {_summary(flight)}")
+
+
+@app.command()
+def effects(
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON")] = False,
+):
+    """List the library of physical effects (canonical names and parameters)."""
+    from ._effects import EFFECTS
+
+    rows = [
+        {
+            "effect": name if name != "sensor_bias" else "sensor_bias:<channel>",
+            "parameter": cls.parameter,
+            "description": cls.description,
+        }
+        for name, cls in EFFECTS.items()
+    ]
+    if as_json:
+        typer.echo(json.dumps(rows))
+        return
+    for r in rows:
+        typer.echo(f"{r['effect']:24s} {r['parameter']:7s} {r['description']}")
+
+
+@app.command()
+def demo(
+    out: Annotated[pathlib.Path, typer.Option(help="Folder for the results")] = (
+        pathlib.Path("demo")
+    ),
+):
+    """Simulate the reference flight and write its log and trajectory plot."""
+    from ._log import write_log
+    from ._plotting import plot_trajectory
+
+    out.mkdir(parents=True, exist_ok=True)
+    typer.echo("simulating the reference Pegasus flight (drop to burnout, 1 kHz)...")
+    log = _simulate_to_log(1, "pulse", [], False, None, 1000.0, True)
+    path = write_log(out / "flight.csv", log)
+    plot_trajectory(log, out / "trajectory.png")
+    typer.echo(f"wrote {path}, {path.with_suffix('.json')} and {out / 'trajectory.png'}")
+    typer.echo(_summary(log))
+
+
+def main() -> None:
+    """Entry point of the `diffpegasus` script."""
+    try:
+        app()
+    except LogError as e:
+        typer.echo(f"error: {e}", err=True)
+        sys.exit(2)

@@ -1,0 +1,312 @@
+"""Flight logs: the one CSV + JSON-sidecar format everything reads and writes.
+
+A log is a CSV file with a header row of channel names and one row per sample (SI
+units, angles in radians), plus an optional JSON sidecar with the same stem holding
+metadata. Reading validates the file and reports the first problem as one
+[`LogError`][] line naming the file, column, row and value. Rows are numbered from 1
+for the first data row (the header is line 1 of the file, so row r is line r + 1).
+"""
+
+import csv
+import dataclasses
+import json
+import math
+import os
+import pathlib
+import tempfile
+import warnings
+from typing import Any
+
+import numpy as np
+
+from ._aerodynamics import DERIVATIVE_NAMES
+
+
+REQUIRED_CHANNELS = (
+    "t", "de", "ax", "az", "q", "qdot", "alpha", "V", "theta", "h", "mach", "qbar",
+    "thrust", "mass", "Iyy", "Iyy_dot", "xcg", "xcp",
+)
+TRUTH_CHANNELS = tuple(f"true_{n}" for n in DERIVATIVE_NAMES)
+PEGASUS_METADATA = {"S_ref": 13.5, "c_ref": 2.48, "vehicle": "pegasus"}
+# Largest magnitude (rad) each angle channel can plausibly have; beyond it the column
+# is almost surely in degrees.
+_ANGLE_LIMITS = {"alpha": 1.2, "de": 0.8, "theta": math.pi}
+_POSITIVE = ("V", "mass", "Iyy")
+
+
+class LogError(ValueError):
+    """A flight log that cannot be used, with a one-line explanation."""
+
+
+@dataclasses.dataclass(frozen=True)
+class FlightLog:
+    """A flight log in memory.
+
+    **Fields:**
+
+    - `channels`: name to 1-D float64 array, all of one length (SI units, radians).
+    - `metadata`: the sidecar's content (`S_ref`, `c_ref`, `vehicle`,
+      `sample_rate_hz`, and whatever the writer recorded).
+    - `path`: where it was read from, if anywhere.
+    """
+
+    channels: dict[str, np.ndarray]
+    metadata: dict[str, Any] = dataclasses.field(default_factory=dict)
+    path: pathlib.Path | None = None
+
+    @property
+    def t(self) -> np.ndarray:
+        """Sample times, s."""
+        return self.channels["t"]
+
+    @property
+    def sample_rate(self) -> float:
+        """Samples per second, Hz."""
+        return float(self.metadata.get("sample_rate_hz", 1.0 / np.mean(np.diff(self.t))))
+
+    @property
+    def has_truth(self) -> bool:
+        """Whether the simulated true derivatives are present."""
+        return all(c in self.channels for c in TRUTH_CHANNELS)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.channels[name]
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+def _atomic_write(path: pathlib.Path, write) -> None:
+    """Write through a temporary file and rename, so a crash leaves no half file."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", newline="") as f:
+            write(f)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def sidecar_path(path: str | os.PathLike) -> pathlib.Path:
+    """The JSON sidecar next to a log CSV."""
+    return pathlib.Path(path).with_suffix(".json")
+
+
+def write_log(path: str | os.PathLike, log: FlightLog) -> pathlib.Path:
+    """Write `log` as CSV plus JSON sidecar; returns the CSV path.
+
+    Required channels come first in the standard order, then the rest sorted. Values
+    are written with 17 significant digits, so a read returns the same float64 values.
+    """
+    path = pathlib.Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    names = [c for c in REQUIRED_CHANNELS if c in log.channels]
+    names += sorted(c for c in log.channels if c not in names)
+    data = np.column_stack([np.asarray(log.channels[c], float) for c in names])
+
+    def write_csv(f):
+        f.write(",".join(names) + "\n")
+        np.savetxt(f, data, delimiter=",", fmt="%.17g")
+
+    _atomic_write(path, write_csv)
+    metadata = {**PEGASUS_METADATA, **log.metadata}
+    metadata.setdefault("sample_rate_hz", float(1.0 / np.mean(np.diff(log.t))))
+    _atomic_write(
+        sidecar_path(path), lambda f: json.dump(_jsonable(metadata), f, indent=2)
+    )
+    return path
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.generic | np.ndarray):
+        return x.tolist()
+    return x
+
+
+def _read_rows(path: pathlib.Path) -> tuple[list[str], np.ndarray]:
+    try:
+        with open(path) as f:
+            header = [h.strip() for h in f.readline().split(",")]
+            data = np.loadtxt(f, delimiter=",", ndmin=2)
+        if data.shape[1] == len(header) and len(set(header)) == len(header):
+            return header, data
+    except (ValueError, OSError, UnicodeDecodeError):
+        pass  # the careful reader below finds and names the problem
+    return _read_rows_carefully(path)
+
+
+def _read_rows_carefully(path: pathlib.Path) -> tuple[list[str], np.ndarray]:
+    try:
+        with open(path, newline="") as f:
+            rows = list(csv.reader(f))
+    except OSError as e:
+        raise LogError(f"{path}: cannot read the file ({e.strerror})") from None
+    except UnicodeDecodeError:
+        raise LogError(f"{path}: not a text CSV file") from None
+    rows = [r for r in rows if r and any(cell.strip() for cell in r)]
+    if not rows:
+        raise LogError(f"{path}: the file is empty (expected a header row)")
+    header = [h.strip() for h in rows[0]]
+    for dup in {h for h in header if header.count(h) > 1}:
+        raise LogError(f"{path}: column {dup!r} appears more than once in the header")
+    data = np.empty((len(rows) - 1, len(header)))
+    for i, row in enumerate(rows[1:], start=1):
+        if len(row) != len(header):
+            raise LogError(
+                f"{path}: row {i} has {len(row)} values, the header has {len(header)}"
+            )
+        for j, cell in enumerate(row):
+            try:
+                data[i - 1, j] = float(cell)
+            except ValueError:
+                raise LogError(
+                    f"{path}: column {header[j]!r}, row {i}: {cell.strip()!r} is not "
+                    "a number"
+                ) from None
+    return header, data
+
+
+def _read_sidecar(path: pathlib.Path) -> dict[str, Any]:
+    side = sidecar_path(path)
+    if not side.exists():
+        return dict(PEGASUS_METADATA)
+    try:
+        meta = json.loads(side.read_text())
+    except json.JSONDecodeError as e:
+        raise LogError(f"{side}: not valid JSON (line {e.lineno}: {e.msg})") from None
+    if not isinstance(meta, dict):
+        raise LogError(f"{side}: expected a JSON object of metadata")
+    for key in ("S_ref", "c_ref"):
+        value = meta.get(key, PEGASUS_METADATA[key])
+        if not isinstance(value, int | float) or not value > 0:
+            raise LogError(f"{side}: {key} must be a positive number, got {value!r}")
+    return {**PEGASUS_METADATA, **meta}
+
+
+def validate(
+    channels: dict[str, np.ndarray],
+    name: str = "log",
+    *,
+    required: tuple[str, ...] = REQUIRED_CHANNELS,
+    min_samples: int = 2,
+    resample: bool = False,
+) -> dict[str, np.ndarray]:
+    """Check a log's channels; returns them (resampled if asked and needed).
+
+    Raises [`LogError`][] for a missing channel, a NaN or infinite value, time not
+    strictly increasing, non-uniform sampling (unless `resample`, which interpolates
+    onto a uniform grid with a warning), an angle column that looks like degrees, a
+    non-positive airspeed, mass or inertia, or fewer than `min_samples` samples.
+    """
+    missing = [c for c in required if c not in channels]
+    if missing:
+        raise LogError(
+            f"{name}: missing channel(s) {', '.join(map(repr, missing))}; a flight log "
+            f"needs {', '.join(required)}"
+        )
+    n = len(channels["t"])
+    for col, values in channels.items():
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            raise LogError(
+                f"{name}: column {col!r}, row {bad[0] + 1}: value {values[bad[0]]} "
+                "(NaN and infinity are not allowed)"
+            )
+    if n < max(min_samples, 2):
+        raise LogError(
+            f"{name}: only {n} samples; at least {max(min_samples, 2)} are needed"
+        )
+    t = channels["t"]
+    dt = np.diff(t)
+    bad = np.flatnonzero(dt <= 0)
+    if bad.size:
+        r = bad[0] + 2
+        raise LogError(
+            f"{name}: column 't', row {r}: time {t[r - 1]!r} is not after "
+            f"{t[r - 2]!r} at row {r - 1} (time must increase strictly)"
+        )
+    step = (t[-1] - t[0]) / (n - 1)
+    off = np.flatnonzero(np.abs(dt - step) > 1e-6 * max(step, 1e-12) + 1e-9)
+    if off.size:
+        r = off[0] + 2
+        if not resample:
+            raise LogError(
+                f"{name}: column 't', row {r}: step {dt[off[0]]:.6g} s differs from "
+                f"the mean step {step:.6g} s (non-uniform sampling; resample the log "
+                "or read it with resample=True / --resample)"
+            )
+        warnings.warn(
+            f"{name}: non-uniform sampling (first at row {r}); resampled onto a "
+            f"uniform {step:.6g} s grid by linear interpolation",
+            stacklevel=2,
+        )
+        grid = t[0] + step * np.arange(n)
+        channels = {c: np.interp(grid, t, v) for c, v in channels.items()}
+    for col, limit in _ANGLE_LIMITS.items():
+        if col in channels:
+            v = channels[col]
+            i = int(np.argmax(np.abs(v)))
+            if abs(v[i]) > limit:
+                raise LogError(
+                    f"{name}: column {col!r}, row {i + 1}: value {v[i]:.6g} is larger "
+                    f"than {limit:g} rad; the column looks like degrees (flight logs "
+                    "store angles in radians)"
+                )
+    for col in _POSITIVE:
+        if col in channels:
+            bad = np.flatnonzero(channels[col] <= 0)
+            if bad.size:
+                raise LogError(
+                    f"{name}: column {col!r}, row {bad[0] + 1}: value "
+                    f"{channels[col][bad[0]]} must be positive"
+                )
+    return channels
+
+
+def read_log(
+    path: str | os.PathLike,
+    *,
+    required: tuple[str, ...] = REQUIRED_CHANNELS,
+    min_samples: int = 2,
+    resample: bool = False,
+) -> FlightLog:
+    """Read and validate a flight log (CSV plus optional JSON sidecar).
+
+    **Arguments:**
+
+    - `path`: the CSV file.
+    - `required`: channels that must be present (default: all of SPEC section 5
+      except the `true_*` truth columns).
+    - `min_samples`: fewest samples accepted (e.g. one estimation window).
+    - `resample`: interpolate a non-uniformly sampled log onto a uniform grid (with a
+      warning) instead of rejecting it.
+
+    **Returns:** a [`FlightLog`][]. Without a sidecar the Pegasus defaults apply.
+
+    **Raises:** [`LogError`][] with one line naming the file, column, row and value.
+    """
+    path = pathlib.Path(path)
+    if not path.exists():
+        raise LogError(f"{path}: no such file")
+    header, data = _read_rows(path)
+    channels = {h: data[:, j].copy() for j, h in enumerate(header)}
+    channels = validate(
+        channels, str(path), required=required, min_samples=min_samples,
+        resample=resample,
+    )
+    metadata = _read_sidecar(path)
+    rate = 1.0 / np.mean(np.diff(channels["t"]))
+    declared = metadata.get("sample_rate_hz")
+    if declared is not None and abs(declared - rate) > 1e-3 * rate:
+        raise LogError(
+            f"{sidecar_path(path)}: sample_rate_hz {declared} disagrees with the time "
+            f"column of {path} ({rate:.6g} Hz)"
+        )
+    metadata["sample_rate_hz"] = float(rate)
+    return FlightLog(channels=channels, metadata=metadata, path=path)

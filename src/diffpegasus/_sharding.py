@@ -1,0 +1,38 @@
+"""Spread a batch over the available devices.
+
+On CPU, JAX sees one device unless told otherwise; to use every core, set
+`XLA_FLAGS=--xla_force_host_platform_device_count=N` before JAX is imported (the
+benchmark scripts do). On several GPUs, or several hosts after
+`jax.distributed.initialize()`, `jax.devices()` lists them all and the same code
+shards over them.
+"""
+
+import jax
+import numpy as np
+from jax.sharding import AxisType, NamedSharding, PartitionSpec
+
+
+def batch_sharding(batch_size: int) -> NamedSharding | None:
+    """A sharding that splits a leading batch axis over all devices, or `None` when
+    there is one device or the batch does not divide evenly."""
+    devices = jax.devices()
+    n = len(devices)
+    if n == 1 or batch_size % n:
+        return None
+    mesh = jax.sharding.Mesh(np.asarray(devices), ("batch",), axis_types=(AxisType.Auto,))
+    return NamedSharding(mesh, PartitionSpec("batch"))
+
+
+def shard_batch(tree):
+    """Place every array leaf of `tree` (leading axis = batch) across the devices.
+
+    The jitted, vmapped computation that consumes it is then partitioned by XLA, one
+    slice of the batch per device. A no-op on one device.
+    """
+    leaves = [x for x in jax.tree_util.tree_leaves(tree) if hasattr(x, "shape")]
+    if not leaves:
+        return tree
+    sharding = batch_sharding(leaves[0].shape[0])
+    if sharding is None:
+        return tree
+    return jax.device_put(tree, sharding)
