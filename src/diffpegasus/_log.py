@@ -131,7 +131,8 @@ def _jsonable(x):
 
 def _read_rows(path: pathlib.Path) -> tuple[list[str], np.ndarray]:
     try:
-        with open(path) as f:
+        with open(path) as f, warnings.catch_warnings():
+            warnings.simplefilter("ignore")
             header = [h.strip() for h in f.readline().split(",")]
             data = np.loadtxt(f, delimiter=",", ndmin=2)
         if data.shape[1] == len(header) and len(set(header)) == len(header):
@@ -231,16 +232,17 @@ def validate(
             f"{name}: column 't', row {r}: time {t[r - 1]!r} is not after "
             f"{t[r - 2]!r} at row {r - 1} (time must increase strictly)"
         )
-    step = (t[-1] - t[0]) / (n - 1)
-    off = np.flatnonzero(np.abs(dt - step) > 1e-6 * max(step, 1e-12) + 1e-9)
+    typical = float(np.median(dt))
+    off = np.flatnonzero(np.abs(dt - typical) > 1e-6 * typical + 1e-9)
     if off.size:
         r = off[0] + 2
         if not resample:
             raise LogError(
                 f"{name}: column 't', row {r}: step {dt[off[0]]:.6g} s differs from "
-                f"the mean step {step:.6g} s (non-uniform sampling; resample the log "
-                "or read it with resample=True / --resample)"
+                f"the typical step {typical:.6g} s (non-uniform sampling; resample the "
+                "log or read it with resample=True / --resample)"
             )
+        step = (t[-1] - t[0]) / (n - 1)
         warnings.warn(
             f"{name}: non-uniform sampling (first at row {r}); resampled onto a "
             f"uniform {step:.6g} s grid by linear interpolation",
