@@ -30,6 +30,17 @@ from ._effects import (  # noqa: E402
     make_effect as make_effect,
     parse_assignment as parse_assignment,
 )
+from ._estimators import (  # noqa: E402
+    Estimates as Estimates,
+    MeasuredCoefficients as MeasuredCoefficients,
+    WindowLayout as WindowLayout,
+    estimate_lse as estimate_lse,
+    lse_arrays as lse_arrays,
+    lse_batch as lse_batch,
+    reconstruct_coefficients as reconstruct_coefficients,
+    window_truth as window_truth,
+    windowed_least_squares as windowed_least_squares,
+)
 from ._gravity import gravity as gravity  # noqa: E402
 from ._inputs import (  # noqa: E402
     AbstractInput as AbstractInput,
@@ -42,6 +53,7 @@ from ._inputs import (  # noqa: E402
     Sine as Sine,
     Step as Step,
     Sum as Sum,
+    excitation as excitation,
     doublet as doublet,
     schroeder_multisine as schroeder_multisine,
     three_two_one_one as three_two_one_one,

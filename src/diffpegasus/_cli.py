@@ -190,6 +190,69 @@ def demo(
     typer.echo(_summary(log))
 
 
+estimate_app = typer.Typer(
+    help="Estimate the six derivatives per window from a flight log.",
+    no_args_is_help=True,
+)
+app.add_typer(estimate_app, name="estimate")
+
+
+def _emit_estimates(est, out: pathlib.Path | None, as_json: bool, units: str) -> None:
+    from ._plotting import plot_estimates
+
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        est.write_csv(out / f"{est.method}_estimates.csv", units)
+        plot_estimates(est, out / f"{est.method}_estimates.png", units)
+        typer.echo(f"wrote {out / f'{est.method}_estimates.csv'} and .png", err=True)
+    if as_json:
+        typer.echo(json.dumps(est.to_dict(units)))
+        return
+    d = est.to_dict(units)
+    typer.echo(f"{len(d['window_start'])} windows; estimates in {d['units']}:")
+    names = list(d["estimates"])
+    typer.echo("  window      " + "".join(f"{n:>12s}" for n in names))
+    for i, t0 in enumerate(d["window_start"]):
+        vals = [d["estimates"][n][i] for n in names]
+        typer.echo(
+            f"  {t0:7.2f} s   "
+            + "".join(f"{'-':>12s}" if v is None else f"{v:12.5g}" for v in vals)
+        )
+    if est.truth is not None:
+        mse = est.mse(units)
+        typer.echo("MSE vs window-mean truth (valid windows), (" + d["units"] + ")^2:")
+        typer.echo("  " + "  ".join(f"{k} {v:.3g}" for k, v in mse.items()))
+
+
+@estimate_app.command("lse")
+def estimate_lse_command(
+    log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    window: Annotated[float, typer.Option(help="Window length, s")] = 0.5,
+    intercept: Annotated[
+        bool, typer.Option(help="Also estimate CL0, CD0, CM0 per window")
+    ] = False,
+    tol: Annotated[float, typer.Option(help="Rank tolerance for A and A^T A")] = 1e-2,
+    units: Annotated[str, typer.Option(help="deg or rad")] = "deg",
+    out: Annotated[
+        pathlib.Path | None, typer.Option(help="Folder for CSV and PNG")
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object")] = False,
+    resample: Annotated[bool, typer.Option(help="Resample a non-uniform log")] = False,
+):
+    """Windowed equation-error least squares (thesis chapter 3)."""
+    from ._estimators import estimate_lse
+    from ._log import read_log
+
+    if units not in ("deg", "rad"):
+        _fail(f"--units must be deg or rad, got {units!r}")
+    try:
+        flight = read_log(log, resample=resample)
+        est = estimate_lse(flight, window=window, intercept=intercept, tol=tol)
+    except (LogError, ValueError) as e:
+        _fail(str(e))
+    _emit_estimates(est, out, as_json, units)
+
+
 def main() -> None:
     """Entry point of the `diffpegasus` script."""
     try:

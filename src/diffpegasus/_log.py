@@ -65,6 +65,16 @@ class FlightLog:
         return float(self.metadata.get("sample_rate_hz", 1.0 / np.mean(np.diff(self.t))))
 
     @property
+    def s_ref(self) -> float:
+        """Reference area, m^2 (sidecar `S_ref`, default Pegasus)."""
+        return float(self.metadata.get("S_ref", PEGASUS_METADATA["S_ref"]))
+
+    @property
+    def c_ref(self) -> float:
+        """Moment reference length, m (sidecar `c_ref`, default Pegasus)."""
+        return float(self.metadata.get("c_ref", PEGASUS_METADATA["c_ref"]))
+
+    @property
     def has_truth(self) -> bool:
         """Whether the simulated true derivatives are present."""
         return all(c in self.channels for c in TRUTH_CHANNELS)

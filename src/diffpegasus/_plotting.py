@@ -41,3 +41,33 @@ def plot_trajectory(log: FlightLog, path: str | os.PathLike) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def plot_estimates(estimates, path: str | os.PathLike, units: str = "deg") -> None:
+    """The six derivatives per window against the window-mean truth (if known), with
+    +/- 2 standard-error bands and windows without an estimate of their own marked."""
+    from ._aerodynamics import DERIVATIVE_NAMES
+
+    scale = np.pi / 180 if units == "deg" else 1.0
+    mid = 0.5 * (np.asarray(estimates.window_start) + np.asarray(estimates.window_end))
+    values = np.asarray(estimates.values) * scale
+    valid = np.asarray(estimates.valid)
+    fig, axes = plt.subplots(3, 2, figsize=(12, 9), sharex=True)
+    for j, (ax, name) in enumerate(zip(axes.flat, DERIVATIVE_NAMES)):
+        if estimates.truth is not None:
+            ax.plot(mid, np.asarray(estimates.truth)[:, j] * scale, "k-", lw=1.2, label="truth (window mean)")
+        ax.plot(mid, values[:, j], ".-", ms=3, lw=0.6, label=f"{estimates.method.upper()} estimate")
+        if estimates.stderr is not None:
+            s = np.asarray(estimates.stderr)[:, j] * scale
+            ax.fill_between(mid, values[:, j] - 2 * s, values[:, j] + 2 * s, alpha=0.25, lw=0, label="±2 std. err.")
+        if (~valid).any():
+            ax.plot(mid[~valid], values[~valid, j], "rx", ms=4, label="held / no estimate")
+        ax.set_ylabel(f"{name}, 1/{units}")
+        ax.grid(alpha=0.3)
+    axes.flat[0].legend(loc="best", fontsize=8)
+    for ax in axes[-1]:
+        ax.set_xlabel("time since drop, s")
+    fig.suptitle(f"{estimates.method.upper()} derivative estimates per window")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

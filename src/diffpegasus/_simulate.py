@@ -17,7 +17,7 @@ from ._custom_types import ScalarLike
 from ._dynamics import FlightModel, evaluate
 from ._effects import AbstractEffect
 from ._inputs import AbstractInput, Schedule, Sum, excitation
-from ._log import FlightLog
+from ._log import PEGASUS_METADATA, FlightLog
 from ._sensors import SensorModel
 from ._vehicle import Vehicle
 
@@ -235,6 +235,9 @@ def flight_to_log(flight: Flight, metadata: dict | None = None) -> FlightLog:
     channels.update({k: np.asarray(v) for k, v in flight.channels.items()})
     if channels["t"].ndim != 1:
         raise ValueError("flight_to_log takes one flight; index a batch first")
-    meta = {"sample_rate_hz": float(1.0 / (channels["t"][1] - channels["t"][0]))}
+    meta = {
+        **PEGASUS_METADATA,
+        "sample_rate_hz": float(1.0 / (channels["t"][1] - channels["t"][0])),
+    }
     meta.update(metadata or {})
     return FlightLog(channels=channels, metadata=meta)
