@@ -28,7 +28,7 @@ def _solve_window(a, y, mask, tol, column_scale):
     aw = a * mask[:, None]
     yw = y * mask[:, None]
     p = a.shape[1]
-    scaled = aw * column_scale
+    scaled = aw * column_scale[None, :]
     rank_a = jnp.sum(jnp.linalg.svd(scaled, compute_uv=False) > tol)
     rank_ata = jnp.sum(jnp.linalg.svd(scaled.T @ scaled, compute_uv=False) > tol)
     ata = aw.T @ aw
