@@ -31,7 +31,9 @@ def numpy_lse(c, per, s_ref=13.5, c_ref=2.48, tol=1e-2):
     fz = c["mass"] * c["az"]
     cx = (c["mass"] * c["ax"] - c["thrust"]) / qs
     cz = fz / qs
-    cm = (c["Iyy"] * c["qdot"] + c["Iyy_dot"] * c["q"] - (c["xcp"] - c["xcg"]) * fz) / (qs * c_ref)
+    cm = (c["Iyy"] * c["qdot"] + c["Iyy_dot"] * c["q"] - (c["xcp"] - c["xcg"]) * fz) / (
+        qs * c_ref
+    )
     sa, ca = np.sin(c["alpha"]), np.cos(c["alpha"])
     cl, cd = cx * sa - cz * ca, -cx * ca - cz * sa
     n = len(cl) // per
@@ -41,8 +43,13 @@ def numpy_lse(c, per, s_ref=13.5, c_ref=2.48, tol=1e-2):
         s = slice(k * per, (k + 1) * per)
         a = np.column_stack([c["alpha"][s], c["de"][s]])
         ad = np.rad2deg(a)
-        if np.linalg.matrix_rank(ad, tol) == 2 and np.linalg.matrix_rank(ad.T @ ad, tol) == 2:
-            theta = np.linalg.lstsq(a, np.column_stack([cl[s], cd[s], cm[s]]), rcond=None)[0]
+        if (
+            np.linalg.matrix_rank(ad, tol) == 2
+            and np.linalg.matrix_rank(ad.T @ ad, tol) == 2
+        ):
+            theta = np.linalg.lstsq(
+                a, np.column_stack([cl[s], cd[s], cm[s]]), rcond=None
+            )[0]
             prev = theta.T.reshape(6)
         out[k] = prev
     return out
@@ -73,7 +80,10 @@ def main():
     m = min(args.loop_subset, n)
     host = {k: np.asarray(v[:m]) for k, v in channels.items()}
     t0 = time.perf_counter()
-    loop = [numpy_lse({k: v[i] for k, v in host.items()}, layout.per_window) for i in range(m)]
+    loop = [
+        numpy_lse({k: v[i] for k, v in host.items()}, layout.per_window)
+        for i in range(m)
+    ]
     loop_per_flight = (time.perf_counter() - t0) / m
     full = layout.count if layout.last == layout.per_window else layout.count - 1
     agree = max(

@@ -49,7 +49,7 @@ def main():
 
     m = min(args.loop_subset, n)
     singles = [
-        jax.tree_util.tree_map(lambda x: x[i], perturbations) for i in range(m)
+        jax.tree_util.tree_map(lambda x, i=i: x[i], perturbations) for i in range(m)
     ]
     _, loop_first = timed(lambda: dp.simulate(singles[0].apply(config), keys[0]))
     _, loop_run = timed(

@@ -45,15 +45,23 @@ def study(model, elevator, relaxed=False):
     y = layout.split(jnp.stack([cz, cm], -1))
     deg = 180 / np.pi
     theta, _, rank_a, rank_ata, ok = dp.windowed_least_squares(
-        a, y, layout.mask(), column_scale=jnp.array([1.0, deg, deg]),
+        a,
+        y,
+        layout.mask(),
+        column_scale=jnp.array([1.0, deg, deg]),
         require_full_normal_rank=not relaxed,
     )
     est = np.stack([theta[:, 1, 0], theta[:, 2, 0], theta[:, 1, 1], theta[:, 2, 1]], -1)
-    truth = np.stack([np.asarray(layout.window_mean(d[f"true_{k}"])) for k in NAMES], -1)
+    truth = np.stack(
+        [np.asarray(layout.window_mean(d[f"true_{k}"])) for k in NAMES], -1
+    )
     start, end = layout.times(0.0)
     return {
-        "t": end, "estimates": est / deg, "truth": truth / deg,  # per degree
-        "rank_A": np.asarray(rank_a), "rank_ATA": np.asarray(rank_ata),
+        "t": end,
+        "estimates": est / deg,
+        "truth": truth / deg,  # per degree
+        "rank_A": np.asarray(rank_a),
+        "rank_ATA": np.asarray(rank_ata),
         "ok": np.asarray(ok),
     }
 
@@ -67,7 +75,9 @@ def summarise(r):
         "windows_full_rank_ATA": int(np.sum(r["rank_ATA"] == 3)),
         "windows_estimated": int(ok.sum()),
         "identifiable": bool(ok.any()),
-        "max_relative_error_estimated_windows": float(rel[ok].max()) if ok.any() else None,
+        "max_relative_error_estimated_windows": float(rel[ok].max())
+        if ok.any()
+        else None,
     }
 
 
@@ -94,8 +104,15 @@ def plot_estimates(results, names, path, title):
     for j, ax in enumerate(axes.flat):
         for label, r in results.items():
             (line,) = ax.plot(r["t"], r["truth"][:, j], "-", lw=1.5, alpha=0.5)
-            ax.plot(r["t"], r["estimates"][:, j], "o--", ms=3, lw=0.8, color=line.get_color(),
-                    label=f"{label}: estimate (solid: truth)")
+            ax.plot(
+                r["t"],
+                r["estimates"][:, j],
+                "o--",
+                ms=3,
+                lw=0.8,
+                color=line.get_color(),
+                label=f"{label}: estimate (solid: truth)",
+            )
         ax.set_ylabel(f"{names[j]}, 1/deg")
         ax.grid(alpha=0.3)
     axes.flat[0].legend(fontsize=8)
@@ -109,7 +126,9 @@ def plot_estimates(results, names, path, title):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path("results/input_design"))
+    parser.add_argument(
+        "--out", type=pathlib.Path, default=pathlib.Path("results/input_design")
+    )
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     constant = ShortPeriodModel(mach_start=2.0, mach_end=2.0)
@@ -119,32 +138,59 @@ def main():
         for mach, model in (("constant", constant), ("varying", varying))
         for name, inp in INPUTS.items()
     }
-    results["varying/pulse (relaxed rule)"] = study(varying, INPUTS["pulse"], relaxed=True)
-    plot_ranks({k.split("/")[1]: v for k, v in results.items() if k.startswith("varying/") and "relaxed" not in k},
-               args.out / "fig3_1_ranks.png")
-    sine = {"constant Mach": results["constant/sine"], "varying Mach": results["varying/sine"]}
-    plot_estimates(sine, NAMES, args.out / "fig3_2_3_sine.png",
-                   "Sine input, constant and varying Mach (thesis Figs 3.2-3.3)")
+    results["varying/pulse (relaxed rule)"] = study(
+        varying, INPUTS["pulse"], relaxed=True
+    )
+    plot_ranks(
+        {
+            k.split("/")[1]: v
+            for k, v in results.items()
+            if k.startswith("varying/") and "relaxed" not in k
+        },
+        args.out / "fig3_1_ranks.png",
+    )
+    sine = {
+        "constant Mach": results["constant/sine"],
+        "varying Mach": results["varying/sine"],
+    }
+    plot_estimates(
+        sine,
+        NAMES,
+        args.out / "fig3_2_3_sine.png",
+        "Sine input, constant and varying Mach (thesis Figs 3.2-3.3)",
+    )
     others = {n: results[f"varying/{n}"] for n in ("ramp", "step", "pulse")}
-    plot_estimates(others, NAMES, args.out / "fig3_4_5_ramp_step_pulse.png",
-                   "Ramp, step, pulse, varying Mach (thesis Figs 3.4-3.5; NaN = never estimated)")
-    plot_estimates({"pulse, rank(A) = 3 only": results["varying/pulse (relaxed rule)"]}, NAMES,
-                   args.out / "fig3_6_7_pulse_relaxed.png",
-                   "Pulse with the relaxed rank rule (thesis Figs 3.6-3.7)")
+    plot_estimates(
+        others,
+        NAMES,
+        args.out / "fig3_4_5_ramp_step_pulse.png",
+        "Ramp, step, pulse, varying Mach (thesis Figs 3.4-3.5; NaN = never estimated)",
+    )
+    plot_estimates(
+        {"pulse, rank(A) = 3 only": results["varying/pulse (relaxed rule)"]},
+        NAMES,
+        args.out / "fig3_6_7_pulse_relaxed.png",
+        "Pulse with the relaxed rank rule (thesis Figs 3.6-3.7)",
+    )
     summary = {k: summarise(v) for k, v in results.items()}
     summary["conclusion"] = {
-        "identifiable": sorted({k.split("/")[1] for k, v in summary.items() if v["identifiable"]}),
-        "rank_deficient": sorted({k.split("/")[1] for k, v in summary.items()
-                                  if not v["identifiable"]}),
+        "identifiable": sorted(
+            {k.split("/")[1] for k, v in summary.items() if v["identifiable"]}
+        ),
+        "rank_deficient": sorted(
+            {k.split("/")[1] for k, v in summary.items() if not v["identifiable"]}
+        ),
         "thesis": "sine and pulse identifiable; ramp and step rank-deficient",
     }
     (args.out / "summary.json").write_text(json.dumps(summary, indent=2))
     print(json.dumps(summary["conclusion"]))
     for k, v in summary.items():
         if k != "conclusion":
-            print(f"{k:32s} A full {v['windows_full_rank_A']:2d}/50, A^TA full "
-                  f"{v['windows_full_rank_ATA']:2d}/50, estimated {v['windows_estimated']:2d}, "
-                  f"max rel. error {v['max_relative_error_estimated_windows']}")
+            print(
+                f"{k:32s} A full {v['windows_full_rank_A']:2d}/50, A^TA full "
+                f"{v['windows_full_rank_ATA']:2d}/50, estimated {v['windows_estimated']:2d}, "
+                f"max rel. error {v['max_relative_error_estimated_windows']}"
+            )
 
 
 if __name__ == "__main__":

@@ -44,7 +44,9 @@ def wing_slope(mach):
     beta2 = 1 - m_sub**2
     a = ASPECT_RATIO
     datcom = (
-        2 * np.pi * a
+        2
+        * np.pi
+        * a
         / (2 + np.sqrt(4 + a**2 * beta2 * (1 + np.tan(SWEEP_HALF_CHORD) ** 2 / beta2)))
     )
     supersonic = 4 / np.sqrt(np.maximum(mach**2 - 1, 1e-9))
@@ -81,7 +83,9 @@ def main():
             rows.append([m, a, *derivatives(np.deg2rad(a), m)])
     out = pathlib.Path(__file__).parents[1] / "src/diffpegasus/data/pegasus_aero.csv"
     header = "mach,alpha_deg,CLa,CLde,CDa,CDde,CMa,CMde"
-    np.savetxt(out, np.array(rows), delimiter=",", header=header, comments="", fmt="%.8g")
+    np.savetxt(
+        out, np.array(rows), delimiter=",", header=header, comments="", fmt="%.8g"
+    )
     print(f"wrote {out} ({len(rows)} rows)")
 
 

@@ -10,7 +10,9 @@ import diffpegasus as dp
 
 def short_config(**kwargs) -> dp.PegasusConfig:
     """A 20 s flight logged at 100 Hz: long enough for ignition and the pull-up."""
-    defaults = dict(t_final=20.0, sample_rate=100.0, sensors=dp.SensorModel.noise_free())
+    defaults = dict(
+        t_final=20.0, sample_rate=100.0, sensors=dp.SensorModel.noise_free()
+    )
     return dp.PegasusConfig(**{**defaults, **kwargs})
 
 

@@ -19,9 +19,20 @@ def test_simulate_writes_log_sidecar_and_plot(tmp_path):
     result = runner.invoke(
         app,
         [
-            "simulate", "--seed", "2", "--out", str(out), "--duration", "6",
-            "--sample-rate", "100", "--hidden", "sensor_bias:az=0.25",
-            "--hidden", "pitch_damping=-300", "--perturb",
+            "simulate",
+            "--seed",
+            "2",
+            "--out",
+            str(out),
+            "--duration",
+            "6",
+            "--sample-rate",
+            "100",
+            "--hidden",
+            "sensor_bias:az=0.25",
+            "--hidden",
+            "pitch_damping=-300",
+            "--perturb",
         ],
     )
     assert result.exit_code == 0, result.output
@@ -30,7 +41,14 @@ def test_simulate_writes_log_sidecar_and_plot(tmp_path):
     meta = json.loads(out.with_suffix(".json").read_text())
     assert meta["seed"] == 2
     assert meta["hidden_effects"] == {"sensor_bias:az": 0.25, "pitch_damping": -300.0}
-    assert set(meta["perturbation"]) == {"lift", "drag", "moment", "mass", "thrust", "cg_shift"}
+    assert set(meta["perturbation"]) == {
+        "lift",
+        "drag",
+        "moment",
+        "mass",
+        "thrust",
+        "cg_shift",
+    }
     assert meta["noise_sigmas"]["az"] == 0.05
     png = out.with_suffix(".png")
     assert png.exists() and png.read_bytes()[:4] == b"\x89PNG"
@@ -53,7 +71,11 @@ def test_check_reports_bad_log_in_one_line(tmp_path):
     result = runner.invoke(app, ["check", str(path)])
     assert result.exit_code == 2
     lines = [line for line in result.output.splitlines() if line.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error:") and "missing channel" in lines[0]
+    assert (
+        len(lines) == 1
+        and lines[0].startswith("error:")
+        and "missing channel" in lines[0]
+    )
 
 
 def test_effects_listing():
@@ -73,9 +95,9 @@ def test_installed_script_help():
 
 
 def test_input_names_all_build():
-    from diffpegasus._inputs import EXCITATION_NAMES, excitation
-
     import jax
+
+    from diffpegasus._inputs import excitation, EXCITATION_NAMES
 
     t = jax.numpy.linspace(0, 20, 2001)
     for name in EXCITATION_NAMES:

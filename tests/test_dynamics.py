@@ -66,7 +66,9 @@ def test_energy_conserved_without_aero_or_thrust():
     config = eqx.tree_at(lambda c: c.vehicle, config, vehicle)
     flight = numpy_channels(dp.simulate(config, noise=False))
     vn, vd = _inertial(flight["u"], flight["w"], flight["theta"])
-    energy = 0.5 * (vn**2 + vd**2) - 6.67428e-11 * 5.9722e24 / (6_378_100.0 + flight["h"])
+    energy = 0.5 * (vn**2 + vd**2) - 6.67428e-11 * 5.9722e24 / (
+        6_378_100.0 + flight["h"]
+    )
     drift = np.max(np.abs(energy - energy[0])) / abs(energy[0])
     assert drift < 1e-10
     # and the vehicle fell: it lost altitude and gained speed

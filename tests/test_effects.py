@@ -66,10 +66,19 @@ def _changed(a, b):
 
 def test_registry_has_every_canonical_name():
     expected = {
-        "pitch_damping", "alpha_dot_damping", "lift_offset", "drag_offset",
-        "moment_offset", "lift_alpha_squared", "drag_alpha_squared",
-        "moment_alpha_squared", "thrust_misalignment", "accelerometer_offset",
-        "sensor_bias", "actuator_delay", "vertical_wind",
+        "pitch_damping",
+        "alpha_dot_damping",
+        "lift_offset",
+        "drag_offset",
+        "moment_offset",
+        "lift_alpha_squared",
+        "drag_alpha_squared",
+        "moment_alpha_squared",
+        "thrust_misalignment",
+        "accelerometer_offset",
+        "sensor_bias",
+        "actuator_delay",
+        "vertical_wind",
     }
     assert set(dp.EFFECTS) == expected
     for cls in dp.EFFECTS.values():
@@ -100,13 +109,19 @@ def test_sensor_bias_changes_only_its_channel(runs, name):
 
 
 def test_accelerometer_offset_changes_only_accelerometers(runs):
-    r, b, dx = runs["accelerometer_offset"], runs["base"], PLANTED["accelerometer_offset"]
+    r, b, dx = (
+        runs["accelerometer_offset"],
+        runs["base"],
+        PLANTED["accelerometer_offset"],
+    )
     assert _changed(r, b) == {"ax", "az"}
-    np.testing.assert_allclose(r["ax"] - b["ax"], -b["q"] ** 2 * dx, atol=1e-12)
+    np.testing.assert_allclose(r["ax"] - b["ax"], -(b["q"] ** 2) * dx, atol=1e-12)
     np.testing.assert_allclose(r["az"] - b["az"], -b["qdot"] * dx, atol=1e-12)
 
 
-DYNAMIC = [n for n in NAMES if not n.startswith("sensor_bias") and n != "accelerometer_offset"]
+DYNAMIC = [
+    n for n in NAMES if not n.startswith("sensor_bias") and n != "accelerometer_offset"
+]
 
 
 @pytest.mark.parametrize("name", DYNAMIC)
@@ -121,7 +136,9 @@ def test_dynamic_effects_change_the_motion_but_not_the_record(runs, name):
 
 
 def _linear(r, channel_prefix, de):
-    return r[f"true_{channel_prefix}a"] * r["alpha"] + r[f"true_{channel_prefix}de"] * de
+    return (
+        r[f"true_{channel_prefix}a"] * r["alpha"] + r[f"true_{channel_prefix}de"] * de
+    )
 
 
 @pytest.mark.parametrize(
@@ -139,7 +156,9 @@ def _linear(r, channel_prefix, de):
 def test_coefficient_increment(runs, name, coefficient, increment):
     r = runs[name]
     extra = r[f"true_{coefficient}"] - _linear(r, coefficient, r["de"])
-    np.testing.assert_allclose(extra, increment(r, PLANTED[name]), rtol=1e-9, atol=1e-13)
+    np.testing.assert_allclose(
+        extra, increment(r, PLANTED[name]), rtol=1e-9, atol=1e-13
+    )
 
 
 def test_alpha_dot_damping_increment(runs):
@@ -158,8 +177,13 @@ def test_alpha_dot_damping_increment(runs):
 def test_thrust_misalignment_moment_balance(runs):
     r, offset = runs["thrust_misalignment"], PLANTED["thrust_misalignment"]
     lhs = r["Iyy"] * r["qdot"] + r["Iyy_dot"] * r["q"]
-    aero = r["qbar"] * 13.5 * 2.48 * r["true_CM"] + (r["xcp"] - r["xcg"]) * r["mass"] * r["az"]
-    np.testing.assert_allclose(lhs - aero, offset * r["thrust"], atol=1e-6 * np.abs(lhs).max())
+    aero = (
+        r["qbar"] * 13.5 * 2.48 * r["true_CM"]
+        + (r["xcp"] - r["xcg"]) * r["mass"] * r["az"]
+    )
+    np.testing.assert_allclose(
+        lhs - aero, offset * r["thrust"], atol=1e-6 * np.abs(lhs).max()
+    )
     assert np.max(offset * r["thrust"]) > 4e3
 
 
@@ -186,7 +210,9 @@ def test_vertical_wind_changes_air_relative_alpha(runs):
 
 def test_pitch_damping_damps(runs):
     late = runs["base"]["t"] > 8
-    assert np.std(runs["pitch_damping"]["q"][late]) < 0.9 * np.std(runs["base"]["q"][late])
+    assert np.std(runs["pitch_damping"]["q"][late]) < 0.9 * np.std(
+        runs["base"]["q"][late]
+    )
 
 
 class MachMoment(dp.AbstractEffect):
@@ -207,4 +233,6 @@ def test_user_written_effect_plugs_in():
     config = short_config(t_final=2.0, effects=(MachMoment(0.01),))
     r = dp.simulate(config, noise=False).channels
     extra = r["true_CM"] - (r["true_CMa"] * r["alpha"] + r["true_CMde"] * r["de"])
-    np.testing.assert_allclose(np.asarray(extra), 0.01 * (np.asarray(r["mach"]) - 1.0), rtol=1e-9)
+    np.testing.assert_allclose(
+        np.asarray(extra), 0.01 * (np.asarray(r["mach"]) - 1.0), rtol=1e-9
+    )

@@ -94,7 +94,9 @@ def test_non_numeric_cell(tmp_path):
     cells[2] = "oops"
     lines[5] = ",".join(cells)
     path.write_text("\n".join(lines) + "\n")
-    with pytest.raises(dp.LogError, match=r"column 'ax', row 5: 'oops' is not a number"):
+    with pytest.raises(
+        dp.LogError, match=r"column 'ax', row 5: 'oops' is not a number"
+    ):
         dp.read_log(path)
 
 
@@ -139,7 +141,9 @@ def test_non_positive_mass(tmp_path):
         c["mass"] = c["mass"].copy()
         c["mass"][7] = -1.0
 
-    assert "column 'mass', row 8: value -1.0 must be positive" in _error(tmp_path, mutate)
+    assert "column 'mass', row 8: value -1.0 must be positive" in _error(
+        tmp_path, mutate
+    )
 
 
 def test_bad_sidecar(tmp_path):

@@ -36,7 +36,9 @@ def _short_period_fit(model, name):
     truth = jnp.stack(
         [layout.window_mean(d[f"true_{k}"]) for k in ("CZa", "CZde", "CMa", "CMde")], -1
     )
-    est = jnp.stack([theta[:, 1, 0], theta[:, 2, 0], theta[:, 1, 1], theta[:, 2, 1]], -1)
+    est = jnp.stack(
+        [theta[:, 1, 0], theta[:, 2, 0], theta[:, 1, 1], theta[:, 2, 1]], -1
+    )
     return np.asarray(est), np.asarray(truth), np.asarray(rank_ata), np.asarray(ok)
 
 
@@ -81,7 +83,9 @@ def test_window_layout_bookkeeping():
     assert (lay.count, lay.used) == (20, 1000)
     x = jnp.arange(1030.0)
     lay = dp.WindowLayout.make(1030, 100.0, 0.5)
-    np.testing.assert_allclose(np.asarray(lay.window_mean(x))[-1], np.mean(np.arange(1000, 1030)))
+    np.testing.assert_allclose(
+        np.asarray(lay.window_mean(x))[-1], np.mean(np.arange(1000, 1030))
+    )
     with pytest.raises(ValueError, match="fewer than one"):
         dp.WindowLayout.make(40, 100.0, 0.5)
 
@@ -92,7 +96,9 @@ def flight():
 
 
 def test_reconstruction_matches_simulator_truth(flight):
-    c = dp.reconstruct_coefficients({k: jnp.asarray(v) for k, v in flight.items()}, 13.5, 2.48)
+    c = dp.reconstruct_coefficients(
+        {k: jnp.asarray(v) for k, v in flight.items()}, 13.5, 2.48
+    )
     for name in ("CL", "CD", "CM"):
         np.testing.assert_allclose(
             np.asarray(getattr(c, name)), flight[f"true_{name}"], rtol=1e-9, atol=1e-12
@@ -121,7 +127,10 @@ def test_batched_equals_per_log():
     for i in range(3):
         single = dp.lse_arrays({k: v[i] for k, v in channels.items()}, layout)
         np.testing.assert_allclose(
-            np.asarray(batch["values"][i]), np.asarray(single["values"]), rtol=1e-12, equal_nan=True
+            np.asarray(batch["values"][i]),
+            np.asarray(single["values"]),
+            rtol=1e-12,
+            equal_nan=True,
         )
 
 

@@ -63,9 +63,10 @@ def test_moment_balance_from_logged_channels(flight):
     # Iyy qdot + Iyy_dot q = qbar S c CM + (xcp - xcg) m az  (no planted effects).
     lhs = flight["Iyy"] * flight["qdot"] + flight["Iyy_dot"] * flight["q"]
     fz = flight["mass"] * flight["az"]
-    rhs = flight["qbar"] * 13.5 * 2.48 * flight["true_CM"] + (
-        flight["xcp"] - flight["xcg"]
-    ) * fz
+    rhs = (
+        flight["qbar"] * 13.5 * 2.48 * flight["true_CM"]
+        + (flight["xcp"] - flight["xcg"]) * fz
+    )
     np.testing.assert_allclose(lhs, rhs, rtol=1e-9, atol=1e-6 * np.abs(lhs).max())
 
 
@@ -82,7 +83,7 @@ def test_batch_equals_one_by_one():
     keys = jax.random.split(jax.random.key(8), 3)
     batch = dp.simulate_batch(config, keys, perturbations)
     for i in range(3):
-        p = jax.tree_util.tree_map(lambda x: x[i], perturbations)
+        p = jax.tree_util.tree_map(lambda x, i=i: x[i], perturbations)
         single = dp.simulate(p.apply(config), keys[i])
         for name in ["alpha", "q", "az", "h", "true_CMa"]:
             np.testing.assert_allclose(

@@ -6,63 +6,63 @@ import jax as _jax
 _jax.config.update("jax_enable_x64", True)
 
 from ._aerodynamics import (  # noqa: E402
-    DERIVATIVE_NAMES as DERIVATIVE_NAMES,
     AeroCoefficients as AeroCoefficients,
     AeroDatabase as AeroDatabase,
     AeroDerivatives as AeroDerivatives,
     body_axis as body_axis,
     coefficients as coefficients,
+    DERIVATIVE_NAMES as DERIVATIVE_NAMES,
     load_database as load_database,
     wind_axis as wind_axis,
 )
 from ._atmosphere import Atmosphere as Atmosphere, isa as isa  # noqa: E402
 from ._dynamics import (  # noqa: E402
-    FlightModel as FlightModel,
     evaluate as evaluate,
+    FlightModel as FlightModel,
     moment_about_cg as moment_about_cg,
     pitch_plane_rates as pitch_plane_rates,
 )
 from ._effects import (  # noqa: E402
-    EFFECTS as EFFECTS,
     AbstractEffect as AbstractEffect,
-    FlightCondition as FlightCondition,
     effect_names as effect_names,
+    EFFECTS as EFFECTS,
+    FlightCondition as FlightCondition,
     make_effect as make_effect,
     parse_assignment as parse_assignment,
 )
 from ._estimators import (  # noqa: E402
-    Estimates as Estimates,
-    MeasuredCoefficients as MeasuredCoefficients,
-    WindowLayout as WindowLayout,
     estimate_lse as estimate_lse,
+    Estimates as Estimates,
     lse_arrays as lse_arrays,
     lse_batch as lse_batch,
+    MeasuredCoefficients as MeasuredCoefficients,
     reconstruct_coefficients as reconstruct_coefficients,
     window_truth as window_truth,
     windowed_least_squares as windowed_least_squares,
+    WindowLayout as WindowLayout,
 )
 from ._gravity import gravity as gravity  # noqa: E402
 from ._inputs import (  # noqa: E402
     AbstractInput as AbstractInput,
+    doublet as doublet,
+    excitation as excitation,
     Multisine as Multisine,
     NoInput as NoInput,
     PulseTrain as PulseTrain,
     Ramp as Ramp,
     Schedule as Schedule,
+    schroeder_multisine as schroeder_multisine,
     Sequence as Sequence,
     Sine as Sine,
     Step as Step,
     Sum as Sum,
-    excitation as excitation,
-    doublet as doublet,
-    schroeder_multisine as schroeder_multisine,
     three_two_one_one as three_two_one_one,
 )
 from ._log import (  # noqa: E402
     FlightLog as FlightLog,
     LogError as LogError,
     read_log as read_log,
-    validate as validate_log,
+    validate_channels as validate_channels,
     write_log as write_log,
 )
 from ._mass import MassModel as MassModel, MassProperties as MassProperties  # noqa: E402
@@ -70,13 +70,13 @@ from ._propulsion import SolidMotor as SolidMotor  # noqa: E402
 from ._sensors import SensorModel as SensorModel  # noqa: E402
 from ._sharding import shard_batch as shard_batch  # noqa: E402
 from ._simulate import (  # noqa: E402
-    Flight as Flight,
-    InitialCondition as InitialCondition,
-    PegasusConfig as PegasusConfig,
     elevator_command as elevator_command,
+    Flight as Flight,
     flight_to_log as flight_to_log,
-    Perturbation as Perturbation,
+    InitialCondition as InitialCondition,
     nominal_elevator as nominal_elevator,
+    PegasusConfig as PegasusConfig,
+    Perturbation as Perturbation,
     sample_perturbations as sample_perturbations,
     simulate as simulate,
     simulate_batch as simulate_batch,

@@ -138,7 +138,9 @@ def load_database(path=None) -> AeroDatabase:
     machs = np.unique(data[:, 0])
     alphas = np.unique(data[:, 1])
     if len(data) != len(machs) * len(alphas):
-        raise ValueError(f"{path}: the (mach, alpha_deg) points do not form a full grid")
+        raise ValueError(
+            f"{path}: the (mach, alpha_deg) points do not form a full grid"
+        )
     for name, grid in (("mach", machs), ("alpha_deg", alphas)):
         if len(grid) < 2:
             raise ValueError(f"{path}: column {name} needs at least two breakpoints")
@@ -169,13 +171,17 @@ def coefficients(
     )
 
 
-def body_axis(cl: ScalarLike, cd: ScalarLike, alpha: ScalarLike) -> tuple[Scalar, Scalar]:
+def body_axis(
+    cl: ScalarLike, cd: ScalarLike, alpha: ScalarLike
+) -> tuple[Scalar, Scalar]:
     """Body-axis force coefficients `(CX, CZ)` from lift and drag coefficients."""
     sa, ca = jnp.sin(alpha), jnp.cos(alpha)
     return cl * sa - cd * ca, -cl * ca - cd * sa
 
 
-def wind_axis(cx: ScalarLike, cz: ScalarLike, alpha: ScalarLike) -> tuple[Scalar, Scalar]:
+def wind_axis(
+    cx: ScalarLike, cz: ScalarLike, alpha: ScalarLike
+) -> tuple[Scalar, Scalar]:
     """Lift and drag coefficients `(CL, CD)` from body-axis force coefficients."""
     sa, ca = jnp.sin(alpha), jnp.cos(alpha)
     return cx * sa - cz * ca, -cx * ca - cz * sa

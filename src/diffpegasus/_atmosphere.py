@@ -65,7 +65,9 @@ def isa(h: ScalarLike) -> Atmosphere:
     so no `0/0` appears in the gradient).
     """
     hg = geopotential_altitude(jnp.asarray(h, dtype=float))
-    layer = jnp.clip(jnp.searchsorted(_H_BASE, hg, side="right") - 1, 0, len(_H_BASE) - 1)
+    layer = jnp.clip(
+        jnp.searchsorted(_H_BASE, hg, side="right") - 1, 0, len(_H_BASE) - 1
+    )
     h_b = jnp.asarray(_H_BASE)[layer]
     t_b = jnp.asarray(_T_BASE)[layer]
     lapse = jnp.asarray(_LAPSE)[layer]

@@ -37,10 +37,10 @@ def _simulate_to_log(
 
     from ._effects import parse_assignment
     from ._simulate import (
-        PegasusConfig,
-        Perturbation,
         elevator_command,
         flight_to_log,
+        PegasusConfig,
+        Perturbation,
         simulate,
     )
 
@@ -56,7 +56,9 @@ def _simulate_to_log(
         "seed": seed,
         "input": input_name,
         "noise_sigmas": dict(config.sensors.sigma) if noise else {},
-        "hidden_effects": {h.split("=")[0].strip(): float(h.split("=")[1]) for h in hidden},
+        "hidden_effects": {
+            h.split("=")[0].strip(): float(h.split("=")[1]) for h in hidden
+        },
         "simulator": "diffpegasus",
     }
     if perturb:
@@ -186,7 +188,9 @@ def demo(
     log = _simulate_to_log(1, "pulse", [], False, None, 1000.0, True)
     path = write_log(out / "flight.csv", log)
     plot_trajectory(log, out / "trajectory.png")
-    typer.echo(f"wrote {path}, {path.with_suffix('.json')} and {out / 'trajectory.png'}")
+    typer.echo(
+        f"wrote {path}, {path.with_suffix('.json')} and {out / 'trajectory.png'}"
+    )
     typer.echo(_summary(log))
 
 
@@ -236,7 +240,9 @@ def estimate_lse_command(
     out: Annotated[
         pathlib.Path | None, typer.Option(help="Folder for CSV and PNG")
     ] = None,
-    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object")] = False,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print one JSON object")
+    ] = False,
     resample: Annotated[bool, typer.Option(help="Resample a non-uniform log")] = False,
 ):
     """Windowed equation-error least squares (thesis chapter 3)."""

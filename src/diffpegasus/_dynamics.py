@@ -121,9 +121,22 @@ def evaluate(t: ScalarLike, y: Float[Array, "6"], model: FlightModel) -> Evaluat
     base = coefficients(derivs, alpha, de)
     zero = jnp.zeros(())
     cond = FlightCondition(
-        t=jnp.asarray(t, float), alpha=alpha, alpha_dot=zero, airspeed=airspeed,
-        mach=mach, qbar=qbar, q=q, qdot=zero, theta=theta, h=h, de=de, thrust=thrust,
-        c_ref=vehicle.c_ref, s_ref=vehicle.s_ref, mass=props.mass, xcg=props.xcg,
+        t=jnp.asarray(t, float),
+        alpha=alpha,
+        alpha_dot=zero,
+        airspeed=airspeed,
+        mach=mach,
+        qbar=qbar,
+        q=q,
+        qdot=zero,
+        theta=theta,
+        h=h,
+        de=de,
+        thrust=thrust,
+        c_ref=vehicle.c_ref,
+        s_ref=vehicle.s_ref,
+        mass=props.mass,
+        xcg=props.xcg,
     )
     cl, cd = base.CL, base.CD
     for e in effects:
@@ -189,4 +202,6 @@ def evaluate(t: ScalarLike, y: Float[Array, "6"], model: FlightModel) -> Evaluat
     }
     for e in effects:
         channels = e.measure(channels, cond)
-    return Evaluation(rates=rates, condition=cond, derivatives=derivs, channels=channels)
+    return Evaluation(
+        rates=rates, condition=cond, derivatives=derivs, channels=channels
+    )

@@ -131,9 +131,7 @@ def doublet(amplitude: float = 2.0, half_period: float = 0.25, **kwargs) -> Sequ
     )
 
 
-def three_two_one_one(
-    amplitude: float = 2.0, unit: float = 0.1, **kwargs
-) -> Sequence:
+def three_two_one_one(amplitude: float = 2.0, unit: float = 0.1, **kwargs) -> Sequence:
     """A 3-2-1-1: alternating levels held 3, 2, 1 and 1 `unit` s."""
     return Sequence(
         levels=amplitude * jnp.array([1.0, -1.0, 1.0, -1.0]),
@@ -210,4 +208,13 @@ def excitation(name: str, start: float = 5.0) -> AbstractInput:
     return factories[name]()
 
 
-EXCITATION_NAMES = ("pulse", "sine", "ramp", "step", "doublet", "3211", "multisine", "none")
+EXCITATION_NAMES = (
+    "pulse",
+    "sine",
+    "ramp",
+    "step",
+    "doublet",
+    "3211",
+    "multisine",
+    "none",
+)

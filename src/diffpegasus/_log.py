@@ -23,8 +23,24 @@ from ._aerodynamics import DERIVATIVE_NAMES
 
 
 REQUIRED_CHANNELS = (
-    "t", "de", "ax", "az", "q", "qdot", "alpha", "V", "theta", "h", "mach", "qbar",
-    "thrust", "mass", "Iyy", "Iyy_dot", "xcg", "xcp",
+    "t",
+    "de",
+    "ax",
+    "az",
+    "q",
+    "qdot",
+    "alpha",
+    "V",
+    "theta",
+    "h",
+    "mach",
+    "qbar",
+    "thrust",
+    "mass",
+    "Iyy",
+    "Iyy_dot",
+    "xcg",
+    "xcp",
 )
 TRUTH_CHANNELS = tuple(f"true_{n}" for n in DERIVATIVE_NAMES)
 PEGASUS_METADATA = {"S_ref": 13.5, "c_ref": 2.48, "vehicle": "pegasus"}
@@ -62,7 +78,9 @@ class FlightLog:
     @property
     def sample_rate(self) -> float:
         """Samples per second, Hz."""
-        return float(self.metadata.get("sample_rate_hz", 1.0 / np.mean(np.diff(self.t))))
+        return float(
+            self.metadata.get("sample_rate_hz", 1.0 / np.mean(np.diff(self.t)))
+        )
 
     @property
     def s_ref(self) -> float:
@@ -200,7 +218,7 @@ def _read_sidecar(path: pathlib.Path) -> dict[str, Any]:
     return {**PEGASUS_METADATA, **meta}
 
 
-def validate(
+def validate_channels(
     channels: dict[str, np.ndarray],
     name: str = "log",
     *,
@@ -308,8 +326,11 @@ def read_log(
         raise LogError(f"{path}: no such file")
     header, data = _read_rows(path)
     channels = {h: data[:, j].copy() for j, h in enumerate(header)}
-    channels = validate(
-        channels, str(path), required=required, min_samples=min_samples,
+    channels = validate_channels(
+        channels,
+        str(path),
+        required=required,
+        min_samples=min_samples,
         resample=resample,
     )
     metadata = _read_sidecar(path)

@@ -27,7 +27,7 @@ def plot_trajectory(log: FlightLog, path: str | os.PathLike) -> None:
         ("station from nose, m", [(log["xcg"], "CG"), (log["xcp"], "cp")]),
     ]
     fig, axes = plt.subplots(4, 2, figsize=(11, 11), sharex=True)
-    for ax, (label, series) in zip(axes.flat, panels):
+    for ax, (label, series) in zip(axes.flat, panels, strict=True):
         for y, name in series:
             ax.plot(t, y, lw=0.8, label=name)
         ax.set_ylabel(label)
@@ -53,15 +53,37 @@ def plot_estimates(estimates, path: str | os.PathLike, units: str = "deg") -> No
     values = np.asarray(estimates.values) * scale
     valid = np.asarray(estimates.valid)
     fig, axes = plt.subplots(3, 2, figsize=(12, 9), sharex=True)
-    for j, (ax, name) in enumerate(zip(axes.flat, DERIVATIVE_NAMES)):
+    for j, (ax, name) in enumerate(zip(axes.flat, DERIVATIVE_NAMES, strict=True)):
         if estimates.truth is not None:
-            ax.plot(mid, np.asarray(estimates.truth)[:, j] * scale, "k-", lw=1.2, label="truth (window mean)")
-        ax.plot(mid, values[:, j], ".-", ms=3, lw=0.6, label=f"{estimates.method.upper()} estimate")
+            ax.plot(
+                mid,
+                np.asarray(estimates.truth)[:, j] * scale,
+                "k-",
+                lw=1.2,
+                label="truth (window mean)",
+            )
+        ax.plot(
+            mid,
+            values[:, j],
+            ".-",
+            ms=3,
+            lw=0.6,
+            label=f"{estimates.method.upper()} estimate",
+        )
         if estimates.stderr is not None:
             s = np.asarray(estimates.stderr)[:, j] * scale
-            ax.fill_between(mid, values[:, j] - 2 * s, values[:, j] + 2 * s, alpha=0.25, lw=0, label="±2 std. err.")
+            ax.fill_between(
+                mid,
+                values[:, j] - 2 * s,
+                values[:, j] + 2 * s,
+                alpha=0.25,
+                lw=0,
+                label="±2 std. err.",
+            )
         if (~valid).any():
-            ax.plot(mid[~valid], values[~valid, j], "rx", ms=4, label="held / no estimate")
+            ax.plot(
+                mid[~valid], values[~valid, j], "rx", ms=4, label="held / no estimate"
+            )
         ax.set_ylabel(f"{name}, 1/{units}")
         ax.grid(alpha=0.3)
     axes.flat[0].legend(loc="best", fontsize=8)

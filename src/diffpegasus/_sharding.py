@@ -19,7 +19,9 @@ def batch_sharding(batch_size: int) -> NamedSharding | None:
     n = len(devices)
     if n == 1 or batch_size % n:
         return None
-    mesh = jax.sharding.Mesh(np.asarray(devices), ("batch",), axis_types=(AxisType.Auto,))
+    mesh = jax.sharding.Mesh(
+        np.asarray(devices), ("batch",), axis_types=(AxisType.Auto,)
+    )
     return NamedSharding(mesh, PartitionSpec("batch"))
 
 

@@ -114,8 +114,16 @@ def simulate_short_period(
     dims = jax.vmap(model.dimensional)(ts)
     truth = jax.vmap(model.derivatives)(ts)
     az = dims[2] * alpha + dims[3] * de
-    out = {"t": ts, "de": de, "alpha": alpha, "q": q, "qdot": qdot, "az": az,
-           "qbar": dims[1], "mach": jax.vmap(model.mach)(ts)}
+    out = {
+        "t": ts,
+        "de": de,
+        "alpha": alpha,
+        "q": q,
+        "qdot": qdot,
+        "az": az,
+        "qbar": dims[1],
+        "mach": jax.vmap(model.mach)(ts),
+    }
     for j, name in enumerate(("CZa", "CZde", "CMa", "CMde")):
         out[f"true_{name}"] = truth[:, j]
     return out

@@ -14,10 +14,10 @@ from jaxtyping import Array, Float, PRNGKeyArray
 from ._aerodynamics import DERIVATIVE_NAMES
 from ._atmosphere import isa
 from ._custom_types import ScalarLike
-from ._dynamics import FlightModel, evaluate
+from ._dynamics import evaluate, FlightModel
 from ._effects import AbstractEffect
-from ._inputs import AbstractInput, Schedule, Sum, excitation
-from ._log import PEGASUS_METADATA, FlightLog
+from ._inputs import AbstractInput, excitation, Schedule, Sum
+from ._log import FlightLog, PEGASUS_METADATA
 from ._sensors import SensorModel
 from ._vehicle import Vehicle
 
@@ -75,9 +75,7 @@ class PegasusConfig(eqx.Module):
     """
 
     vehicle: Vehicle = eqx.field(default_factory=Vehicle)
-    elevator: AbstractInput = eqx.field(
-        default_factory=elevator_command
-    )
+    elevator: AbstractInput = eqx.field(default_factory=elevator_command)
     sensors: SensorModel = eqx.field(default_factory=SensorModel)
     effects: tuple[AbstractEffect, ...] = ()
     initial: InitialCondition = eqx.field(default_factory=InitialCondition)
@@ -154,7 +152,9 @@ def simulate(
     if noise:
         channels = config.sensors.apply(channels, key)
     else:
-        channels = eqx.tree_at(lambda s: s.sigma, config.sensors, {}).apply(channels, key)
+        channels = eqx.tree_at(lambda s: s.sigma, config.sensors, {}).apply(
+            channels, key
+        )
     return Flight(t=ts, channels=channels, states=states)
 
 

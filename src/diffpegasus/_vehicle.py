@@ -6,7 +6,7 @@ import jax.numpy as jnp
 from ._aerodynamics import AeroDatabase, load_database
 from ._custom_types import Scalar, ScalarLike
 from ._mass import MassModel
-from ._propulsion import SolidMotor, smoothstep
+from ._propulsion import smoothstep, SolidMotor
 
 
 class Vehicle(eqx.Module):
@@ -53,7 +53,12 @@ class Vehicle(eqx.Module):
     ) -> "Vehicle":
         """A copy with scaled CL/CD/CM tables, mass and thrust, and a CG shift (m)."""
         return eqx.tree_at(
-            lambda v: (v.aero, v.mass.mass_scale, v.mass.cg_shift, v.motor.thrust_scale),
+            lambda v: (
+                v.aero,
+                v.mass.mass_scale,
+                v.mass.cg_shift,
+                v.motor.thrust_scale,
+            ),
             self,
             (
                 self.aero.scaled(lift, drag, moment),

@@ -19,8 +19,8 @@ from ._other import (
     VerticalWind as VerticalWind,
 )
 from ._registry import (
-    EFFECTS as EFFECTS,
     effect_names as effect_names,
+    EFFECTS as EFFECTS,
     make_effect as make_effect,
     parse_assignment as parse_assignment,
 )

@@ -50,9 +50,7 @@ def make_effect(spec: str, value: float = 0.0) -> AbstractEffect:
     with its main parameter set to `value` (SI units)."""
     name, _, channel = spec.partition(":")
     if name not in EFFECTS:
-        raise ValueError(
-            f"unknown effect {spec!r}; known: {', '.join(effect_names())}"
-        )
+        raise ValueError(f"unknown effect {spec!r}; known: {', '.join(effect_names())}")
     cls = EFFECTS[name]
     if name == "sensor_bias":
         if not channel:

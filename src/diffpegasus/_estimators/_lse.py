@@ -47,7 +47,9 @@ def _hold(values, stderr, ok):
 
     def step(carry, x):
         v, s, good = x
-        carry = jax.tree_util.tree_map(lambda new, old: jnp.where(good, new, old), (v, s), carry)
+        carry = jax.tree_util.tree_map(
+            lambda new, old: jnp.where(good, new, old), (v, s), carry
+        )
         return carry, carry
 
     init = (jnp.full_like(values[0], jnp.nan), jnp.full_like(stderr[0], jnp.nan))
@@ -191,7 +193,9 @@ def estimate_lse(
     flags = {k: out[k] for k in ("rank_deficient", "rank_A", "rank_ATA")}
     if intercept:
         for j, name in enumerate(("CL0", "CD0", "CM0")):
-            flags[name] = jnp.where(out["rank_deficient"], jnp.nan, out["intercepts"][:, j])
+            flags[name] = jnp.where(
+                out["rank_deficient"], jnp.nan, out["intercepts"][:, j]
+            )
     return Estimates(
         method="lse",
         window_start=jnp.asarray(start),

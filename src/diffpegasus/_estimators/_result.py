@@ -44,21 +44,28 @@ class Estimates(eqx.Module):
         scale = _scale(units)
 
         def column(a, j):
-            return [None if not math.isfinite(x) else x * scale for x in np.asarray(a)[:, j].tolist()]
+            return [
+                None if not math.isfinite(x) else x * scale
+                for x in np.asarray(a)[:, j].tolist()
+            ]
 
         out = {
             "method": self.method,
             "units": f"1/{units}",
             "window_start": np.asarray(self.window_start).tolist(),
             "window_end": np.asarray(self.window_end).tolist(),
-            "estimates": {n: column(self.values, j) for j, n in enumerate(DERIVATIVE_NAMES)},
+            "estimates": {
+                n: column(self.values, j) for j, n in enumerate(DERIVATIVE_NAMES)
+            },
             "stderr": None
             if self.stderr is None
             else {n: column(self.stderr, j) for j, n in enumerate(DERIVATIVE_NAMES)},
             "flags": {k: np.asarray(v).tolist() for k, v in self.flags.items()},
         }
         if self.truth is not None:
-            out["truth"] = {n: column(self.truth, j) for j, n in enumerate(DERIVATIVE_NAMES)}
+            out["truth"] = {
+                n: column(self.truth, j) for j, n in enumerate(DERIVATIVE_NAMES)
+            }
         return out
 
     def write_csv(self, path: str | os.PathLike, units: str = "deg") -> None:
@@ -90,7 +97,9 @@ class Estimates(eqx.Module):
         if t_min is not None:
             valid = valid & (np.asarray(self.window_start) >= t_min - 1e-9)
         err = (np.asarray(self.values) - np.asarray(self.truth))[valid] * scale
-        return {n: float(np.mean(err[:, j] ** 2)) for j, n in enumerate(DERIVATIVE_NAMES)}
+        return {
+            n: float(np.mean(err[:, j] ** 2)) for j, n in enumerate(DERIVATIVE_NAMES)
+        }
 
 
 def _scale(units: str) -> float:

@@ -66,7 +66,7 @@ class WindowLayout:
         m[-1, self.last :] = 0.0
         return jnp.asarray(m)
 
-    def split(self, x: Float[Array, "n *rest"]) -> Float[Array, "windows per *rest"]:
+    def split(self, x: Float[Array, "n ..."]) -> Float[Array, "windows per ..."]:
         """Cut an array whose leading axis is time into padded windows."""
         x = x[: self.used]
         pad = self.count * self.per_window - self.used
