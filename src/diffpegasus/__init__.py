@@ -15,6 +15,7 @@ from ._aerodynamics import (  # noqa: E402
     load_database as load_database,
     wind_axis as wind_axis,
 )
+from ._asc import read_asc as read_asc  # noqa: E402
 from ._atmosphere import Atmosphere as Atmosphere, isa as isa  # noqa: E402
 from ._dynamics import (  # noqa: E402
     evaluate as evaluate,
@@ -31,7 +32,17 @@ from ._effects import (  # noqa: E402
     parse_assignment as parse_assignment,
 )
 from ._estimators import (  # noqa: E402
+    RK4 as RK4,
+    OEMProblem as OEMProblem,
+    OEMResult as OEMResult,
     estimate_lse as estimate_lse,
+    estimate_oem as estimate_oem,
+    fit_windowed_oem as fit_windowed_oem,
+    WindowedFit as WindowedFit,
+    fit_oem as fit_oem,
+    format_parameter_table as format_parameter_table,
+    node_times as node_times,
+    parameter_table as parameter_table,
     Estimates as Estimates,
     lse_arrays as lse_arrays,
     lse_batch as lse_batch,

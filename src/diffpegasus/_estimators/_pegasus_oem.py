@@ -1,0 +1,316 @@
+"""The Pegasus output-error model and estimator (thesis chapter 5).
+
+States `[u, w, q, theta]`; known inputs from the log (elevator, net thrust, mass,
+Iyy, Iyy_dot, CG and cp stations, altitude for density and gravity); per-window
+parameters the body-axis derivatives `[CXa, CXde, CZa, CZde, CMa, CMde]` (the thesis
+found them better conditioned than the lift/drag ones); outputs `[ax, az, q, qdot,
+alpha, V]`. The same building blocks as the simulator (`pitch_plane_rates`,
+`moment_about_cg`, `isa`, `gravity`) give the dynamics.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._aerodynamics import body_axis
+from .._atmosphere import isa
+from .._dynamics import moment_about_cg, pitch_plane_rates
+from .._gravity import gravity
+from .._log import FlightLog
+from ._lse import estimate_lse, window_truth
+from ._oem import OEMProblem, fit_oem
+from ._result import Estimates
+from ._windowed_oem import fit_windowed_oem
+from ._windows import WindowLayout
+
+
+INPUTS = ("de", "thrust", "mass", "Iyy", "Iyy_dot", "xcg", "xcp", "h")
+OUTPUTS = ("ax", "az", "q", "qdot", "alpha", "V")
+BODY_NAMES = ("CXa", "CXde", "CZa", "CZde", "CMa", "CMde")
+STATE_SCALE = np.array([10.0, 1.0, 0.01, 0.01])
+
+
+def _loads(x, u, p, s_ref, c_ref, wind_axes):
+    uu, ww, q, theta = x
+    de, thrust, mass, iyy, iyy_dot, xcg, xcp, h = u
+    alpha = jnp.arctan2(ww, uu)
+    v = jnp.sqrt(uu**2 + ww**2)
+    qbar = 0.5 * isa(h).density * v**2
+    if wind_axes:
+        cla, clde, cda, cdde, cma, cmde = p
+        cx, cz = body_axis(cla * alpha + clde * de, cda * alpha + cdde * de, alpha)
+    else:
+        cxa, cxde, cza, czde, cma, cmde = p
+        cx, cz = cxa * alpha + cxde * de, cza * alpha + czde * de
+    fx_aero = qbar * s_ref * cx
+    fz_aero = qbar * s_ref * cz
+    moment = moment_about_cg(
+        qbar, s_ref, c_ref, cma * alpha + cmde * de, fz_aero, xcg, xcp
+    )
+    return fx_aero + thrust, fz_aero, moment, alpha, v
+
+
+def make_model(s_ref: float, c_ref: float, wind_axes: bool = False):
+    """`(rates, outputs)` of the Pegasus OEM model for the given reference geometry;
+    parameters `[CXa, CXde, CZa, CZde, CMa, CMde]`, or with `wind_axes`
+    `[CLa, CLde, CDa, CDde, CMa, CMde]`."""
+
+    def rates(t, x, u, p):
+        fx, fz, moment, _, _ = _loads(x, u, p, s_ref, c_ref, wind_axes)
+        udot, wdot, qdot = pitch_plane_rates(
+            x[0], x[1], x[2], x[3], fx, fz, moment, u[2], u[3], u[4], gravity(u[7])
+        )
+        return jnp.stack([udot, wdot, qdot, x[2]])
+
+    def outputs(t, x, u, p):
+        fx, fz, moment, alpha, v = _loads(x, u, p, s_ref, c_ref, wind_axes)
+        qdot = (moment - u[4] * x[2]) / u[3]
+        return jnp.stack([fx / u[2], fz / u[2], x[2], qdot, alpha, v])
+
+    return rates, outputs
+
+
+def to_lift_drag(body, alpha):
+    """Body-axis derivatives `(..., 6)` to `[CLa, CLde, CDa, CDde, CMa, CMde]` at the
+    window-mean alpha (thesis eqs 5.41-5.44)."""
+    sa, ca = jnp.sin(alpha), jnp.cos(alpha)
+    cxa, cxde, cza, czde, cma, cmde = jnp.moveaxis(body, -1, 0)
+    return jnp.stack(
+        [
+            cxa * sa - cza * ca,
+            cxde * sa - czde * ca,
+            -cxa * ca - cza * sa,
+            -cxde * ca - czde * sa,
+            cma,
+            cmde,
+        ],
+        axis=-1,
+    )
+
+
+def to_body(lift_drag, alpha):
+    """The inverse of [`to_lift_drag`][]."""
+    sa, ca = jnp.sin(alpha), jnp.cos(alpha)
+    cla, clde, cda, cdde, cma, cmde = jnp.moveaxis(lift_drag, -1, 0)
+    return jnp.stack(
+        [
+            cla * sa - cda * ca,
+            clde * sa - cdde * ca,
+            -cla * ca - cda * sa,
+            -clde * ca - cdde * sa,
+            cma,
+            cmde,
+        ],
+        axis=-1,
+    )
+
+
+def pegasus_problem(
+    log: FlightLog,
+    *,
+    window=0.5,
+    node_interval=2.0,
+    decimate=5,
+    single=False,
+    wind_axes=False,
+) -> tuple[OEMProblem, np.ndarray]:
+    """The OEM problem for a log, at `1/decimate` of its rate; returns it with the
+    decimated sample indices."""
+    idx = np.arange(0, len(log), decimate)
+    rate = log.sample_rate / decimate
+    rates, outputs = make_model(log.s_ref, log.c_ref, wind_axes)
+    w = int(round(window * rate))
+    problem = OEMProblem(
+        rates=rates,
+        outputs=outputs,
+        t0=float(log.t[0]),
+        dt=float(decimate / log.sample_rate),
+        inputs=jnp.asarray(np.column_stack([log[c][idx] for c in INPUTS])),
+        measured=jnp.asarray(np.column_stack([log[c][idx] for c in OUTPUTS])),
+        free=(True,) * 6,
+        window=w,
+        node_interval=w if single else int(round(node_interval * rate)),
+        state_scale=jnp.asarray(STATE_SCALE),
+        continuity_tol=1e-4,
+    )
+    return problem, idx
+
+
+def starting_values(log: FlightLog, layout: WindowLayout, start: str, key=None):
+    """Per-window starting derivatives (lift/drag form, 1/rad): `lse` (equation-error
+    estimates of the same windows; the database where LSE has none), `database` (the
+    a-priori tables at the window-mean alpha and Mach) or `truth10` (the truth x
+    U(0.9, 1.1), the thesis's shortcut)."""
+    from .._aerodynamics import load_database
+
+    alpha = np.asarray(layout.window_mean(jnp.asarray(log["alpha"])))
+    mach = np.asarray(layout.window_mean(jnp.asarray(log["mach"])))
+    db = load_database()
+    prior = np.asarray(
+        jax.vmap(lambda a, m: db.derivatives(a, m).as_array())(alpha, mach)
+    )
+    if start == "database":
+        return prior
+    if start == "lse":
+        est = np.asarray(
+            estimate_lse(log, window=layout.per_window / layout.rate).values
+        )
+        return np.where(np.isfinite(est), est, prior)
+    if start == "truth10":
+        truth = window_truth(
+            {k: jnp.asarray(v) for k, v in log.channels.items()}, layout
+        )
+        if truth is None:
+            raise ValueError("start 'truth10' needs a log with true_* columns")
+        key = jax.random.key(0) if key is None else key
+        return np.asarray(truth) * np.asarray(
+            jax.random.uniform(key, truth.shape, minval=0.9, maxval=1.1)
+        )
+    raise ValueError(f"start must be lse, database or truth10, got {start!r}")
+
+
+def estimate_oem(
+    log: FlightLog,
+    *,
+    window: float = 0.5,
+    node_interval: float = 2.0,
+    shooting: str = "multiple",
+    decimate: int = 5,
+    start: str = "lse",
+    axes: str = "body",
+    rtol: float = 1e-5,
+    max_iter: int = 30,
+) -> Estimates:
+    """Output-error estimates of the six derivatives per window.
+
+    **Arguments:**
+
+    - `log`: a validated flight log.
+    - `window`: parameter window, s (0.5). `node_interval`: shooting nodes, s (2).
+    - `shooting`: `multiple` (all windows and nodes in one structured Gauss-Newton,
+      continuity enforced) or `single` (the thesis's sequential windows: each window
+      starts from the previous window's simulated end state, only the first from
+      the measurements).
+    - `decimate`: use every n-th sample (default 5: 200 Hz from a 1 kHz log).
+    - `start`: starting values, `lse`, `database` or `truth10`.
+    - `axes`: estimate body-axis (`body`, the thesis's choice) or lift/drag (`wind`)
+      derivatives; results are reported in lift/drag form either way.
+
+    **Returns:** [`Estimates`][] in lift/drag form (1/rad) with Cramér-Rao standard
+    errors; flags `converged`, `cost`, `iterations`, `max_defect`.
+    """
+    layout = WindowLayout.make(len(log), log.sample_rate, window)
+    if axes not in ("body", "wind"):
+        raise ValueError(f"axes must be body or wind, got {axes!r}")
+    wind_axes = axes == "wind"
+    problem, idx = pegasus_problem(
+        log,
+        window=window,
+        node_interval=node_interval,
+        decimate=decimate,
+        single=shooting == "single",
+        wind_axes=wind_axes,
+    )
+    alpha_w = jnp.asarray(layout.window_mean(jnp.asarray(log["alpha"])))
+    n_win = problem.n_windows
+    if n_win != layout.count:
+        raise ValueError(
+            "window layout mismatch after decimation; use a window that is "
+            "a whole number of decimated samples"
+        )
+    theta0 = jnp.asarray(starting_values(log, layout, start))
+    if not wind_axes:
+        theta0 = to_body(theta0, alpha_w)
+    measured_states = np.column_stack(
+        [
+            log["V"] * np.cos(log["alpha"]),
+            log["V"] * np.sin(log["alpha"]),
+            log["q"],
+            log["theta"],
+        ]
+    )[idx]
+    node_idx = (
+        np.arange(problem.n_segments)
+        * problem.windows_per_segment
+        * problem.window_samples
+    )
+    if shooting == "multiple":
+        fit = fit_windowed_oem(
+            problem,
+            theta0,
+            jnp.asarray(measured_states[node_idx]),
+            rtol=rtol,
+            max_iter=max_iter,
+        )
+        body, body_sd = fit.params, fit.stderr
+        flags = {
+            "converged": jnp.full(n_win, fit.converged),
+            "iterations": jnp.full(n_win, fit.iterations),
+            "max_defect": jnp.full(n_win, fit.defect),
+        }
+        ok = jnp.full(n_win, fit.converged)
+    elif shooting == "single":
+        body, body_sd, ok, its = _sequential_single(
+            problem, theta0, measured_states[0], rtol
+        )
+        flags = {"converged": ok, "iterations": its}
+    else:
+        raise ValueError(f"shooting must be single or multiple, got {shooting!r}")
+    if wind_axes:
+        values, sd = body, body_sd
+    else:
+        values = to_lift_drag(body, alpha_w)
+        # standard errors of the lift/drag form through the same linear map
+        jac = jax.vmap(jax.jacfwd(to_lift_drag), in_axes=(0, 0))(body, alpha_w)
+        sd = jnp.sqrt(jnp.einsum("wij,wj->wi", jac**2, body_sd**2))
+    start_t, end_t = layout.times(float(log.t[0]))
+    values = jnp.where(ok[:, None], values, jnp.nan)
+    return Estimates(
+        method="oem",
+        window_start=jnp.asarray(start_t),
+        window_end=jnp.asarray(end_t),
+        values=values,
+        stderr=jnp.where(ok[:, None], sd, jnp.nan),
+        valid=ok,
+        flags=flags,
+        truth=window_truth(
+            {k: jnp.asarray(v) for k, v in log.channels.items()}, layout
+        ),
+    )
+
+
+def _sequential_single(problem, theta0, x0, rtol):
+    """The thesis's single shooting: window by window (optimistix Gauss-Newton), each
+    window starting from the previous window's simulated end state."""
+    import equinox as eqx
+
+    from ._oem import _window_solve
+
+    n, length = problem.n_windows, problem.window_samples
+    inputs = _pad(problem.inputs, n * length + 1)
+    measured = _pad(problem.measured, n * length)
+
+    def one(x_start, w):
+        sub = eqx.tree_at(
+            lambda p: (p.inputs, p.measured, p.t0),
+            problem,
+            (
+                jax.lax.dynamic_slice_in_dim(inputs, w * length, length + 1),
+                jax.lax.dynamic_slice_in_dim(measured, w * length, length),
+                problem.t0 + w * length * problem.dt,
+            ),
+        )
+        res = fit_oem(
+            sub, theta0[w], x_start[None], rtol=rtol, max_outer=10, max_inner=20
+        )
+        xs, _ = _window_solve(sub, x_start, res.params[0], sub.t0)
+        ok = res.converged & jnp.all(jnp.isfinite(xs[-1]))
+        x_next = jnp.where(ok, xs[-1], x_start)
+        return x_next, (res.params[0], res.stderr[0], ok, res.iterations)
+
+    _, (params, sd, ok, its) = jax.lax.scan(one, jnp.asarray(x0, float), jnp.arange(n))
+    return params, sd, ok, its
+
+
+def _pad(x, n):
+    return jnp.concatenate([x, jnp.repeat(x[-1:], max(n - x.shape[0], 0), axis=0)])[:n]
