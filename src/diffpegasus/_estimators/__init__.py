@@ -11,25 +11,25 @@ from ._lse import (
     window_truth as window_truth,
     windowed_least_squares as windowed_least_squares,
 )
-from ._result import Estimates as Estimates
-from ._windows import WindowLayout as WindowLayout
 from ._oem import (
-    HalvingGaussNewton as HalvingGaussNewton,
-    OEMProblem as OEMProblem,
-    OEMResult as OEMResult,
     fit_oem as fit_oem,
     format_parameter_table as format_parameter_table,
+    HalvingGaussNewton as HalvingGaussNewton,
     node_times as node_times,
+    OEMProblem as OEMProblem,
+    OEMResult as OEMResult,
     parameter_table as parameter_table,
     simulate_segments as simulate_segments,
 )
-from ._rk4 import RK4 as RK4
 from ._pegasus_oem import (
     estimate_oem as estimate_oem,
     to_body as to_body,
     to_lift_drag as to_lift_drag,
 )
+from ._result import Estimates as Estimates
+from ._rk4 import RK4 as RK4
 from ._windowed_oem import (
-    WindowedFit as WindowedFit,
     fit_windowed_oem as fit_windowed_oem,
+    WindowedFit as WindowedFit,
 )
+from ._windows import WindowLayout as WindowLayout

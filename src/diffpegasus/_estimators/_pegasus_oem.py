@@ -18,7 +18,7 @@ from .._dynamics import moment_about_cg, pitch_plane_rates
 from .._gravity import gravity
 from .._log import FlightLog
 from ._lse import estimate_lse, window_truth
-from ._oem import OEMProblem, fit_oem
+from ._oem import fit_oem, OEMProblem
 from ._result import Estimates
 from ._windowed_oem import fit_windowed_oem
 from ._windows import WindowLayout

@@ -18,12 +18,13 @@ for problems of moderate size [`fit_oem`][] (optimistix) is the general engine.
 """
 
 import functools
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from ._oem import OEMProblem, _window_solve, _input_at
+from ._oem import _input_at, _window_solve, OEMProblem
 
 
 class WindowedFit(eqx.Module):

@@ -1,0 +1,269 @@
+"""Output-error engine: solver, Jacobians, recovery, shooting, real data, batching."""
+
+import pathlib
+import sys
+
+import diffrax
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import diffpegasus as dp
+from diffpegasus._estimators._oem import (
+    Unknowns,
+    _coloured_information,
+    _residual_vector,
+    simulate_segments,
+)
+
+
+EXPERIMENTS = pathlib.Path(__file__).resolve().parents[1] / "experiments"
+sys.path.insert(0, str(EXPERIMENTS))
+import hfb320  # noqa: E402
+import unstable_aircraft  # noqa: E402
+
+
+def test_rk4_is_fourth_order():
+    errors = []
+    for n in (10, 20, 40):
+        sol = diffrax.diffeqsolve(
+            diffrax.ODETerm(lambda t, y, a: y),
+            dp.RK4(),
+            0.0,
+            1.0,
+            1.0 / n,
+            jnp.array(1.0),
+            stepsize_controller=diffrax.ConstantStepSize(),
+        )
+        errors.append(abs(float(sol.ys[-1]) - np.e))
+    slopes = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    np.testing.assert_allclose(slopes, 4.0, atol=0.1)
+
+
+# A stable short-period model: x = [w, q], u = [de], outputs [az, w, q].
+U0 = 50.0
+TRUE = jnp.array([-1.2, -1.5, -5.0, -0.1, -2.5, -12.0])
+START = (TRUE * 0.8).at[1].set(TRUE[1])  # Zq is fixed at its true value
+
+
+def _rates(t, x, u, p):
+    zw, zq, zde, mw, mq, mde = p
+    return jnp.stack(
+        [zw * x[0] + (U0 + zq) * x[1] + zde * u[0], mw * x[0] + mq * x[1] + mde * u[0]]
+    )
+
+
+def _outputs(t, x, u, p):
+    return jnp.stack([p[0] * x[0] + p[1] * x[1] + p[2] * u[0], x[0], x[1]])
+
+
+def _problem(
+    measured, inputs, free=(True, False, True, True, True, True), node_interval=None
+):
+    return dp.OEMProblem(
+        rates=_rates,
+        outputs=_outputs,
+        t0=0.0,
+        dt=0.05,
+        inputs=inputs,
+        measured=measured,
+        free=free,
+        node_interval=node_interval,
+        state_scale=jnp.array([1.0, 0.1]),
+    )
+
+
+@pytest.fixture(scope="module")
+def data():
+    t = jnp.arange(200) * 0.05
+    de = jax.vmap(dp.three_two_one_one(2.0, 0.5, start=1.0, repeat=5.0))(t)[:, None]
+    probe = _problem(jnp.zeros((200, 3)), de)
+    clean, _, _ = simulate_segments(
+        probe, TRUE[None], Unknowns(TRUE[None][:, [0, 2, 3, 4, 5]], jnp.zeros((1, 2)))
+    )
+    return de, clean.reshape(200, 3)
+
+
+def test_jacobian_matches_finite_differences(data):
+    de, clean = data
+    prob = _problem(clean, de)
+    unknowns = Unknowns(TRUE[None][:, [0, 2, 3, 4, 5]] * 1.1, jnp.zeros((1, 2)))
+    args = (prob, TRUE[None], jnp.eye(3), unknowns.nodes)
+    flat, unflatten = jax.flatten_util.ravel_pytree(unknowns)
+    f = jax.jit(lambda z: _residual_vector(unflatten(z), args))
+    exact = jax.jacfwd(f)(flat)
+    h = 1e-6
+    fd = jnp.stack(
+        [(f(flat.at[i].add(h)) - f(flat.at[i].add(-h))) / (2 * h) for i in range(5)],
+        axis=1,
+    )
+    np.testing.assert_allclose(
+        np.asarray(exact[:, :5]), np.asarray(fd), rtol=1e-6, atol=1e-6
+    )
+
+
+def test_recovers_parameters_from_noise_free_data(data):
+    de, clean = data
+    res = dp.fit_oem(_problem(clean, de), START, jnp.zeros((1, 2)))
+    assert bool(res.converged)
+    np.testing.assert_allclose(np.asarray(res.params[0]), np.asarray(TRUE), rtol=1e-6)
+
+
+def test_noisy_recovery_within_three_standard_errors(data):
+    de, clean = data
+    noise = (
+        jax.random.normal(jax.random.key(0), clean.shape)
+        * jnp.array([0.2, 0.05, 0.005])[None, :]
+    )
+    res = dp.fit_oem(_problem(clean + noise, de), START, jnp.zeros((1, 2)))
+    assert bool(res.converged)
+    err = np.abs(np.asarray(res.params[0] - TRUE))
+    sd = np.asarray(res.stderr[0])
+    free = [0, 2, 3, 4, 5]
+    assert np.all(err[free] < 3 * sd[free]), (err, sd)
+    assert np.all(sd[free] > 0) and sd[1] == 0.0
+    # R estimates the noise variances
+    np.testing.assert_allclose(
+        np.sqrt(np.diag(np.asarray(res.R))), [0.2, 0.05, 0.005], rtol=0.15
+    )
+    # coloured-residual correction exists and is of the same order for white noise
+    ratio = np.asarray(res.stderr_corrected[0])[free] / sd[free]
+    assert np.all((ratio > 0.5) & (ratio < 2.0))
+
+
+def test_batched_equals_per_problem(data):
+    de, clean = data
+    keys = jax.random.split(jax.random.key(1), 2)
+    noisy = jax.vmap(lambda k: clean + 0.05 * jax.random.normal(k, clean.shape))(keys)
+
+    def fit(z):
+        return dp.fit_oem(_problem(z, de), START, jnp.zeros((1, 2))).params
+
+    batch = jax.vmap(fit)(noisy)
+    for i in range(2):
+        # batched linear algebra rounds differently; far inside the 1e-5 stopping rule
+        np.testing.assert_allclose(
+            np.asarray(batch[i]), np.asarray(fit(noisy[i])), rtol=1e-7
+        )
+
+
+def test_coloured_information_matches_direct_sum():
+    rng = np.random.default_rng(0)
+    n, p = 40, 3
+    a = rng.normal(size=(n, 1, p))
+    v = np.convolve(rng.normal(size=n + 4), np.ones(5) / 5, "valid")[:n, None]
+    direct = np.zeros((p, p))
+    for k in range(-(n - 1), n):
+        r = (
+            np.sum(
+                v[max(0, -k) : n - max(0, k), 0]
+                * v[max(0, k) : n - max(0, -k) + 0, 0][: n - abs(k)]
+            )
+            / n
+        )
+        c = sum(
+            np.outer(a[i, 0], a[i + k, 0]) for i in range(max(0, -k), min(n, n - k))
+        )
+        direct += r * c
+    fast = np.asarray(_coloured_information(jnp.asarray(a), jnp.asarray(v)))
+    np.testing.assert_allclose(fast, direct, rtol=1e-8, atol=1e-10)
+
+
+@pytest.fixture(scope="module")
+def unstable():
+    data = dp.read_asc(unstable_aircraft.DEFAULT_DATA)
+    return unstable_aircraft.fit(data), unstable_aircraft.fit(data, node_interval=20)
+
+
+def test_multiple_shooting_recovers_the_unstable_short_period(unstable):
+    (_, single), (_, multiple) = unstable
+    assert multiple["converged"]
+    assert multiple["params"]["Mw"] > 0
+    assert max(multiple["eigenvalues"]["real"]) > 0, "one unstable real eigenvalue"
+    assert multiple["max_continuity_defect"] < 1e-2
+
+
+def test_single_shooting_fits_far_worse(unstable):
+    (_, single), (_, multiple) = unstable
+    assert single["cost"] > 1e3 * multiple["cost"]
+    assert max(single["eigenvalues"]["real"]) < 0 or not single["converged"]
+
+
+def _numpy_cost(data, p):
+    """An independent numpy implementation of the HFB-320 model's det(R): RK4 at the
+    sample step, inputs averaged over the step for the middle stages."""
+    h = hfb320
+    t = data["T"]
+    dt = t[1] - t[0]
+    u = np.column_stack([data["DELV"], data["THRUST"]])
+    z = np.column_stack([data[c] for c in h.OUTPUTS])
+    cd0, cdv, cda, cl0, clv, cla, cm0, cmv, cma, cmq, cmde = p
+
+    def model(x, uu):
+        v, a, th, q = x
+        qb = 0.5 * h.RHO * v * v
+        cd = cd0 + cdv * v / h.V0 + cda * a
+        cl = cl0 + clv * v / h.V0 + cla * a
+        cm = cm0 + cmv * v / h.V0 + cma * a + cmq * q * h.CBAR / h.V0 + cmde * uu[0]
+        thrust = uu[1]
+        qdot = qb * h.SC_IY * cm + h.THRUST_MOMENT * thrust
+        rates = np.array(
+            [
+                -qb * h.S_M * cd
+                + thrust / h.MASS * np.cos(a + h.SIGMA_T)
+                - h.G * np.sin(th - a),
+                -qb * h.S_M / v * cl
+                - thrust / (h.MASS * v) * np.sin(a + h.SIGMA_T)
+                + q
+                + h.G / v * np.cos(th - a),
+                q,
+                qdot,
+            ]
+        )
+        cx = cl * np.sin(a) - cd * np.cos(a)
+        cz = -cl * np.cos(a) - cd * np.sin(a)
+        y = [
+            v,
+            a,
+            th,
+            q,
+            qdot,
+            qb * h.S_M * cx + thrust / h.MASS * np.cos(h.SIGMA_T),
+            qb * h.S_M * cz - thrust / h.MASS * np.sin(h.SIGMA_T),
+        ]
+        return rates, y
+
+    x = np.array(h.X0)
+    ys = []
+    for k in range(len(t)):
+        k1, y = model(x, u[k])
+        ys.append(y)
+        if k + 1 == len(t):
+            break
+        um = 0.5 * (u[k] + u[k + 1])
+        k2 = model(x + dt / 2 * k1, um)[0]
+        k3 = model(x + dt / 2 * k2, um)[0]
+        k4 = model(x + dt * k3, u[k + 1])[0]
+        x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    e = z - np.array(ys)
+    return float(np.prod(np.mean(e**2, axis=0)))
+
+
+def test_hfb320_converges_to_the_output_error_optimum():
+    data = dp.read_asc(hfb320.DEFAULT_DATA)
+    res = hfb320.estimate(data)
+    assert bool(res.converged)
+    p = np.asarray(res.params[0])
+    # our det(R) equals an independent implementation's at our estimate
+    assert float(res.cost) == pytest.approx(_numpy_cost(data, p), rel=1e-5)
+    # and no nearby point is better: perturbing any parameter by 1 std. error raises it
+    base = float(res.cost)
+    sd = np.asarray(res.stderr[0])
+    for i in (2, 5, 8, 9):
+        for sign in (-1, 1):
+            q = p.copy()
+            q[i] += sign * sd[i]
+            assert _numpy_cost(data, q) > base
+    # the published start values give a much higher cost
+    assert _numpy_cost(data, np.asarray(hfb320.START)) > 10 * base
