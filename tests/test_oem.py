@@ -11,10 +11,10 @@ import pytest
 
 import diffpegasus as dp
 from diffpegasus._estimators._oem import (
-    Unknowns,
     _coloured_information,
     _residual_vector,
     simulate_segments,
+    Unknowns,
 )
 
 
@@ -267,3 +267,40 @@ def test_hfb320_converges_to_the_output_error_optimum():
             assert _numpy_cost(data, q) > base
     # the published start values give a much higher cost
     assert _numpy_cost(data, np.asarray(hfb320.START)) > 10 * base
+
+
+@pytest.fixture(scope="module")
+def pegasus_log(tmp_path_factory):
+    from .helpers import short_config
+
+    config = short_config(t_final=9.0, sample_rate=1000.0, sensors=dp.SensorModel())
+    log = dp.flight_to_log(dp.simulate(config, jax.random.key(2)))
+    path = dp.write_log(tmp_path_factory.mktemp("oem") / "f.csv", log)
+    return path
+
+
+def test_pegasus_multiple_shooting_cli_json(pegasus_log):
+    import json
+
+    from typer.testing import CliRunner
+
+    from diffpegasus._cli import app
+
+    result = CliRunner().invoke(app, ["estimate", "oem", str(pegasus_log), "--json"])
+    assert result.exit_code == 0, result.output
+    d = json.loads(result.stdout.strip().splitlines()[-1])
+    assert d["method"] == "oem" and len(d["window_start"]) == 18
+    assert all(d["flags"]["converged"])
+    assert set(d["stderr"]) == set(dp.DERIVATIVE_NAMES)
+    # powered windows: estimates near the truth (order of the equation-error accuracy)
+    est = np.array(d["estimates"]["CMde"][10:])
+    truth = np.array(d["truth"]["CMde"][10:])
+    assert np.all(np.abs(est - truth) < 0.25 * np.abs(truth))
+    assert max(d["flags"]["max_defect"]) < 1e-2
+
+
+def test_body_and_lift_drag_forms_round_trip():
+    body = jnp.array([[0.1, 0.02, -3.0, -0.5, -0.2, -1.0]])
+    alpha = jnp.array([0.2])
+    back = dp.to_body(dp.to_lift_drag(body, alpha), alpha)
+    np.testing.assert_allclose(np.asarray(back), np.asarray(body), rtol=1e-12)

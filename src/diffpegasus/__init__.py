@@ -34,6 +34,8 @@ from ._effects import (  # noqa: E402
 from ._estimators import (  # noqa: E402
     estimate_lse as estimate_lse,
     estimate_oem as estimate_oem,
+    to_body as to_body,
+    to_lift_drag as to_lift_drag,
     Estimates as Estimates,
     fit_oem as fit_oem,
     fit_windowed_oem as fit_windowed_oem,

@@ -259,6 +259,44 @@ def estimate_lse_command(
     _emit_estimates(est, out, as_json, units)
 
 
+@estimate_app.command("oem")
+def estimate_oem_command(
+    log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    shooting: Annotated[str, typer.Option(help="single or multiple")] = "multiple",
+    window: Annotated[float, typer.Option(help="Parameter window, s")] = 0.5,
+    node_interval: Annotated[float, typer.Option(help="Shooting nodes every S s")] = 2.0,
+    decimate: Annotated[int, typer.Option(help="Use every n-th sample")] = 5,
+    start: Annotated[
+        str, typer.Option(help="Starting values: lse, database or truth10")
+    ] = "lse",
+    axes: Annotated[str, typer.Option(help="Estimate body or wind derivatives")] = "body",
+    units: Annotated[str, typer.Option(help="deg or rad")] = "deg",
+    out: Annotated[
+        pathlib.Path | None, typer.Option(help="Folder for CSV and PNG")
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object")] = False,
+    resample: Annotated[bool, typer.Option(help="Resample a non-uniform log")] = False,
+):
+    """Output-error maximum likelihood, single or multiple shooting (thesis ch. 5)."""
+    from ._estimators import estimate_oem
+    from ._log import read_log
+
+    if units not in ("deg", "rad"):
+        _fail(f"--units must be deg or rad, got {units!r}")
+    if shooting not in ("single", "multiple"):
+        _fail(f"--shooting must be single or multiple, got {shooting!r}")
+    try:
+        flight = read_log(log, resample=resample)
+        typer.echo("fitting (compiles on first use)...", err=True)
+        est = estimate_oem(
+            flight, window=window, node_interval=node_interval, shooting=shooting,
+            decimate=decimate, start=start, axes=axes,
+        )
+    except (LogError, ValueError) as e:
+        _fail(str(e))
+    _emit_estimates(est, out, as_json, units)
+
+
 def main() -> None:
     """Entry point of the `diffpegasus` script."""
     try:

@@ -116,7 +116,8 @@ def pegasus_problem(
 ) -> tuple[OEMProblem, np.ndarray]:
     """The OEM problem for a log, at `1/decimate` of its rate; returns it with the
     decimated sample indices."""
-    idx = np.arange(0, len(log), decimate)
+    used = WindowLayout.make(len(log), log.sample_rate, window).used
+    idx = np.arange(0, used, decimate)
     rate = log.sample_rate / decimate
     rates, outputs = make_model(log.s_ref, log.c_ref, wind_axes)
     w = int(round(window * rate))

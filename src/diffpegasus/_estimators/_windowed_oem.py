@@ -90,7 +90,7 @@ def _fit(problem, blocks0, rtol, max_iter):
 
     def cost_ls(blocks, r):
         e, d, _ = residuals(blocks)
-        return jnp.sum(e**2 / r) + jnp.sum(d**2)
+        return jnp.sum(e**2 / r[None, None, :]) + jnp.sum(d**2)
 
     def normal_equations(blocks, r):
         def local(s, b):
