@@ -28,9 +28,15 @@ from diffpegasus._plotting import plot_estimates
 
 
 THESIS_TABLE_5_1 = {
-    "CL": 3.44e-4, "CD": 6.56e-5, "CM": 1.31e-4,
-    "CLa": 4.13e-6, "CLde": 6.61e-7, "CDa": 1.18e-6, "CDde": 1.93e-7,
-    "CMa": 1.20e-6, "CMde": 6.71e-7,
+    "CL": 3.44e-4,
+    "CD": 6.56e-5,
+    "CM": 1.31e-4,
+    "CLa": 4.13e-6,
+    "CLde": 6.61e-7,
+    "CDa": 1.18e-6,
+    "CDde": 1.93e-7,
+    "CMa": 1.20e-6,
+    "CMde": 6.71e-7,
 }
 IGNITION = 5.0
 
@@ -38,7 +44,9 @@ IGNITION = 5.0
 def main():
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path("results/oem_pegasus"))
+    parser.add_argument(
+        "--out", type=pathlib.Path, default=pathlib.Path("results/oem_pegasus")
+    )
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     log = dp.flight_to_log(dp.simulate(dp.PegasusConfig(), jax.random.key(args.seed)))
@@ -46,10 +54,18 @@ def main():
     import lse_pegasus  # noqa: PLC0415 (same folder: reuse the totals' definition)
 
     runs = {
-        "multiple / body / lse start": dict(shooting="multiple", axes="body", start="lse"),
-        "multiple / body / database start": dict(shooting="multiple", axes="body", start="database"),
-        "multiple / body / truth +/-10% start": dict(shooting="multiple", axes="body", start="truth10"),
-        "multiple / lift-drag / lse start": dict(shooting="multiple", axes="wind", start="lse"),
+        "multiple / body / lse start": dict(
+            shooting="multiple", axes="body", start="lse"
+        ),
+        "multiple / body / database start": dict(
+            shooting="multiple", axes="body", start="database"
+        ),
+        "multiple / body / truth +/-10% start": dict(
+            shooting="multiple", axes="body", start="truth10"
+        ),
+        "multiple / lift-drag / lse start": dict(
+            shooting="multiple", axes="wind", start="lse"
+        ),
         "single / body / lse start": dict(shooting="single", axes="body", start="lse"),
     }
     results, table = {}, {}
@@ -64,16 +80,26 @@ def main():
         jax.block_until_ready(est.values)
         timing[name] = time.perf_counter() - t0
         results[name] = est
-        print(f"{name}: {timing[name]:.1f} s (first call of a shape includes compilation)")
+        print(
+            f"{name}: {timing[name]:.1f} s (first call of a shape includes compilation)"
+        )
     for name, est in results.items():
         totals, _ = lse_pegasus.total_coefficient_mse(log, est, IGNITION)
-        table[name] = {**totals, **est.mse("deg", IGNITION),
-                       "windows_converged": int(np.sum(np.asarray(est.valid)))}
+        table[name] = {
+            **totals,
+            **est.mse("deg", IGNITION),
+            "windows_converged": int(np.sum(np.asarray(est.valid))),
+        }
 
     main_run = "multiple / body / lse start"
     plot_estimates(results[main_run], args.out / "fig5_7_10_multiple_shooting.png")
-    plot_estimates(results["single / body / lse start"], args.out / "fig5_3_5_single_shooting.png")
-    plot_estimates(results["multiple / lift-drag / lse start"], args.out / "fig5_1_2_lift_drag_axes.png")
+    plot_estimates(
+        results["single / body / lse start"], args.out / "fig5_3_5_single_shooting.png"
+    )
+    plot_estimates(
+        results["multiple / lift-drag / lse start"],
+        args.out / "fig5_1_2_lift_drag_axes.png",
+    )
     _, model = lse_pegasus.total_coefficient_mse(log, results[main_run], IGNITION)
     import matplotlib.pyplot as plt
 
@@ -91,21 +117,46 @@ def main():
     plt.close(fig)
 
     names = list(THESIS_TABLE_5_1)
-    cols = ["lse", main_run, "single / body / lse start", "multiple / lift-drag / lse start"]
-    lines = ["| parameter | thesis Table 5.1 (OEM) | " + " | ".join(cols) + " |",
-             "|---|---|" + "---|" * len(cols)]
+    cols = [
+        "lse",
+        main_run,
+        "single / body / lse start",
+        "multiple / lift-drag / lse start",
+    ]
+    lines = [
+        "| parameter | thesis Table 5.1 (OEM) | " + " | ".join(cols) + " |",
+        "|---|---|" + "---|" * len(cols),
+    ]
     for n in names:
-        lines.append(f"| {n} | {THESIS_TABLE_5_1[n]:.3g} | "
-                     + " | ".join(f"{table[c][n]:.3g}" for c in cols) + " |")
-    starts = ["| start | " + " | ".join(dp.DERIVATIVE_NAMES) + " |", "|---|" + "---|" * 6]
+        lines.append(
+            f"| {n} | {THESIS_TABLE_5_1[n]:.3g} | "
+            + " | ".join(f"{table[c][n]:.3g}" for c in cols)
+            + " |"
+        )
+    starts = [
+        "| start | " + " | ".join(dp.DERIVATIVE_NAMES) + " |",
+        "|---|" + "---|" * 6,
+    ]
     for c in [k for k in runs if k.startswith("multiple / body")]:
-        starts.append(f"| {c.split(' / ')[2]} | "
-                      + " | ".join(f"{table[c][n]:.3g}" for n in dp.DERIVATIVE_NAMES) + " |")
-    md = ("MSE per degree, windows from ignition on.\n\n" + "\n".join(lines)
-          + "\n\nMultiple shooting, body axes, by starting point:\n\n" + "\n".join(starts) + "\n")
+        starts.append(
+            f"| {c.split(' / ')[2]} | "
+            + " | ".join(f"{table[c][n]:.3g}" for n in dp.DERIVATIVE_NAMES)
+            + " |"
+        )
+    md = (
+        "MSE per degree, windows from ignition on.\n\n"
+        + "\n".join(lines)
+        + "\n\nMultiple shooting, body axes, by starting point:\n\n"
+        + "\n".join(starts)
+        + "\n"
+    )
     (args.out / "table5_1.md").write_text(md)
-    summary = {"seed": args.seed, "mse_per_deg": table, "seconds": timing,
-               "thesis_table_5_1": THESIS_TABLE_5_1}
+    summary = {
+        "seed": args.seed,
+        "mse_per_deg": table,
+        "seconds": timing,
+        "thesis_table_5_1": THESIS_TABLE_5_1,
+    }
     (args.out / "summary.json").write_text(json.dumps(summary, indent=2))
     print(md)
 

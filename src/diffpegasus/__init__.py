@@ -34,8 +34,6 @@ from ._effects import (  # noqa: E402
 from ._estimators import (  # noqa: E402
     estimate_lse as estimate_lse,
     estimate_oem as estimate_oem,
-    to_body as to_body,
-    to_lift_drag as to_lift_drag,
     Estimates as Estimates,
     fit_oem as fit_oem,
     fit_windowed_oem as fit_windowed_oem,
@@ -49,6 +47,8 @@ from ._estimators import (  # noqa: E402
     parameter_table as parameter_table,
     reconstruct_coefficients as reconstruct_coefficients,
     RK4 as RK4,
+    to_body as to_body,
+    to_lift_drag as to_lift_drag,
     window_truth as window_truth,
     windowed_least_squares as windowed_least_squares,
     WindowedFit as WindowedFit,

@@ -264,17 +264,23 @@ def estimate_oem_command(
     log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
     shooting: Annotated[str, typer.Option(help="single or multiple")] = "multiple",
     window: Annotated[float, typer.Option(help="Parameter window, s")] = 0.5,
-    node_interval: Annotated[float, typer.Option(help="Shooting nodes every S s")] = 2.0,
+    node_interval: Annotated[
+        float, typer.Option(help="Shooting nodes every S s")
+    ] = 2.0,
     decimate: Annotated[int, typer.Option(help="Use every n-th sample")] = 5,
     start: Annotated[
         str, typer.Option(help="Starting values: lse, database or truth10")
     ] = "lse",
-    axes: Annotated[str, typer.Option(help="Estimate body or wind derivatives")] = "body",
+    axes: Annotated[
+        str, typer.Option(help="Estimate body or wind derivatives")
+    ] = "body",
     units: Annotated[str, typer.Option(help="deg or rad")] = "deg",
     out: Annotated[
         pathlib.Path | None, typer.Option(help="Folder for CSV and PNG")
     ] = None,
-    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object")] = False,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print one JSON object")
+    ] = False,
     resample: Annotated[bool, typer.Option(help="Resample a non-uniform log")] = False,
 ):
     """Output-error maximum likelihood, single or multiple shooting (thesis ch. 5)."""
@@ -289,8 +295,13 @@ def estimate_oem_command(
         flight = read_log(log, resample=resample)
         typer.echo("fitting (compiles on first use)...", err=True)
         est = estimate_oem(
-            flight, window=window, node_interval=node_interval, shooting=shooting,
-            decimate=decimate, start=start, axes=axes,
+            flight,
+            window=window,
+            node_interval=node_interval,
+            shooting=shooting,
+            decimate=decimate,
+            start=start,
+            axes=axes,
         )
     except (LogError, ValueError) as e:
         _fail(str(e))

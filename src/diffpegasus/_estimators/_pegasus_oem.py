@@ -8,17 +8,20 @@ alpha, V]`. The same building blocks as the simulator (`pitch_plane_rates`,
 `moment_about_cg`, `isa`, `gravity`) give the dynamics.
 """
 
+import functools
+
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._aerodynamics import body_axis
+from .._aerodynamics import body_axis, load_database
 from .._atmosphere import isa
 from .._dynamics import moment_about_cg, pitch_plane_rates
 from .._gravity import gravity
 from .._log import FlightLog
 from ._lse import estimate_lse, window_truth
-from ._oem import fit_oem, OEMProblem
+from ._oem import _window_solve, fit_oem, OEMProblem
 from ._result import Estimates
 from ._windowed_oem import fit_windowed_oem
 from ._windows import WindowLayout
@@ -50,10 +53,12 @@ def _loads(x, u, p, s_ref, c_ref, wind_axes):
     return fx_aero + thrust, fz_aero, moment, alpha, v
 
 
+@functools.cache
 def make_model(s_ref: float, c_ref: float, wind_axes: bool = False):
     """`(rates, outputs)` of the Pegasus OEM model for the given reference geometry;
     parameters `[CXa, CXde, CZa, CZde, CMa, CMde]`, or with `wind_axes`
-    `[CLa, CLde, CDa, CDde, CMa, CMde]`."""
+    `[CLa, CLde, CDa, CDde, CMa, CMde]`. Cached, so that problems built from different
+    logs share the same functions and hence the compiled fits."""
 
     def rates(t, x, u, p):
         fx, fz, moment, _, _ = _loads(x, u, p, s_ref, c_ref, wind_axes)
@@ -142,8 +147,6 @@ def starting_values(log: FlightLog, layout: WindowLayout, start: str, key=None):
     estimates of the same windows; the database where LSE has none), `database` (the
     a-priori tables at the window-mean alpha and Mach) or `truth10` (the truth x
     U(0.9, 1.1), the thesis's shortcut)."""
-    from .._aerodynamics import load_database
-
     alpha = np.asarray(layout.window_mean(jnp.asarray(log["alpha"])))
     mach = np.asarray(layout.window_mean(jnp.asarray(log["mach"])))
     db = load_database()
@@ -283,10 +286,6 @@ def estimate_oem(
 def _sequential_single(problem, theta0, x0, rtol):
     """The thesis's single shooting: window by window (optimistix Gauss-Newton), each
     window starting from the previous window's simulated end state."""
-    import equinox as eqx
-
-    from ._oem import _window_solve
-
     n, length = problem.n_windows, problem.window_samples
     inputs = _pad(problem.inputs, n * length + 1)
     measured = _pad(problem.measured, n * length)

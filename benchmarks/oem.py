@@ -1,0 +1,161 @@
+"""Benchmark: the output-error method on Pegasus flights.
+
+- ours: multiple-shooting OEM (0.5 s windows, nodes every 2 s, 200 Hz, exact
+  Jacobians, structured Gauss-Newton) on one flight, and on a batch of flights in one
+  vmapped call; compile and run time separately;
+- the straightforward alternative a user would write, in the same run:
+  `scipy.optimize.least_squares` with finite-difference Jacobians, one window at a
+  time (single shooting from the measured state, fixed weights), calling the same
+  jitted model for the residuals; timed on a subset of windows and extrapolated to the
+  flight. The thesis quotes about 20 min per flight (MATLAB).
+
+Writes `benchmarks/results/oem.json`. Run: `python benchmarks/oem.py [--batch 4]`.
+"""
+
+import os
+
+
+os.environ.setdefault(
+    "XLA_FLAGS", f"--xla_force_host_platform_device_count={os.cpu_count()}"
+)
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import pathlib  # noqa: E402
+import time  # noqa: E402
+
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+import scipy.optimize  # noqa: E402
+
+import diffpegasus as dp  # noqa: E402
+from diffpegasus._estimators._oem import _input_at, _window_solve  # noqa: E402
+from diffpegasus._estimators._pegasus_oem import (  # noqa: E402
+    pegasus_problem,
+    starting_values,
+    to_body,
+)
+
+
+def timed(fn):
+    t0 = time.perf_counter()
+    out = jax.block_until_ready(fn())
+    return out, time.perf_counter() - t0
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--batch", type=int, default=4)
+    parser.add_argument("--scipy-windows", type=int, default=8)
+    args = parser.parse_args()
+    config = dp.PegasusConfig()
+    logs = [
+        dp.flight_to_log(dp.simulate(p.apply(config), jax.random.key(i)))
+        for i, p in enumerate(
+            jax.tree_util.tree_map(
+                lambda x, i=i: x[i],
+                dp.sample_perturbations(jax.random.key(9), args.batch),
+            )
+            for i in range(args.batch)
+        )
+    ]
+    _, first = timed(lambda: dp.estimate_oem(logs[0]).values)
+    _, single_run = timed(lambda: dp.estimate_oem(logs[0]).values)
+
+    problems, thetas, nodes = [], [], []
+    for log in logs:
+        prob, idx = pegasus_problem(log)
+        layout = dp.WindowLayout.make(len(log), log.sample_rate, 0.5)
+        alpha = layout.window_mean(jnp.asarray(log["alpha"]))
+        thetas.append(to_body(jnp.asarray(starting_values(log, layout, "lse")), alpha))
+        states = np.column_stack(
+            [
+                log["V"] * np.cos(log["alpha"]),
+                log["V"] * np.sin(log["alpha"]),
+                log["q"],
+                log["theta"],
+            ]
+        )[idx]
+        per = prob.windows_per_segment * prob.window_samples
+        nodes.append(jnp.asarray(states[np.arange(prob.n_segments) * per]))
+        problems.append(prob)
+    stacked = jax.tree_util.tree_map(lambda *x: jnp.stack(x), *problems)
+    batch_fn = jax.jit(jax.vmap(lambda p, t, n: dp.fit_windowed_oem(p, t, n).params))
+    _, batch_first = timed(
+        lambda: batch_fn(stacked, jnp.stack(thetas), jnp.stack(nodes))
+    )
+    _, batch_run = timed(lambda: batch_fn(stacked, jnp.stack(thetas), jnp.stack(nodes)))
+
+    # The straightforward alternative, on a subset of windows after ignition.
+    prob = problems[0]
+    length = prob.window_samples
+    sigma = jnp.asarray(
+        [0.05, 0.05, np.deg2rad(0.1), np.deg2rad(1.0), np.deg2rad(0.1), 0.5]
+    )
+    states = nodes[0]
+
+    @jax.jit
+    def residual(theta, w, x0):
+        t_start = prob.t0 + w * length * prob.dt
+        xs, ts = _window_solve(prob, x0, theta, t_start)
+        u = jax.vmap(lambda t: _input_at(prob, t))(ts[:-1])
+        y = jax.vmap(lambda t, x_, u_: prob.outputs(t, x_, u_, theta))(
+            ts[:-1], xs[:-1], u
+        )
+        z = jax.lax.dynamic_slice_in_dim(prob.measured, w * length, length)
+        return ((z - y) / sigma[None, :]).reshape(-1)
+
+    log0 = logs[0]
+    meas_states = np.column_stack(
+        [
+            log0["V"] * np.cos(log0["alpha"]),
+            log0["V"] * np.sin(log0["alpha"]),
+            log0["q"],
+            log0["theta"],
+        ]
+    )[::5]
+    windows = list(range(20, 20 + args.scipy_windows))
+    residual(thetas[0][20], 20, jnp.asarray(meas_states[20 * length]))  # compile once
+    t0 = time.perf_counter()
+    for w in windows:
+        x0 = jnp.asarray(meas_states[w * length])
+        scipy.optimize.least_squares(
+            lambda th, w=w, x0=x0: np.asarray(residual(jnp.asarray(th), w, x0)),
+            np.asarray(thetas[0][w]),
+            jac="2-point",
+            method="trf",
+            xtol=1e-8,
+            ftol=1e-8,
+        )
+    scipy_per_window = (time.perf_counter() - t0) / len(windows)
+    n_windows = prob.n_windows
+    scipy_per_flight = scipy_per_window * n_windows
+    result = {
+        "what": "Pegasus OEM, 161 windows of 0.5 s, 200 Hz, multiple shooting every 2 s",
+        "devices": len(jax.devices()),
+        "jax": jax.__version__,
+        "ours_one_flight": {"compile_plus_first_run_s": first, "run_s": single_run},
+        "ours_batch": {
+            "flights": args.batch,
+            "compile_plus_first_run_s": batch_first,
+            "run_s": batch_run,
+            "run_s_per_flight": batch_run / args.batch,
+        },
+        "scipy_fd_per_window_loop": {
+            "windows_timed": len(windows),
+            "s_per_window": scipy_per_window,
+            "s_per_flight_extrapolated": scipy_per_flight,
+        },
+        "speedup_vs_scipy_per_flight": scipy_per_flight / (batch_run / args.batch),
+        "thesis_s_per_flight": 20 * 60,
+        "speedup_vs_thesis": 1200 / (batch_run / args.batch),
+        "note": "scipy solves each window alone (no nodes, no continuity), a smaller problem",
+    }
+    path = pathlib.Path(__file__).parent / "results" / "oem.json"
+    path.write_text(json.dumps(result, indent=2))
+    print(json.dumps(result, indent=2))
+
+
+if __name__ == "__main__":
+    main()
