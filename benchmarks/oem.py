@@ -32,6 +32,7 @@ import scipy.optimize  # noqa: E402
 import diffpegasus as dp  # noqa: E402
 from diffpegasus._estimators._oem import _input_at, _window_solve  # noqa: E402
 from diffpegasus._estimators._pegasus_oem import (  # noqa: E402
+    measured_states,
     pegasus_problem,
     starting_values,
     to_body,
@@ -69,16 +70,7 @@ def main():
         layout = dp.WindowLayout.make(len(log), log.sample_rate, 0.5)
         alpha = layout.window_mean(jnp.asarray(log["alpha"]))
         thetas.append(to_body(jnp.asarray(starting_values(log, layout, "lse")), alpha))
-        states = np.column_stack(
-            [
-                log["V"] * np.cos(log["alpha"]),
-                log["V"] * np.sin(log["alpha"]),
-                log["q"],
-                log["theta"],
-            ]
-        )[idx]
-        per = prob.windows_per_segment * prob.window_samples
-        nodes.append(jnp.asarray(states[np.arange(prob.n_segments) * per]))
+        nodes.append(jnp.asarray(measured_states(log)[idx][dp.node_times(prob)]))
         problems.append(prob)
     stacked = jax.tree_util.tree_map(lambda *x: jnp.stack(x), *problems)
     batch_fn = jax.jit(jax.vmap(lambda p, t, n: dp.fit_windowed_oem(p, t, n).params))
@@ -93,7 +85,6 @@ def main():
     sigma = jnp.asarray(
         [0.05, 0.05, np.deg2rad(0.1), np.deg2rad(1.0), np.deg2rad(0.1), 0.5]
     )
-    states = nodes[0]
 
     @jax.jit
     def residual(theta, w, x0):
@@ -107,14 +98,7 @@ def main():
         return ((z - y) / sigma[None, :]).reshape(-1)
 
     log0 = logs[0]
-    meas_states = np.column_stack(
-        [
-            log0["V"] * np.cos(log0["alpha"]),
-            log0["V"] * np.sin(log0["alpha"]),
-            log0["q"],
-            log0["theta"],
-        ]
-    )[::5]
+    meas_states = measured_states(log0)[::5]
     windows = list(range(20, 20 + args.scipy_windows))
     residual(thetas[0][20], 20, jnp.asarray(meas_states[20 * length]))  # compile once
     t0 = time.perf_counter()

@@ -21,7 +21,7 @@ from .._dynamics import moment_about_cg, pitch_plane_rates
 from .._gravity import gravity
 from .._log import FlightLog
 from ._lse import estimate_lse, window_truth
-from ._oem import _window_solve, fit_oem, OEMProblem
+from ._oem import _window_solve, fit_oem, node_times, OEMProblem
 from ._result import Estimates
 from ._windowed_oem import fit_windowed_oem
 from ._windows import WindowLayout
@@ -107,6 +107,14 @@ def to_body(lift_drag, alpha):
             cmde,
         ],
         axis=-1,
+    )
+
+
+def measured_states(log: FlightLog) -> np.ndarray:
+    """`[u, w, q, theta]` at every sample, from the measured V, alpha, q, theta."""
+    v, alpha = log["V"], log["alpha"]
+    return np.column_stack(
+        [v * np.cos(alpha), v * np.sin(alpha), log["q"], log["theta"]]
     )
 
 
@@ -225,24 +233,13 @@ def estimate_oem(
     theta0 = jnp.asarray(starting_values(log, layout, start))
     if not wind_axes:
         theta0 = to_body(theta0, alpha_w)
-    measured_states = np.column_stack(
-        [
-            log["V"] * np.cos(log["alpha"]),
-            log["V"] * np.sin(log["alpha"]),
-            log["q"],
-            log["theta"],
-        ]
-    )[idx]
-    node_idx = (
-        np.arange(problem.n_segments)
-        * problem.windows_per_segment
-        * problem.window_samples
-    )
+    states = measured_states(log)[idx]
+    node_idx = node_times(problem)
     if shooting == "multiple":
         fit = fit_windowed_oem(
             problem,
             theta0,
-            jnp.asarray(measured_states[node_idx]),
+            jnp.asarray(states[node_idx]),
             rtol=rtol,
             max_iter=max_iter,
         )
@@ -254,9 +251,7 @@ def estimate_oem(
         }
         ok = jnp.full(n_win, fit.converged)
     elif shooting == "single":
-        body, body_sd, ok, its = _sequential_single(
-            problem, theta0, measured_states[0], rtol
-        )
+        body, body_sd, ok, its = _sequential_single(problem, theta0, states[0], rtol)
         flags = {"converged": ok, "iterations": its}
     else:
         raise ValueError(f"shooting must be single or multiple, got {shooting!r}")
