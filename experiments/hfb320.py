@@ -20,6 +20,7 @@ import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from _shared import shared_data  # noqa: E402
 
 import diffpegasus as dp  # noqa: E402
 
@@ -42,9 +43,7 @@ START = [
 ]
 X0 = [106.023, 0.111685, 0.104887, -0.00332659]  # V, alpha, theta, q
 OUTPUTS = ["TASCG", "ALFCG", "THE", "Q", "QDOT", "AXCG", "AZCG"]
-DEFAULT_DATA = (
-    pathlib.Path(__file__).resolve().parents[2] / "shared/data/hfb320/hfb320_1_10.asc"
-)
+DEFAULT_DATA = shared_data("hfb320/hfb320_1_10.asc")
 
 
 def _aero(x, u, p):

@@ -19,6 +19,7 @@ import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from _shared import shared_data  # noqa: E402
 
 import diffpegasus as dp  # noqa: E402
 
@@ -27,10 +28,7 @@ U0 = 44.5695
 NAMES = ["Zw", "Zq", "Zde", "Mw", "Mq", "Mde"]
 START = jnp.array([-1.22871, -1.4768, -4.20491, 0.116197, -2.70670, -18.7718])
 FREE = (True, False, True, True, True, True)
-DEFAULT_DATA = (
-    pathlib.Path(__file__).resolve().parents[2]
-    / "shared/data/unstable_aircraft/unStabAC_sim.asc"
-)
+DEFAULT_DATA = shared_data("unstable_aircraft/unStabAC_sim.asc")
 
 
 def rates(t, x, u, p):

@@ -24,6 +24,11 @@ import hfb320  # noqa: E402
 import unstable_aircraft  # noqa: E402
 
 
+def _require(path):
+    if not path.exists():
+        pytest.skip(f"validation data not found at {path} (set DIFFPEGASUS_SHARED)")
+
+
 def test_rk4_is_fourth_order():
     errors = []
     for n in (10, 20, 40):
@@ -172,6 +177,7 @@ def test_coloured_information_matches_direct_sum():
 
 @pytest.fixture(scope="module")
 def unstable():
+    _require(unstable_aircraft.DEFAULT_DATA)
     data = dp.read_asc(unstable_aircraft.DEFAULT_DATA)
     return unstable_aircraft.fit(data), unstable_aircraft.fit(data, node_interval=20)
 
@@ -251,6 +257,7 @@ def _numpy_cost(data, p):
 
 
 def test_hfb320_converges_to_the_output_error_optimum():
+    _require(hfb320.DEFAULT_DATA)
     data = dp.read_asc(hfb320.DEFAULT_DATA)
     res = hfb320.estimate(data)
     assert bool(res.converged)
