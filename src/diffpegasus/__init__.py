@@ -32,12 +32,15 @@ from ._effects import (  # noqa: E402
     parse_assignment as parse_assignment,
 )
 from ._estimators import (  # noqa: E402
+    CoefficientNetwork as CoefficientNetwork,
     estimate_lse as estimate_lse,
+    estimate_nn as estimate_nn,
     estimate_oem as estimate_oem,
     Estimates as Estimates,
     fit_oem as fit_oem,
     fit_windowed_oem as fit_windowed_oem,
     format_parameter_table as format_parameter_table,
+    load_network as load_network,
     lse_arrays as lse_arrays,
     lse_batch as lse_batch,
     MeasuredCoefficients as MeasuredCoefficients,
@@ -47,8 +50,10 @@ from ._estimators import (  # noqa: E402
     parameter_table as parameter_table,
     reconstruct_coefficients as reconstruct_coefficients,
     RK4 as RK4,
+    save_network as save_network,
     to_body as to_body,
     to_lift_drag as to_lift_drag,
+    train_network as train_network,
     window_truth as window_truth,
     windowed_least_squares as windowed_least_squares,
     WindowedFit as WindowedFit,
@@ -93,6 +98,10 @@ from ._simulate import (  # noqa: E402
     sample_perturbations as sample_perturbations,
     simulate as simulate,
     simulate_batch as simulate_batch,
+)
+from ._training import (  # noqa: E402
+    train_levenberg_marquardt as train_levenberg_marquardt,
+    TrainingHistory as TrainingHistory,
 )
 from ._vehicle import Vehicle as Vehicle  # noqa: E402
 

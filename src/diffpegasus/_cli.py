@@ -308,6 +308,73 @@ def estimate_oem_command(
     _emit_estimates(est, out, as_json, units)
 
 
+def _default_training_logs():
+    """Three simulated training flights with different inputs and seeds."""
+    import jax
+
+    from ._simulate import elevator_command, flight_to_log, PegasusConfig, simulate
+
+    return [
+        flight_to_log(
+            simulate(
+                PegasusConfig(elevator=elevator_command(name)), jax.random.key(seed)
+            )
+        )
+        for name, seed in (("pulse", 11), ("3211", 12), ("multisine", 13))
+    ]
+
+
+@estimate_app.command("nn")
+def estimate_nn_command(
+    log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    model: Annotated[
+        pathlib.Path | None,
+        typer.Option(
+            help="Trained network (.eqx); trained on three simulated flights if omitted"
+        ),
+    ] = None,
+    save_model: Annotated[
+        pathlib.Path | None, typer.Option(help="Where to save a newly trained network")
+    ] = None,
+    derivatives: Annotated[str, typer.Option(help="lse or central")] = "lse",
+    window: Annotated[float, typer.Option(help="Window length, s")] = 0.5,
+    units: Annotated[str, typer.Option(help="deg or rad")] = "deg",
+    out: Annotated[
+        pathlib.Path | None, typer.Option(help="Folder for CSV and PNG")
+    ] = None,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print one JSON object")
+    ] = False,
+    resample: Annotated[bool, typer.Option(help="Resample a non-uniform log")] = False,
+):
+    """Neural model plus least squares (thesis chapter 4)."""
+    import jax
+
+    from ._estimators import estimate_nn, load_network, save_network, train_network
+    from ._log import read_log
+
+    if units not in ("deg", "rad"):
+        _fail(f"--units must be deg or rad, got {units!r}")
+    try:
+        flight = read_log(log, resample=resample)
+        if model is None:
+            typer.echo(
+                "no --model given: training a network on three simulated flights "
+                "(pulse, 3-2-1-1, multisine); this takes a few minutes",
+                err=True,
+            )
+            net, _ = train_network(_default_training_logs(), jax.random.key(0))
+            if save_model is not None:
+                save_network(save_model, net)
+                typer.echo(f"saved the network to {save_model}", err=True)
+        else:
+            net = load_network(model)
+        est = estimate_nn(flight, net, window=window, derivatives=derivatives)
+    except (LogError, ValueError, OSError) as e:
+        _fail(str(e))
+    _emit_estimates(est, out, as_json, units)
+
+
 def main() -> None:
     """Entry point of the `diffpegasus` script."""
     try:

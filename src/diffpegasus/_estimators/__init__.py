@@ -11,6 +11,14 @@ from ._lse import (
     window_truth as window_truth,
     windowed_least_squares as windowed_least_squares,
 )
+from ._nn import (
+    CoefficientNetwork as CoefficientNetwork,
+    estimate_nn as estimate_nn,
+    load_network as load_network,
+    MinMax as MinMax,
+    save_network as save_network,
+    train_network as train_network,
+)
 from ._oem import (
     fit_oem as fit_oem,
     format_parameter_table as format_parameter_table,
