@@ -23,6 +23,18 @@ def _fail(message: str) -> None:
     raise typer.Exit(code=2)
 
 
+def _check_units(units: str) -> None:
+    if units not in ("deg", "rad"):
+        _fail(f"--units must be deg or rad, got {units!r}")
+
+
+# Options shared by the `estimate` commands.
+UnitsOption = Annotated[str, typer.Option(help="deg or rad")]
+OutOption = Annotated[pathlib.Path | None, typer.Option(help="Folder for CSV and PNG")]
+JsonOption = Annotated[bool, typer.Option("--json", help="Print one JSON object")]
+ResampleOption = Annotated[bool, typer.Option(help="Resample a non-uniform log")]
+
+
 def _simulate_to_log(
     seed: int,
     input_name: str,
@@ -236,21 +248,16 @@ def estimate_lse_command(
         bool, typer.Option(help="Also estimate CL0, CD0, CM0 per window")
     ] = False,
     tol: Annotated[float, typer.Option(help="Rank tolerance for A and A^T A")] = 1e-2,
-    units: Annotated[str, typer.Option(help="deg or rad")] = "deg",
-    out: Annotated[
-        pathlib.Path | None, typer.Option(help="Folder for CSV and PNG")
-    ] = None,
-    as_json: Annotated[
-        bool, typer.Option("--json", help="Print one JSON object")
-    ] = False,
-    resample: Annotated[bool, typer.Option(help="Resample a non-uniform log")] = False,
+    units: UnitsOption = "deg",
+    out: OutOption = None,
+    as_json: JsonOption = False,
+    resample: ResampleOption = False,
 ):
     """Windowed equation-error least squares (thesis chapter 3)."""
     from ._estimators import estimate_lse
     from ._log import read_log
 
-    if units not in ("deg", "rad"):
-        _fail(f"--units must be deg or rad, got {units!r}")
+    _check_units(units)
     try:
         flight = read_log(log, resample=resample)
         est = estimate_lse(flight, window=window, intercept=intercept, tol=tol)
@@ -274,21 +281,16 @@ def estimate_oem_command(
     axes: Annotated[
         str, typer.Option(help="Estimate body or wind derivatives")
     ] = "body",
-    units: Annotated[str, typer.Option(help="deg or rad")] = "deg",
-    out: Annotated[
-        pathlib.Path | None, typer.Option(help="Folder for CSV and PNG")
-    ] = None,
-    as_json: Annotated[
-        bool, typer.Option("--json", help="Print one JSON object")
-    ] = False,
-    resample: Annotated[bool, typer.Option(help="Resample a non-uniform log")] = False,
+    units: UnitsOption = "deg",
+    out: OutOption = None,
+    as_json: JsonOption = False,
+    resample: ResampleOption = False,
 ):
     """Output-error maximum likelihood, single or multiple shooting (thesis ch. 5)."""
     from ._estimators import estimate_oem
     from ._log import read_log
 
-    if units not in ("deg", "rad"):
-        _fail(f"--units must be deg or rad, got {units!r}")
+    _check_units(units)
     if shooting not in ("single", "multiple"):
         _fail(f"--shooting must be single or multiple, got {shooting!r}")
     try:
@@ -338,14 +340,10 @@ def estimate_nn_command(
     ] = None,
     derivatives: Annotated[str, typer.Option(help="lse or central")] = "lse",
     window: Annotated[float, typer.Option(help="Window length, s")] = 0.5,
-    units: Annotated[str, typer.Option(help="deg or rad")] = "deg",
-    out: Annotated[
-        pathlib.Path | None, typer.Option(help="Folder for CSV and PNG")
-    ] = None,
-    as_json: Annotated[
-        bool, typer.Option("--json", help="Print one JSON object")
-    ] = False,
-    resample: Annotated[bool, typer.Option(help="Resample a non-uniform log")] = False,
+    units: UnitsOption = "deg",
+    out: OutOption = None,
+    as_json: JsonOption = False,
+    resample: ResampleOption = False,
 ):
     """Neural model plus least squares (thesis chapter 4)."""
     import jax
@@ -353,8 +351,7 @@ def estimate_nn_command(
     from ._estimators import estimate_nn, load_network, save_network, train_network
     from ._log import read_log
 
-    if units not in ("deg", "rad"):
-        _fail(f"--units must be deg or rad, got {units!r}")
+    _check_units(units)
     try:
         flight = read_log(log, resample=resample)
         if model is None:
