@@ -25,18 +25,22 @@ from ._windows import WindowLayout
 
 
 def _solve_window(a, y, mask, tol, column_scale):
+    # Everything goes through the p x p normal matrix: the singular values of A are
+    # the square roots of the eigenvalues of A^T A, so no (samples x samples) SVD
+    # workspace is ever allocated (it was 0.3 GB per 1 kHz flight).
     aw = a * mask[:, None]
     yw = y * mask[:, None]
     p = a.shape[1]
-    scaled = aw * column_scale[None, :]
-    rank_a = jnp.sum(jnp.linalg.svd(scaled, compute_uv=False) > tol)
-    rank_ata = jnp.sum(jnp.linalg.svd(scaled.T @ scaled, compute_uv=False) > tol)
     ata = aw.T @ aw
-    theta = jnp.linalg.lstsq(aw, yw)[0]
+    scaled = ata * column_scale[:, None] * column_scale[None, :]
+    eig = jnp.clip(jnp.linalg.eigvalsh(scaled), 0.0)
+    rank_a = jnp.sum(jnp.sqrt(eig) > tol)
+    rank_ata = jnp.sum(eig > tol)
+    cov = jnp.linalg.pinv(ata, hermitian=True)
+    theta = cov @ (aw.T @ yw)
     resid = yw - aw @ theta
     dof = jnp.maximum(jnp.sum(mask) - p, 1.0)
     sigma2 = jnp.sum(resid**2, axis=0) / dof
-    cov = jnp.linalg.pinv(ata)
     stderr = jnp.sqrt(jnp.clip(jnp.diag(cov), 0.0))[:, None] * jnp.sqrt(sigma2)[None, :]
     return theta, stderr, rank_a, rank_ata
 
