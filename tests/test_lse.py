@@ -1,6 +1,8 @@
 """Equation-error least squares: exact recovery, rank rule, windows, batching."""
 
 import json
+import pathlib
+import sys
 
 import jax
 import jax.numpy as jnp
@@ -9,37 +11,20 @@ import pytest
 from typer.testing import CliRunner
 
 import diffpegasus as dp
-from diffpegasus._short_period import ShortPeriodModel, simulate_short_period
+from diffpegasus._short_period import ShortPeriodModel
 
 from .helpers import numpy_channels, short_config
 
 
-INPUTS = {
-    "sine": dp.Sine(amplitude=-3.0, frequency=2.0, start=0.0),
-    "ramp": dp.Ramp(rate=0.05, start=0.0),
-    "step": dp.Step(amplitude=5.0, start=-1.0),
-    "pulse": dp.PulseTrain(amplitude=5.0, period=8.0, width=4.0, bias=-1.0, start=0.0),
-}
+EXPERIMENTS = pathlib.Path(__file__).resolve().parents[1] / "experiments"
+sys.path.insert(0, str(EXPERIMENTS))
+from input_design import INPUTS, study  # noqa: E402
 
 
 def _short_period_fit(model, name):
-    d = simulate_short_period(model, INPUTS[name])
-    layout = dp.WindowLayout.make(len(d["t"]), 200.0, 1.0)
-    cz = d["az"] * model.mass / (d["qbar"] * model.s_ref)
-    cm = d["qdot"] * model.iyy / (d["qbar"] * model.s_ref * model.c_ref)
-    a = layout.split(jnp.stack([jnp.ones_like(d["alpha"]), d["alpha"], d["de"]], -1))
-    y = layout.split(jnp.stack([cz, cm], -1))
-    deg = 180 / np.pi
-    theta, _, rank_a, rank_ata, ok = dp.windowed_least_squares(
-        a, y, layout.mask(), column_scale=jnp.array([1.0, deg, deg])
-    )
-    truth = jnp.stack(
-        [layout.window_mean(d[f"true_{k}"]) for k in ("CZa", "CZde", "CMa", "CMde")], -1
-    )
-    est = jnp.stack(
-        [theta[:, 1, 0], theta[:, 2, 0], theta[:, 1, 1], theta[:, 2, 1]], -1
-    )
-    return np.asarray(est), np.asarray(truth), np.asarray(rank_ata), np.asarray(ok)
+    """The input-design experiment's own fit: estimates and truth per degree."""
+    r = study(model, INPUTS[name])
+    return r["estimates"], r["truth"], r["rank_ATA"], r["ok"]
 
 
 @pytest.fixture(scope="module")
