@@ -4,6 +4,12 @@ from ._coefficients import (
     MeasuredCoefficients as MeasuredCoefficients,
     reconstruct_coefficients as reconstruct_coefficients,
 )
+from ._global_oem import (
+    fit_global_oem as fit_global_oem,
+    GlobalFit as GlobalFit,
+    score_test as score_test,
+    ScoreTest as ScoreTest,
+)
 from ._lse import (
     estimate_lse as estimate_lse,
     lse_arrays as lse_arrays,

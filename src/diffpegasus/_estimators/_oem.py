@@ -78,6 +78,9 @@ class OEMProblem(eqx.Module):
     - `state_scale`: shape `(states,)`, typical state magnitudes for the continuity
       defects.
     - `continuity_tol`: allowed defect relative to `state_scale`.
+    - `input_delay`: optional `theta -> (inputs,)` time delays, s: input `i` enters the
+      model as recorded at `t - delay[i]` (an estimated actuator or sensor lag; linear
+      interpolation between samples, so the delay is differentiable).
     """
 
     rates: Callable = eqx.field(static=True)
@@ -93,6 +96,7 @@ class OEMProblem(eqx.Module):
     full_covariance: bool = eqx.field(static=True, default=False)
     state_scale: Float[Array, " states"] | None = None
     continuity_tol: float = eqx.field(static=True, default=1e-4)
+    input_delay: Callable | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         if self.node_interval is not None and self.window is not None:
@@ -145,12 +149,18 @@ class Unknowns(eqx.Module):
     nodes: Float[Array, "segments states"]
 
 
-def _input_at(problem: OEMProblem, t):
+def _input_at(problem: OEMProblem, t, theta=None):
     n = problem.inputs.shape[0]
-    x = (t - problem.t0) / problem.dt
+    if problem.input_delay is None or theta is None:
+        x = (t - problem.t0) / problem.dt
+        i = jnp.clip(jnp.floor(x), 0, n - 2).astype(int)
+        frac = jnp.clip(x - i, 0.0, 1.0)
+        return problem.inputs[i] * (1 - frac) + problem.inputs[i + 1] * frac
+    x = (t - problem.input_delay(theta) - problem.t0) / problem.dt
     i = jnp.clip(jnp.floor(x), 0, n - 2).astype(int)
     frac = jnp.clip(x - i, 0.0, 1.0)
-    return problem.inputs[i] * (1 - frac) + problem.inputs[i + 1] * frac
+    cols = jnp.arange(problem.inputs.shape[1])
+    return problem.inputs[i, cols] * (1 - frac) + problem.inputs[i + 1, cols] * frac
 
 
 def _window_solve(problem: OEMProblem, x0, theta, t_start):
@@ -158,7 +168,7 @@ def _window_solve(problem: OEMProblem, x0, theta, t_start):
     length = problem.window_samples
 
     def field(t, x, th):
-        return problem.rates(t, x, _input_at(problem, t), th)
+        return problem.rates(t, x, _input_at(problem, t, th), th)
 
     ts = t_start + problem.dt * jnp.arange(length + 1)
     sol = diffrax.diffeqsolve(
@@ -198,7 +208,7 @@ def simulate_segments(problem, base, unknowns):
             theta = theta_all[jnp.minimum(w, problem.n_param_sets - 1)]
             t_start = problem.t0 + w * length * problem.dt
             xs, ts = _window_solve(problem, x, theta, t_start)
-            u = jax.vmap(lambda t: _input_at(problem, t))(ts[:-1])
+            u = jax.vmap(lambda t: _input_at(problem, t, theta))(ts[:-1])
             y = jax.vmap(lambda t, x_, u_: problem.outputs(t, x_, u_, theta))(
                 ts[:-1], xs[:-1], u
             )
