@@ -185,25 +185,248 @@ def effects(
         typer.echo(f"{r['effect']:24s} {r['parameter']:7s} {r['description']}")
 
 
+# Options shared by the discrepancy commands.
+KnotsOption = Annotated[
+    int, typer.Option(help="Mach spline functions per coefficient term")
+]
+AlphaOrderOption = Annotated[
+    int, typer.Option(help="Highest power of alpha in the baseline coefficients")
+]
+RateOption = Annotated[float, typer.Option(help="Model sample rate, Hz")]
+NodeOption = Annotated[float, typer.Option(help="Shooting nodes every S s")]
+AddOption = Annotated[
+    list[str] | None,
+    typer.Option("--add", help="Effect to estimate (repeatable), e.g. pitch_damping"),
+]
+
+
+def _settings(knots, alpha_order, rate, node_interval):
+    from ._discrepancy import Settings
+
+    if knots < 4:
+        _fail(f"--knots must be at least 4, got {knots}")
+    if alpha_order < 1:
+        _fail(f"--alpha-order must be at least 1, got {alpha_order}")
+    return Settings(
+        knots=knots, alpha_order=alpha_order, rate=rate, node_interval=node_interval
+    )
+
+
+def _read(log: pathlib.Path, resample: bool):
+    from ._log import read_log
+
+    try:
+        return read_log(log, resample=resample)
+    except LogError as e:
+        _fail(str(e))
+
+
+def _check_effects(names):
+    from ._effects import make_effect
+
+    for name in names:
+        try:
+            make_effect(name)
+        except ValueError as e:
+            _fail(str(e))
+
+
+def _json_out(result):
+    typer.echo(json.dumps(result, allow_nan=False, default=float))
+
+
+@app.command()
+def compare(
+    log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    knots: KnotsOption = 6,
+    alpha_order: AlphaOrderOption = 3,
+    rate: RateOption = 50.0,
+    node_interval: NodeOption = 1.0,
+    out: Annotated[
+        pathlib.Path | None, typer.Option(help="Folder for the report")
+    ] = None,
+    as_json: JsonOption = False,
+    resample: ResampleOption = False,
+):
+    """Fit the model by output error and show where it fails: per-channel metrics,
+    whiteness, misfit by flight regime, fitted derivatives with standard errors."""
+    from ._discrepancy import run_compare
+
+    settings = _settings(knots, alpha_order, rate, node_interval)
+    flight = _read(log, resample)
+    try:
+        result, _ = run_compare(flight, settings, out)
+    except ValueError as e:
+        _fail(str(e))
+    if as_json:
+        _json_out(result)
+        return
+    typer.echo(f"output-error cost det(R) = {result['cost']:.4g}")
+    typer.echo(
+        f"{'channel':>8s} {'rms':>10s} {'TIC':>7s} {'R^2':>8s} {'rms/noise':>9s} {'white p':>8s}"
+    )
+    for name, m in result["channels"].items():
+        typer.echo(
+            f"{name:>8s} {m['rms']:10.3g} {m['tic']:7.3f} {m['r2']:8.4f} "
+            f"{m['misfit_ratio']:9.2f} {m['ljung_box_p']:8.2g}"
+        )
+    for w in result["localise"]["worst"][:3]:
+        typer.echo(
+            f"worst: {w['channel']} {w['misfit_ratio']:.1f} x noise for {w['variable']} "
+            f"in [{w['low']:.3g}, {w['high']:.3g}]"
+        )
+
+
+@app.command()
+def diagnose(
+    log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    add: AddOption = None,
+    knots: KnotsOption = 6,
+    alpha_order: AlphaOrderOption = 3,
+    rate: RateOption = 50.0,
+    node_interval: NodeOption = 1.0,
+    out: Annotated[
+        pathlib.Path | None, typer.Option(help="Folder for the report")
+    ] = None,
+    as_json: JsonOption = False,
+    resample: ResampleOption = False,
+):
+    """Rank the library's effects by how much of the misfit each would explain
+    (score test with exact Jacobians); say when none is significant."""
+    from ._discrepancy import run_diagnose
+
+    add = tuple(add or ())
+    _check_effects(add)
+    settings = _settings(knots, alpha_order, rate, node_interval)
+    flight = _read(log, resample)
+    try:
+        result, _ = run_diagnose(flight, settings, out, add)
+    except ValueError as e:
+        _fail(str(e))
+    if as_json:
+        _json_out(result)
+        return
+    typer.echo(result["message"])
+    typer.echo(
+        f"{'effect':>24s} {'cost fall':>9s} {'p-value':>9s} {'estimate':>12s} {'std err':>9s}"
+    )
+    for r in result["ranking"][:8]:
+        mark = " *" if r["significant"] else ""
+        typer.echo(
+            f"{r['effect']:>24s} {100 * r['cost_reduction']:8.1f}% {r['p_value']:9.2g} "
+            f"{r['estimate']:12.4g} {r['stderr']:9.2g}{mark}"
+        )
+
+
+@app.command()
+def fit(
+    log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    add: AddOption = None,
+    knots: KnotsOption = 6,
+    alpha_order: AlphaOrderOption = 3,
+    rate: RateOption = 50.0,
+    node_interval: NodeOption = 1.0,
+    out: Annotated[
+        pathlib.Path | None, typer.Option(help="Folder for the report")
+    ] = None,
+    as_json: JsonOption = False,
+    resample: ResampleOption = False,
+):
+    """Refit with the named effects added; before/after metrics and the effects'
+    fitted values with standard errors."""
+    from ._discrepancy import run_fit
+
+    add = tuple(add or ())
+    if not add:
+        _fail("name at least one effect with --add NAME (see `diffpegasus effects`)")
+    _check_effects(add)
+    settings = _settings(knots, alpha_order, rate, node_interval)
+    flight = _read(log, resample)
+    try:
+        result = run_fit(flight, add, settings, out)
+    except ValueError as e:
+        _fail(str(e))
+    if as_json:
+        _json_out(result)
+        return
+    _print_before_after(result)
+
+
+def _print_before_after(result):
+    b, a = result["before"], result["after"]
+    typer.echo(
+        f"output-error cost det(R): before {b['cost']:.4g}, after {a['cost']:.4g} "
+        f"({1 / result['cost_ratio']:.3g}x lower)"
+    )
+    typer.echo(
+        f"{'channel':>8s} {'rms before':>11s} {'rms after':>11s} {'TIC before':>11s} {'TIC after':>10s}"
+    )
+    for name in b["channels"]:
+        typer.echo(
+            f"{name:>8s} {b['channels'][name]['rms']:11.4g} {a['channels'][name]['rms']:11.4g} "
+            f"{b['channels'][name]['tic']:11.4f} {a['channels'][name]['tic']:10.4f}"
+        )
+    for name, e in result["effects"].items():
+        typer.echo(
+            f"{name}: {e['parameter']} = {e['estimate']:.5g} +/- {e['stderr']:.2g}"
+        )
+
+
 @app.command()
 def demo(
     out: Annotated[pathlib.Path, typer.Option(help="Folder for the results")] = (
         pathlib.Path("demo")
     ),
+    hidden: Annotated[
+        str, typer.Option(help="The effect hidden in the simulated flight, NAME=VALUE")
+    ] = "actuator_delay=0.02",
+    seed: Annotated[int, typer.Option(help="Seed of the simulated flight")] = 1,
+    duration: Annotated[
+        float | None, typer.Option(help="Flight length, s (default: to burnout)")
+    ] = None,
 ):
-    """Simulate the reference flight and write its log and trajectory plot."""
+    """The discrepancy workflow end to end: simulate a flight with a hidden effect,
+    show the model failing, diagnose, add the top effect, refit, report."""
+    from ._discrepancy import run_compare, run_diagnose, run_fit, Settings
     from ._log import write_log
     from ._plotting import plot_trajectory
 
     out.mkdir(parents=True, exist_ok=True)
-    typer.echo("simulating the reference Pegasus flight (drop to burnout, 1 kHz)...")
-    log = _simulate_to_log(1, "pulse", [], False, None, 1000.0, True)
+    typer.echo(
+        f"1. simulating a Pegasus flight (drop to burnout) with a hidden effect ({hidden})..."
+    )
+    try:
+        log = _simulate_to_log(seed, "pulse", [hidden], False, duration, 100.0, True)
+    except ValueError as e:
+        _fail(str(e))
     path = write_log(out / "flight.csv", log)
     plot_trajectory(log, out / "trajectory.png")
+    settings = Settings()
+    typer.echo("2. compare: fitting the model without it (compiles on first use)...")
+    metrics, base = run_compare(log, settings, out)
+    for name, m in metrics["channels"].items():
+        if m["misfit_ratio"] > 1.5:
+            typer.echo(
+                f"   {name}: residual rms {m['misfit_ratio']:.1f} x noise, not white (p {m['ljung_box_p']:.1g})"
+            )
+    typer.echo("3. diagnose: which library effect explains the misfit?")
+    diag, _ = run_diagnose(log, settings, out, (), base)
+    typer.echo(f"   {diag['message']}")
+    for r in diag["ranking"][:3]:
+        typer.echo(
+            f"   {r['effect']:>24s} predicted cost fall {100 * r['cost_reduction']:5.1f}%  p {r['p_value']:.2g}"
+        )
+    if not diag["significant"]:
+        typer.echo("nothing to add; done")
+        return
+    top = diag["significant"][0]
+    typer.echo(f"4. fit --add {top}: refitting...")
+    result = run_fit(log, (top,), settings, out, base)
+    _print_before_after(result)
     typer.echo(
-        f"wrote {path}, {path.with_suffix('.json')} and {out / 'trajectory.png'}"
+        f"wrote {path}, trajectory.png and the reports compare.md, diagnose.md, "
+        f"fit.md (with their PNGs) in {out}"
     )
-    typer.echo(_summary(log))
 
 
 estimate_app = typer.Typer(

@@ -1,0 +1,249 @@
+"""Compare, localise, diagnose, add and refit: the discrepancy workflow on a log."""
+
+import dataclasses
+
+import jax
+import numpy as np
+
+from .._effects import EFFECTS, make_effect
+from .._estimators._global_oem import score_test
+from .._log import FlightLog
+from ._fit import fit_model, ModelFit
+from ._metrics import binned_misfit, channel_metrics, noise_sigma
+from ._model import ModelSpec, OUTPUTS
+
+
+# Absorbed by a baseline with alpha^2 terms (alpha_order >= 2); and a bias on the
+# altitude channel is the same as a shift of the (estimated) initial altitude.
+_ALPHA_SQUARED = ("lift_alpha_squared", "drag_alpha_squared", "moment_alpha_squared")
+_NOT_IDENTIFIABLE = ("sensor_bias:h",)
+
+
+def default_candidates(alpha_order: int = 3) -> tuple[str, ...]:
+    """The library effects a diagnosis tests: every effect, `sensor_bias` on every
+    output channel; minus those the baseline already contains (the alpha^2 effects
+    when `alpha_order >= 2`) and `sensor_bias:h` (indistinguishable from the initial
+    altitude, which is estimated)."""
+    names = [n for n in EFFECTS if n != "sensor_bias"]
+    names += [f"sensor_bias:{c}" for c in OUTPUTS]
+    drop = set(_NOT_IDENTIFIABLE) | (set(_ALPHA_SQUARED) if alpha_order >= 2 else set())
+    return tuple(n for n in names if n not in drop)
+
+
+@dataclasses.dataclass
+class Settings:
+    """How the model is built and fitted (see `diffpegasus compare --help`)."""
+
+    knots: int = 6
+    alpha_order: int = 3
+    rate: float = 50.0
+    node_interval: float = 1.0
+    max_iter: int = 30
+    significance: float = 0.01
+    min_cost_reduction: float = 0.10
+
+    def spec(self, log: FlightLog, extra: tuple[str, ...] = ()) -> ModelSpec:
+        effects = tuple(dict.fromkeys(default_candidates(self.alpha_order) + extra))
+        return ModelSpec(
+            s_ref=log.s_ref,
+            c_ref=log.c_ref,
+            knots=self.knots,
+            alpha_order=self.alpha_order,
+            effects=effects,
+        )
+
+
+def fit(
+    log: FlightLog,
+    add: tuple[str, ...] = (),
+    settings: Settings | None = None,
+    start: ModelFit | None = None,
+) -> ModelFit:
+    """Fit the global model with the effects `add` estimated (canonical names)."""
+    settings = settings or Settings()
+    for name in add:
+        make_effect(name)
+    return fit_model(
+        log,
+        settings.spec(log, tuple(add)),
+        tuple(add),
+        rate=settings.rate,
+        node_interval=settings.node_interval,
+        start=start,
+        max_iter=settings.max_iter,
+    )
+
+
+def fit_metrics(fit: ModelFit) -> dict:
+    """`{"cost": det R, "converged": .., "channels": {name: metrics}}`."""
+    de = fit.log["de"][fit.index]
+    channels = {
+        name: channel_metrics(fit.measured[:, i], fit.model[:, i], de)
+        for i, name in enumerate(OUTPUTS)
+    }
+    return {
+        "cost": fit.cost,
+        "converged": bool(fit.result.converged),
+        "iterations": int(fit.result.iterations),
+        "channels": channels,
+    }
+
+
+def derivative_table(fit: ModelFit, points: int = 5) -> list[dict]:
+    """The fitted local derivatives (1/rad) with Cramér-Rao standard errors at
+    `points` Mach numbers spread over the record (each at the record's mean alpha
+    there): `{"mach", "alpha", "CLa": [est, sd], ...}`."""
+    spec = fit.spec
+    mach = fit.log["mach"][fit.index]
+    alpha = fit.log["alpha"][fit.index]
+    order = np.argsort(mach)
+    chunks = np.array_split(order, points)
+    theta = np.asarray(fit.result.params[: spec.n_aero])
+    sd = np.asarray(fit.result.stderr[: spec.n_aero])
+    cov = np.asarray(fit.result.correlation[: spec.n_aero, : spec.n_aero]) * np.outer(
+        sd, sd
+    )
+    basis_all = np.asarray(fit.problem.inputs[:, -spec.knots :])
+    per = len(spec.terms) * spec.knots
+    rows = []
+    for chunk in chunks:
+        b = basis_all[chunk].mean(axis=0)
+        a = float(alpha[chunk].mean())
+        row = {"mach": float(mach[chunk].mean()), "alpha": a}
+        for j, coef in enumerate(("CL", "CD", "CM")):
+            # d/dalpha of sum_p a_p alpha^p, and d/dde
+            g_alpha = np.zeros(spec.n_aero)
+            g_de = np.zeros(spec.n_aero)
+            for p in range(1, spec.alpha_order + 1):
+                sl = slice(j * per + (p - 1) * spec.knots, j * per + p * spec.knots)
+                g_alpha[sl] = p * a ** (p - 1) * b
+            sl = slice(j * per + spec.alpha_order * spec.knots, (j + 1) * per)
+            g_de[sl] = b
+            for name, gvec in ((f"{coef}a", g_alpha), (f"{coef}de", g_de)):
+                row[name] = [
+                    float(gvec @ theta),
+                    float(np.sqrt(max(gvec @ cov @ gvec, 0.0))),
+                ]
+        rows.append(row)
+    return rows
+
+
+def localise(fit: ModelFit, bins: int = 5, segment: float = 5.0) -> dict:
+    """Where the misfit is: residual RMS over the noise sigma (1 = noise only) per
+    channel, by time segment, and by bins of Mach, alpha, dynamic pressure and thrust
+    on/off."""
+    r = fit.residuals
+    noise = np.array([noise_sigma(fit.measured[:, i]) for i in range(len(OUTPUTS))])
+    noise = np.where(noise > 0, noise, 1.0)
+    t = fit.t
+    log = fit.log
+    idx = fit.index
+    quant = lambda x: np.unique(np.quantile(x, np.linspace(0, 1, bins + 1)))  # noqa: E731
+    thrust = log["thrust"][idx]
+    on = thrust > 0.01 * np.max(np.abs(thrust))
+    out = {
+        "channels": list(OUTPUTS),
+        "noise": noise.tolist(),
+        "time": binned_misfit(r, noise, t, np.arange(t[0], t[-1] + segment, segment)),
+        "mach": binned_misfit(r, noise, log["mach"][idx], quant(log["mach"][idx])),
+        "alpha_deg": binned_misfit(
+            r,
+            noise,
+            np.rad2deg(log["alpha"][idx]),
+            quant(np.rad2deg(log["alpha"][idx])),
+        ),
+        "qbar_kpa": binned_misfit(
+            r, noise, log["qbar"][idx] / 1e3, quant(log["qbar"][idx] / 1e3)
+        ),
+        "thrust": [
+            {
+                "regime": name,
+                "samples": int(sel.sum()),
+                "misfit_ratio": (
+                    np.sqrt(np.mean(r[sel] ** 2, axis=0)) / noise
+                ).tolist(),
+            }
+            for name, sel in (("off", ~on), ("on", on))
+            if sel.sum() >= 10
+        ],
+    }
+    worst = []
+    for key in ("time", "mach", "alpha_deg", "qbar_kpa"):
+        for row in out[key]:
+            for i, c in enumerate(OUTPUTS):
+                worst.append((row["misfit_ratio"][i], c, key, row["low"], row["high"]))
+    worst.sort(reverse=True)
+    out["worst"] = [
+        {"channel": c, "variable": k, "low": lo, "high": hi, "misfit_ratio": v}
+        for v, c, k, lo, hi in worst[:5]
+    ]
+    return out
+
+
+def diagnose(
+    fit: ModelFit,
+    settings: Settings | None = None,
+    candidates: tuple[str, ...] | None = None,
+) -> dict:
+    """Rank the candidate effects by the predicted fall of the output-error cost from
+    one Gauss-Newton step in each (score test with exact Jacobians).
+
+    A candidate is significant when its p-value, Bonferroni-corrected for the number
+    of candidates, is below `settings.significance` and the predicted fall of det(R)
+    is at least `settings.min_cost_reduction` (a practical threshold: with thousands
+    of samples any smooth model imperfection is statistically detectable, so the
+    candidate must also explain a visible share of the misfit).
+
+    **Returns:** `{"ranking": [{"effect", "parameter", "cost_reduction", "statistic",
+    "p_value", "estimate", "stderr", "significant", "hard_to_tell_from"}...],
+    "significant": [...], "message": ...}`; `cost_reduction` is the predicted
+    fractional fall of det(R).
+    """
+    settings = settings or Settings()
+    spec = fit.spec
+    free = np.asarray(fit.result.free)
+    if candidates is None:
+        candidates = tuple(e for e in spec.effects if not free[spec.effect_index(e)])
+    idx = np.array([spec.effect_index(c) for c in candidates])
+    st = jax.tree.map(np.asarray, score_test(fit.problem, fit.result, idx))
+    k = len(candidates)
+    reduction = 1.0 - st.cost_ratio
+    order = np.argsort(-reduction)
+    ranking = []
+    for i in order:
+        p = float(min(1.0, st.p_value[i] * k))
+        sig = bool(
+            p < settings.significance and reduction[i] >= settings.min_cost_reduction
+        )
+        close = [
+            {"effect": candidates[j], "correlation": float(st.correlation[i, j])}
+            for j in np.argsort(-np.abs(st.correlation[i]))
+            if j != i and abs(st.correlation[i, j]) > 0.9
+        ]
+        ranking.append(
+            {
+                "effect": candidates[i],
+                "parameter": make_effect(candidates[i]).parameter,
+                "cost_reduction": float(reduction[i]),
+                "statistic": float(st.statistic[i]),
+                "p_value": p,
+                "estimate": float(st.estimate[i]),
+                "stderr": float(st.stderr[i]),
+                "significant": sig,
+                "hard_to_tell_from": close,
+            }
+        )
+    significant = [r["effect"] for r in ranking if r["significant"]]
+    if not significant:
+        message = "no candidate effect is significant: the model explains the data as well as any single library effect would"
+    else:
+        top = next(r for r in ranking if r["significant"])
+        message = (
+            f"{top['effect']} explains most of the misfit (predicted cost fall "
+            f"{100 * top['cost_reduction']:.0f}%, {top['parameter']} = "
+            f"{top['estimate']:.4g} +/- {top['stderr']:.2g})"
+        )
+        if top["hard_to_tell_from"]:
+            others = ", ".join(c["effect"] for c in top["hard_to_tell_from"])
+            message += f"; the data cannot tell it apart from {others}"
+    return {"ranking": ranking, "significant": significant, "message": message}
