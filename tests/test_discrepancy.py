@@ -265,3 +265,10 @@ def test_demo_runs_the_workflow_end_to_end(tmp_path):
         "fit.png",
     ):
         assert (tmp_path / name).exists(), name
+
+
+def test_adding_an_effect_the_baseline_contains_is_refused(tmp_path):
+    path = dp.write_log(tmp_path / "f.csv", flight())
+    res = CliRunner().invoke(app, ["fit", str(path), "--add", "lift_alpha_squared"])
+    assert res.exit_code == 2
+    assert "already in the baseline" in res.output

@@ -231,8 +231,22 @@ def _check_effects(names):
             _fail(str(e))
 
 
+def _finite(x):
+    """JSON has no NaN or infinity: such values (e.g. a noise ratio on a noise-free
+    log) become null."""
+    import math
+
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_finite(v) for v in x]
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
 def _json_out(result):
-    typer.echo(json.dumps(result, allow_nan=False, default=float))
+    typer.echo(json.dumps(_finite(result), allow_nan=False, default=float))
 
 
 @app.command()

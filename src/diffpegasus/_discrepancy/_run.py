@@ -8,7 +8,15 @@ from .._log import FlightLog
 from ._fit import ModelFit
 from ._plots import plot_fits, plot_ranking, plot_regimes
 from ._report import derivative_markdown, metrics_table, ranking_table, write_report
-from ._workflow import derivative_table, diagnose, fit, fit_metrics, localise, Settings
+from ._workflow import (
+    check_addable,
+    derivative_table,
+    diagnose,
+    fit,
+    fit_metrics,
+    localise,
+    Settings,
+)
 
 
 def _say(message: str) -> None:
@@ -95,6 +103,7 @@ def run_diagnose(
     base: ModelFit | None = None,
 ) -> tuple[dict, ModelFit]:
     """Fit (with the effects `add`), then rank the library's other effects."""
+    check_addable(tuple(add), settings)
     if base is None:
         _say(f"fitting the global model to {_name(log)} (compiles on first use)...")
         base = fit(log, add, settings)
@@ -126,6 +135,7 @@ def run_fit(
 ) -> dict:
     """Fit without and with the effects `add`; before/after metrics and the effects'
     estimates."""
+    check_addable(tuple(add), settings)
     if before is None:
         _say(f"fitting the baseline model to {_name(log)} (compiles on first use)...")
         before = fit(log, (), settings)

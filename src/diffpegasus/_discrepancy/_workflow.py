@@ -61,8 +61,7 @@ def fit(
 ) -> ModelFit:
     """Fit the global model with the effects `add` estimated (canonical names)."""
     settings = settings or Settings()
-    for name in add:
-        make_effect(name)
+    check_addable(add, settings)
     return fit_model(
         log,
         settings.spec(log, tuple(add)),
@@ -72,6 +71,22 @@ def fit(
         start=start,
         max_iter=settings.max_iter,
     )
+
+
+def check_addable(add: tuple[str, ...], settings: Settings) -> None:
+    """A clear error for an effect that cannot be added to the model."""
+    for name in add:
+        make_effect(name)
+        if name in _NOT_IDENTIFIABLE:
+            raise ValueError(
+                f"{name} cannot be estimated: it is the same unknown as the initial "
+                "altitude, which the fit estimates"
+            )
+        if name in _ALPHA_SQUARED and settings.alpha_order >= 2:
+            raise ValueError(
+                f"{name} is already in the baseline (its alpha^2 terms); to test it "
+                "as an effect use --alpha-order 1"
+            )
 
 
 def fit_metrics(fit: ModelFit) -> dict:
