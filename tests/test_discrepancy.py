@@ -18,7 +18,7 @@ from typer.testing import CliRunner
 import diffpegasus as dp
 from diffpegasus._cli import app
 from diffpegasus._discrepancy._metrics import channel_metrics, ljung_box
-from diffpegasus._discrepancy._model import bspline_basis
+from diffpegasus._discrepancy._model import bspline_basis, OUTPUTS
 from diffpegasus.discrepancy import diagnose, fit, Settings
 
 
@@ -241,6 +241,27 @@ def test_cli_diagnose_and_fit_json_on_a_log_without_sidecar(tmp_path):
         < 3 * out["effects"]["sensor_bias:az"]["stderr"]
     )
     assert (tmp_path / "f" / "fit.png").exists()
+    res = runner.invoke(
+        app, ["compare", str(path), "--json", "--out", str(tmp_path / "c")]
+    )
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout.strip().splitlines()[-1])
+    assert set(out["channels"]) == set(OUTPUTS)
+    for key in (
+        "rms",
+        "nrms",
+        "bias_ci95",
+        "tic",
+        "r2",
+        "ljung_box_p",
+        "xcorr_input_max",
+    ):
+        assert key in out["channels"]["az"]
+    # the bias leaves structure somewhere: some channel's residual is not white
+    assert min(m["ljung_box_p"] for m in out["channels"].values()) < 1e-3
+    assert out["localise"]["worst"] and len(out["derivatives"]) == 5
+    for name in ("compare.md", "compare.png", "regimes.png"):
+        assert (tmp_path / "c" / name).exists()
 
 
 def test_cli_rejects_unknown_effect(tmp_path):

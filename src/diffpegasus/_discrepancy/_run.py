@@ -85,7 +85,7 @@ def run_compare(
                     _localise_markdown(loc) + "\n\n![regimes](regimes.png)",
                 ),
                 (
-                    "Fitted derivatives (1/rad, Cramér-Rao standard errors)",
+                    "Fitted derivatives (1/rad, secant form CL = CLa alpha + CLde de; Cramér-Rao standard errors)",
                     derivative_markdown(derivs),
                 ),
                 ("Measured vs model", "![fit](compare.png)"),

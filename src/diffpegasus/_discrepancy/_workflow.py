@@ -105,9 +105,11 @@ def fit_metrics(fit: ModelFit) -> dict:
 
 
 def derivative_table(fit: ModelFit, points: int = 5) -> list[dict]:
-    """The fitted local derivatives (1/rad) with Cramér-Rao standard errors at
-    `points` Mach numbers spread over the record (each at the record's mean alpha
-    there): `{"mach", "alpha", "CLa": [est, sd], ...}`."""
+    """The fitted derivatives (1/rad) with Cramér-Rao standard errors at `points`
+    Mach numbers spread over the record, each at the record's mean alpha there, in
+    the database's (secant) form `CL = CLa(alpha, M) alpha + CLde de`, so
+    `CLa = a_1 + a_2 alpha + ...`, comparable with a log's `true_*` columns:
+    `{"mach", "alpha", "CLa": [est, sd], ...}`."""
     spec = fit.spec
     mach = fit.log["mach"][fit.index]
     alpha = fit.log["alpha"][fit.index]
@@ -126,12 +128,12 @@ def derivative_table(fit: ModelFit, points: int = 5) -> list[dict]:
         a = float(alpha[chunk].mean())
         row = {"mach": float(mach[chunk].mean()), "alpha": a}
         for j, coef in enumerate(("CL", "CD", "CM")):
-            # d/dalpha of sum_p a_p alpha^p, and d/dde
+            # sum_p a_p alpha^(p-1) (the secant slope), and the elevator term
             g_alpha = np.zeros(spec.n_aero)
             g_de = np.zeros(spec.n_aero)
             for p in range(1, spec.alpha_order + 1):
                 sl = slice(j * per + (p - 1) * spec.knots, j * per + p * spec.knots)
-                g_alpha[sl] = p * a ** (p - 1) * b
+                g_alpha[sl] = a ** (p - 1) * b
             sl = slice(j * per + spec.alpha_order * spec.knots, (j + 1) * per)
             g_de[sl] = b
             for name, gvec in ((f"{coef}a", g_alpha), (f"{coef}de", g_de)):
