@@ -221,14 +221,13 @@ def _read(log: pathlib.Path, resample: bool):
         _fail(str(e))
 
 
-def _check_effects(names):
-    from ._effects import make_effect
+def _check_addable(names, settings):
+    from ._discrepancy._workflow import check_addable
 
-    for name in names:
-        try:
-            make_effect(name)
-        except ValueError as e:
-            _fail(str(e))
+    try:
+        check_addable(names, settings)
+    except ValueError as e:
+        _fail(str(e))
 
 
 def _finite(x):
@@ -310,8 +309,8 @@ def diagnose(
     from ._discrepancy import run_diagnose
 
     add = tuple(add or ())
-    _check_effects(add)
     settings = _settings(knots, alpha_order, rate, node_interval)
+    _check_addable(add, settings)
     flight = _read(log, resample)
     try:
         result, _ = run_diagnose(flight, settings, out, add)
@@ -353,8 +352,8 @@ def fit(
     add = tuple(add or ())
     if not add:
         _fail("name at least one effect with --add NAME (see `diffpegasus effects`)")
-    _check_effects(add)
     settings = _settings(knots, alpha_order, rate, node_interval)
+    _check_addable(add, settings)
     flight = _read(log, resample)
     try:
         result = run_fit(flight, add, settings, out)

@@ -25,7 +25,13 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from ._oem import _coloured_information, _input_at, _window_solve, OEMProblem
+from ._oem import (
+    _coloured_information,
+    _input_at,
+    _window_solve,
+    OEMProblem,
+    theil_inequality,
+)
 
 
 class GlobalFit(eqx.Module):
@@ -238,8 +244,7 @@ def _fit(problem, theta0, nodes0, free, rtol, max_iter):
     correlation = block / (dd[:, None] * dd[None, :])
     e, d, ys = _residuals(problem, setup, theta, nodes)
     outputs = ys.reshape(-1, ys.shape[-1])[: problem.n_samples]
-    rms = lambda a: jnp.sqrt(jnp.mean(a**2, axis=0))  # noqa: E731
-    tic = rms(problem.measured - outputs) / (rms(problem.measured) + rms(outputs))
+    tic = theil_inequality(problem.measured, outputs)
     defect = jnp.max(jnp.abs(d)) * problem.continuity_tol if n_seg > 1 else 0.0
     converged = done & jnp.isfinite(cost) & jnp.all(jnp.isfinite(theta))
     return GlobalFit(

@@ -297,6 +297,16 @@ class OEMResult(eqx.Module):
     poor_fit: Bool[Array, ""]
 
 
+def theil_inequality(measured, outputs):
+    """Theil's inequality coefficient per output column, `(outputs,)`: 0 a perfect
+    fit, above about 0.3 a poor one."""
+
+    def rms(a):
+        return jnp.sqrt(jnp.mean(a**2, axis=0))
+
+    return rms(measured - outputs) / (rms(measured) + rms(outputs))
+
+
 def _coloured_information(jw, vw):
     """Sum over lags of residual autocorrelation times Jacobian cross-correlation,
     per output channel (Morelli and Klein's correction), by FFT.
@@ -392,8 +402,7 @@ def _fit(problem, base, unknowns0, rtol, max_outer, max_inner):
     )
     ys, _, index = simulate_segments(problem, base, unknowns)
     outputs = ys.reshape(-1, ys.shape[-1])[: problem.n_samples]
-    rms = lambda a: jnp.sqrt(jnp.mean(a**2, axis=0))  # noqa: E731
-    tic = rms(problem.measured - outputs) / (rms(problem.measured) + rms(outputs))
+    tic = theil_inequality(problem.measured, outputs)
     tic = jnp.where(jnp.isfinite(tic), tic, 1.0)
     finite = jnp.isfinite(cost) & jnp.all(jnp.isfinite(unknowns.params))
     converged = done & finite & (result == optx.RESULTS.successful)
