@@ -47,8 +47,10 @@ from ._estimators import (  # noqa: E402
     lse_batch as lse_batch,
     MeasuredCoefficients as MeasuredCoefficients,
     node_times as node_times,
+    oem_setup as oem_setup,
     OEMProblem as OEMProblem,
     OEMResult as OEMResult,
+    OEMSetup as OEMSetup,
     parameter_table as parameter_table,
     reconstruct_coefficients as reconstruct_coefficients,
     RK4 as RK4,
@@ -60,6 +62,7 @@ from ._estimators import (  # noqa: E402
     train_network as train_network,
     window_truth as window_truth,
     windowed_least_squares as windowed_least_squares,
+    windowed_lift_drag as windowed_lift_drag,
     WindowedFit as WindowedFit,
     WindowLayout as WindowLayout,
 )

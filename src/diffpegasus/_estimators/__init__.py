@@ -37,8 +37,11 @@ from ._oem import (
 )
 from ._pegasus_oem import (
     estimate_oem as estimate_oem,
+    oem_setup as oem_setup,
+    OEMSetup as OEMSetup,
     to_body as to_body,
     to_lift_drag as to_lift_drag,
+    windowed_lift_drag as windowed_lift_drag,
 )
 from ._result import Estimates as Estimates
 from ._rk4 import RK4 as RK4

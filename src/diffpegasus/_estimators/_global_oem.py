@@ -111,6 +111,18 @@ def _blocks(problem, setup, theta, nodes):
     return jax.vmap(local)(seg, nodes)  # (S, per, ny, nx + P), (S, nx, nx + P)
 
 
+def _scatter(h, g, cols, jac, res):
+    """Add `J^T J` and `J^T r` of local blocks to the dense normal equations.
+
+    `cols`: `(S, k)` global columns of each block's local unknowns; `jac`: `(S, rows,
+    k)`; `res`: `(S, rows)`. Columns shared by two blocks accumulate."""
+    hh = jnp.einsum("sra,srb->sab", jac, jac)
+    gg = jnp.einsum("sra,sr->sa", jac, res)
+    h = h.at[cols[:, :, None], cols[:, None, :]].add(hh)
+    g = g.at[cols].add(gg)
+    return h, g
+
+
 def _normal_equations(problem, setup, theta, nodes, r):
     """Dense normal matrix and gradient over `[nodes (S nx), theta (P)]` of the
     R-weighted least squares, plus the whitened output Jacobian and residuals."""
@@ -130,19 +142,11 @@ def _normal_equations(problem, setup, theta, nodes, r):
     node_cols = jnp.arange(n_seg)[:, None] * nx + jnp.arange(nx)[None, :]
     par_cols = n_seg * nx + jnp.arange(p)
 
-    def scatter(h, g, rows_cols, jac, res):
-        # rows_cols: (S, k) global columns of each segment's local unknowns
-        hh = jnp.einsum("sra,srb->sab", jac, jac)
-        gg = jnp.einsum("sra,sr->sa", jac, res)
-        h = h.at[rows_cols[:, :, None], rows_cols[:, None, :]].add(hh)
-        g = g.at[rows_cols].add(gg)
-        return h, g
-
     local_cols = jnp.concatenate(
         [node_cols, jnp.broadcast_to(par_cols, (n_seg, p))], axis=1
     )
     jyr = jyw.reshape(n_seg, -1, nx + p)
-    h, g = scatter(h, g, local_cols, jyr, ew.reshape(n_seg, -1))
+    h, g = _scatter(h, g, local_cols, jyr, ew.reshape(n_seg, -1))
     if n_seg > 1:
         # defect_j = (end_j - node_{j+1}) / scale
         jd = jx[:-1] / setup.scale[None, :, None]
@@ -151,7 +155,7 @@ def _normal_equations(problem, setup, theta, nodes, r):
             [jd, jnp.broadcast_to(minus, (n_seg - 1, nx, nx))], axis=2
         )
         cols = jnp.concatenate([local_cols[:-1], node_cols[1:]], axis=1)
-        h, g = scatter(h, g, cols, jd_full, d)
+        h, g = _scatter(h, g, cols, jd_full, d)
     return h, g, jyw, ew
 
 

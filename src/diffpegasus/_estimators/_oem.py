@@ -163,11 +163,16 @@ def _input_at(problem: OEMProblem, t, theta=None):
     return problem.inputs[i, cols] * (1 - frac) + problem.inputs[i + 1, cols] * frac
 
 
-def _window_solve(problem: OEMProblem, x0, theta, t_start):
-    """States at the window's samples and one step beyond, shape `(L + 1, states)`."""
-    length = problem.window_samples
+def _window_solve(problem: OEMProblem, x0, theta, t_start, theta_end=None):
+    """States at the window's samples and one step beyond, shape `(L + 1, states)`.
 
-    def field(t, x, th):
+    With `theta_end` the parameters vary linearly in time from `theta` at `t_start`
+    to `theta_end` one window later."""
+    length = problem.window_samples
+    span = length * problem.dt
+
+    def field(t, x, args):
+        th = _theta_at(args, t, span)
         return problem.rates(t, x, _input_at(problem, t, th), th)
 
     ts = t_start + problem.dt * jnp.arange(length + 1)
@@ -178,7 +183,7 @@ def _window_solve(problem: OEMProblem, x0, theta, t_start):
         t1=ts[-1],
         dt0=problem.dt,
         y0=x0,
-        args=theta,
+        args=(theta, theta_end, t_start),
         saveat=diffrax.SaveAt(ts=ts),
         stepsize_controller=diffrax.ConstantStepSize(),
         adjoint=diffrax.ForwardMode(),
@@ -186,6 +191,13 @@ def _window_solve(problem: OEMProblem, x0, theta, t_start):
         throw=False,
     )
     return sol.ys, ts
+
+
+def _theta_at(args, t, span):
+    theta, theta_end, t_start = args
+    if theta_end is None:
+        return theta
+    return theta + (theta_end - theta) * ((t - t_start) / span)
 
 
 def full_parameters(problem, base, unknowns):

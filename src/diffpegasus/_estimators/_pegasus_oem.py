@@ -14,6 +14,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Array, Float
 
 from .._aerodynamics import body_axis, load_database
 from .._atmosphere import isa
@@ -23,7 +24,7 @@ from .._log import FlightLog
 from ._lse import estimate_lse, window_truth
 from ._oem import _window_solve, fit_oem, node_times, OEMProblem
 from ._result import Estimates
-from ._windowed_oem import fit_windowed_oem
+from ._windowed_oem import fit_windowed_oem, WindowedFit
 from ._windows import WindowLayout
 
 
@@ -140,7 +141,9 @@ def pegasus_problem(
         t0=float(log.t[0]),
         dt=float(decimate / log.sample_rate),
         inputs=jnp.asarray(np.column_stack([log[c][idx] for c in INPUTS])),
-        measured=jnp.asarray(np.column_stack([log[c][idx] for c in OUTPUTS])),
+        measured=jnp.asarray(
+            np.column_stack([_block_mean(log[c], idx, decimate) for c in OUTPUTS])
+        ),
         free=(True,) * 6,
         window=w,
         node_interval=w if single else int(round(node_interval * rate)),
@@ -150,11 +153,21 @@ def pegasus_problem(
     return problem, idx
 
 
-def starting_values(log: FlightLog, layout: WindowLayout, start: str, key=None):
+def _block_mean(x: np.ndarray, idx: np.ndarray, n: int) -> np.ndarray:
+    """Mean of the `n` samples centred on each of `idx` (edges clamped): decimation
+    that keeps the noise averaging of the dropped samples instead of discarding it."""
+    offsets = np.arange(n) - (n - 1) // 2
+    return x[np.clip(idx[:, None] + offsets[None, :], 0, len(x) - 1)].mean(axis=1)
+
+
+def starting_values(
+    log: FlightLog, layout: WindowLayout, start: str, key=None, lse=None
+):
     """Per-window starting derivatives (lift/drag form, 1/rad): `lse` (equation-error
     estimates of the same windows; the database where LSE has none), `database` (the
     a-priori tables at the window-mean alpha and Mach) or `truth10` (the truth x
-    U(0.9, 1.1), the thesis's shortcut)."""
+    U(0.9, 1.1), the thesis's shortcut). `lse`: the LSE estimates `(windows, 6)` if
+    already computed."""
     alpha = np.asarray(layout.window_mean(jnp.asarray(log["alpha"])))
     mach = np.asarray(layout.window_mean(jnp.asarray(log["mach"])))
     db = load_database()
@@ -164,9 +177,9 @@ def starting_values(log: FlightLog, layout: WindowLayout, start: str, key=None):
     if start == "database":
         return prior
     if start == "lse":
-        est = np.asarray(
-            estimate_lse(log, window=layout.per_window / layout.rate).values
-        )
+        if lse is None:
+            lse = estimate_lse(log, window=layout.per_window / layout.rate).values
+        est = np.asarray(lse)
         return np.where(np.isfinite(est), est, prior)
     if start == "truth10":
         truth = window_truth(
@@ -181,6 +194,90 @@ def starting_values(log: FlightLog, layout: WindowLayout, start: str, key=None):
     raise ValueError(f"start must be lse, database or truth10, got {start!r}")
 
 
+class OEMSetup(eqx.Module):
+    """One flight's multiple-shooting OEM problem, ready to fit (stack several to
+    fit a batch with `jax.vmap`): the problem, starting parameters `(windows, 6)`,
+    starting nodes `(segments, 4)` and the window-mean alpha `(windows,)` (rad) for
+    the axis conversion."""
+
+    problem: OEMProblem
+    theta0: Float[Array, "windows 6"]
+    nodes0: Float[Array, "segments 4"]
+    alpha: Float[Array, " windows"]
+
+
+def oem_setup(
+    log: FlightLog,
+    *,
+    window: float = 0.5,
+    node_interval: float = 2.0,
+    decimate: int = 5,
+    start: str = "lse",
+    axes: str = "body",
+    single: bool = False,
+    lse=None,
+) -> tuple[OEMSetup, np.ndarray]:
+    """The OEM problem of a log with its starting values (see [`estimate_oem`][]);
+    returns it with the measured states `[u, w, q, theta]` at the decimated samples."""
+    if axes not in ("body", "wind"):
+        raise ValueError(f"axes must be body or wind, got {axes!r}")
+    layout = WindowLayout.make(len(log), log.sample_rate, window)
+    problem, idx = pegasus_problem(
+        log,
+        window=window,
+        node_interval=node_interval,
+        decimate=decimate,
+        single=single,
+        wind_axes=axes == "wind",
+    )
+    if problem.n_windows != layout.count:
+        raise ValueError(
+            "window layout mismatch after decimation; use a window that is "
+            "a whole number of decimated samples"
+        )
+    alpha_w = jnp.asarray(layout.window_mean(jnp.asarray(log["alpha"])))
+    theta0 = jnp.asarray(starting_values(log, layout, start, lse=lse))
+    if axes == "body":
+        theta0 = to_body(theta0, alpha_w)
+    states = measured_states(log)[idx]
+    nodes0 = jnp.asarray(states[node_times(problem)])
+    return OEMSetup(problem, theta0, nodes0, alpha_w), states
+
+
+def windowed_lift_drag(fit: WindowedFit, alpha: Float[Array, " windows"], axes: str):
+    """A multiple-shooting fit as lift/drag derivatives per window: `(values, stderr
+    (coloured-residual corrected), valid, flags)`; NaN where the fit failed. Pure, so
+    `jax.vmap` applies it to a batch of fits."""
+    n_win = fit.params.shape[0]
+    off = fit.correlation * (1.0 - jnp.eye(fit.correlation.shape[-1]))[None]
+    flags = {
+        "converged": jnp.full(n_win, fit.converged),
+        "iterations": jnp.full(n_win, fit.iterations),
+        "max_defect": jnp.full(n_win, fit.defect),
+        "se_inflation": jnp.mean(fit.stderr_corrected / fit.stderr, axis=1),
+        "max_correlation": jnp.max(jnp.abs(off), axis=(1, 2)),
+    }
+    ok = jnp.full(n_win, fit.converged)
+    values, sd = _to_lift_drag_with_errors(
+        fit.params, fit.stderr_corrected, alpha, axes
+    )
+    return (
+        jnp.where(ok[:, None], values, jnp.nan),
+        jnp.where(ok[:, None], sd, jnp.nan),
+        ok,
+        flags,
+    )
+
+
+def _to_lift_drag_with_errors(body, body_sd, alpha, axes):
+    if axes == "wind":
+        return body, body_sd
+    values = to_lift_drag(body, alpha)
+    # standard errors of the lift/drag form through the same linear map
+    jac = jax.vmap(jax.jacfwd(to_lift_drag), in_axes=(0, 0))(body, alpha)
+    return values, jnp.sqrt(jnp.einsum("wij,wj->wi", jac**2, body_sd**2))
+
+
 def estimate_oem(
     log: FlightLog,
     *,
@@ -190,6 +287,7 @@ def estimate_oem(
     decimate: int = 5,
     start: str = "lse",
     axes: str = "body",
+    parameters: str = "linear",
     rtol: float = 1e-5,
     max_iter: int = 30,
 ) -> Estimates:
@@ -199,77 +297,64 @@ def estimate_oem(
 
     - `log`: a validated flight log.
     - `window`: parameter window, s (0.5). `node_interval`: shooting nodes, s (2).
-    - `shooting`: `multiple` (all windows and nodes in one structured Gauss-Newton,
-      continuity enforced) or `single` (the thesis's sequential windows: each window
-      starts from the previous window's simulated end state, only the first from
-      the measurements).
-    - `decimate`: use every n-th sample (default 5: 200 Hz from a 1 kHz log).
+    - `shooting`: `multiple` (all windows and nodes in one structured
+      Levenberg-Marquardt, continuity enforced) or `single` (the thesis's sequential
+      windows: each window starts from the previous window's simulated end state,
+      only the first from the measurements).
+    - `decimate`: fit every n-th sample (default 5: 200 Hz from a 1 kHz log), each
+      measurement the mean of the n samples around it.
     - `start`: starting values, `lse`, `database` or `truth10`.
     - `axes`: estimate body-axis (`body`, the thesis's choice) or lift/drag (`wind`)
       derivatives; results are reported in lift/drag form either way.
+    - `parameters` (multiple shooting): `linear` (derivatives continuous and linear
+      in time between window boundaries; a window's estimate is their mean over the
+      window) or `constant` per window (the thesis's model).
 
-    **Returns:** [`Estimates`][] in lift/drag form (1/rad) with Cramér-Rao standard
-    errors; flags `converged`, `cost`, `iterations`, `max_defect`.
+    **Returns:** [`Estimates`][] in lift/drag form (1/rad) with standard errors
+    (multiple shooting: Cramér-Rao corrected for coloured residuals; single:
+    Cramér-Rao); flags `converged`, `iterations`, `max_defect`, `se_inflation` (mean
+    coloured-residual factor of the window's standard errors), `max_correlation`
+    (largest |correlation| between the window's body-axis parameters).
     """
+    if parameters not in ("linear", "constant"):
+        raise ValueError(f"parameters must be linear or constant, got {parameters!r}")
+    if shooting not in ("single", "multiple"):
+        raise ValueError(f"shooting must be single or multiple, got {shooting!r}")
     layout = WindowLayout.make(len(log), log.sample_rate, window)
-    if axes not in ("body", "wind"):
-        raise ValueError(f"axes must be body or wind, got {axes!r}")
-    wind_axes = axes == "wind"
-    problem, idx = pegasus_problem(
+    setup, states = oem_setup(
         log,
         window=window,
         node_interval=node_interval,
         decimate=decimate,
+        start=start,
+        axes=axes,
         single=shooting == "single",
-        wind_axes=wind_axes,
     )
-    alpha_w = jnp.asarray(layout.window_mean(jnp.asarray(log["alpha"])))
-    n_win = problem.n_windows
-    if n_win != layout.count:
-        raise ValueError(
-            "window layout mismatch after decimation; use a window that is "
-            "a whole number of decimated samples"
-        )
-    theta0 = jnp.asarray(starting_values(log, layout, start))
-    if not wind_axes:
-        theta0 = to_body(theta0, alpha_w)
-    states = measured_states(log)[idx]
-    node_idx = node_times(problem)
     if shooting == "multiple":
         fit = fit_windowed_oem(
-            problem,
-            theta0,
-            jnp.asarray(states[node_idx]),
+            setup.problem,
+            setup.theta0,
+            setup.nodes0,
+            linear=parameters == "linear",
             rtol=rtol,
             max_iter=max_iter,
         )
-        body, body_sd = fit.params, fit.stderr
-        flags = {
-            "converged": jnp.full(n_win, fit.converged),
-            "iterations": jnp.full(n_win, fit.iterations),
-            "max_defect": jnp.full(n_win, fit.defect),
-        }
-        ok = jnp.full(n_win, fit.converged)
-    elif shooting == "single":
-        body, body_sd, ok, its = _sequential_single(problem, theta0, states[0], rtol)
+        values, sd, ok, flags = windowed_lift_drag(fit, setup.alpha, axes)
+    else:
+        body, body_sd, ok, its = _sequential_single(
+            setup.problem, setup.theta0, states[0], rtol
+        )
         flags = {"converged": ok, "iterations": its}
-    else:
-        raise ValueError(f"shooting must be single or multiple, got {shooting!r}")
-    if wind_axes:
-        values, sd = body, body_sd
-    else:
-        values = to_lift_drag(body, alpha_w)
-        # standard errors of the lift/drag form through the same linear map
-        jac = jax.vmap(jax.jacfwd(to_lift_drag), in_axes=(0, 0))(body, alpha_w)
-        sd = jnp.sqrt(jnp.einsum("wij,wj->wi", jac**2, body_sd**2))
+        values, sd = _to_lift_drag_with_errors(body, body_sd, setup.alpha, axes)
+        values = jnp.where(ok[:, None], values, jnp.nan)
+        sd = jnp.where(ok[:, None], sd, jnp.nan)
     start_t, end_t = layout.times(float(log.t[0]))
-    values = jnp.where(ok[:, None], values, jnp.nan)
     return Estimates(
         method="oem",
         window_start=jnp.asarray(start_t),
         window_end=jnp.asarray(end_t),
         values=values,
-        stderr=jnp.where(ok[:, None], sd, jnp.nan),
+        stderr=sd,
         valid=ok,
         flags=flags,
         truth=window_truth(
