@@ -93,7 +93,10 @@ from ._log import (  # noqa: E402
 from ._mass import MassModel as MassModel, MassProperties as MassProperties  # noqa: E402
 from ._propulsion import SolidMotor as SolidMotor  # noqa: E402
 from ._sensors import SensorModel as SensorModel  # noqa: E402
-from ._sharding import shard_batch as shard_batch  # noqa: E402
+from ._sharding import (  # noqa: E402
+    map_over_devices as map_over_devices,
+    shard_batch as shard_batch,
+)
 from ._simulate import (  # noqa: E402
     elevator_command as elevator_command,
     Flight as Flight,

@@ -442,6 +442,159 @@ def demo(
     )
 
 
+@app.command()
+def montecarlo(
+    samples: Annotated[int, typer.Option(help="Number of perturbed flights")] = 100,
+    methods: Annotated[
+        str, typer.Option(help="Comma-separated subset of lse,nn,oem")
+    ] = "lse,nn,oem",
+    seed: Annotated[int, typer.Option(help="Seed of the draws")] = 0,
+    out: Annotated[
+        pathlib.Path, typer.Option(help="Results folder (a rerun resumes it)")
+    ] = pathlib.Path("montecarlo"),
+    batch: Annotated[
+        int, typer.Option(help="Flights per chunk (sharded over the cores)")
+    ] = 10,
+    duration: Annotated[float, typer.Option(help="Flight length, s")] = 80.3,
+    sample_rate: Annotated[float, typer.Option(help="Log rate, Hz")] = 1000.0,
+    nn_epochs: Annotated[
+        int, typer.Option(help="Maximum training epochs of the network")
+    ] = 1000,
+):
+    """Monte Carlo comparison of LSE, NN+LSE and OEM on perturbed flights (thesis
+    chapter 6): per-flight MSE, tables beside the thesis, box plots, coverage and
+    wall times in --out. Interrupted runs resume without recomputing."""
+    import os
+
+    # one CPU device per core, before JAX starts its backend
+    flag = f"--xla_force_host_platform_device_count={os.cpu_count()}"
+    if "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
+        os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {flag}".strip()
+    from ._montecarlo import Campaign, run_campaign
+
+    try:
+        campaign = Campaign(
+            samples=samples,
+            methods=tuple(m.strip() for m in methods.split(",") if m.strip()),
+            seed=seed,
+            batch=batch,
+            t_final=duration,
+            sample_rate=sample_rate,
+            decimate=max(1, int(round(sample_rate / 200.0))),
+            nn_epochs=nn_epochs,
+        )
+        summary = run_campaign(campaign, out)
+    except ValueError as e:
+        _fail(str(e))
+    typer.echo((out / "tables.md").read_text())
+    if "oem_coverage_2sigma" in summary:
+        cov = summary["oem_coverage_2sigma"]["overall"]
+        typer.echo(f"OEM 2-sigma coverage: {100 * cov:.1f}% of windows")
+    typer.echo(
+        f"wrote mse.csv, mse_means.csv, mse_std.csv, tables.md, figures, times.json "
+        f"and summary.json in {out}"
+    )
+
+
+@app.command("design-input")
+def design_input(
+    criterion: Annotated[
+        str, typer.Option(help="D (log det) or A (trace) of the relative CRB")
+    ] = "D",
+    max_deflection: Annotated[float, typer.Option(help="Peak excitation, deg")] = 2.0,
+    max_rate: Annotated[float, typer.Option(help="Peak rate, deg/s")] = 40.0,
+    max_alpha: Annotated[
+        float, typer.Option(help="Peak alpha excursion from the unexcited flight, deg")
+    ] = 2.0,
+    start: Annotated[float, typer.Option(help="Segment start, s")] = 20.0,
+    length: Annotated[float, typer.Option(help="Segment length, s")] = 5.0,
+    steps: Annotated[int, typer.Option(help="Optimiser steps")] = 150,
+    out: Annotated[pathlib.Path, typer.Option(help="Folder for the results")] = (
+        pathlib.Path("design")
+    ),
+):
+    """Optimise the elevator excitation for the OEM (Cramér-Rao criterion through
+    the differentiable model) and compare it with hand-picked inputs under the same
+    limits: design.json, design_inputs.png, design_stderr.png."""
+    import numpy as np
+
+    from ._aerodynamics import DERIVATIVE_NAMES
+    from ._design import Limits, pegasus_design, run_design
+    from ._plotting import plot_design
+
+    if criterion not in ("D", "A"):
+        _fail(f"--criterion must be D or A, got {criterion!r}")
+    if min(max_deflection, max_rate, max_alpha, length) <= 0:
+        _fail("limits and --length must be positive")
+    out.mkdir(parents=True, exist_ok=True)
+    typer.echo("building the design model and optimising (compiles first)...", err=True)
+    design = pegasus_design((start, start + length))
+    limits = Limits(
+        float(np.deg2rad(max_deflection)),
+        float(np.deg2rad(max_rate)),
+        float(np.deg2rad(max_alpha)),
+    )
+    result = run_design(design, limits, kind=criterion, steps=steps)
+    plot_design(design, result, out)
+    report = _design_report(result, criterion, limits, (start, start + length))
+    (out / "design.json").write_text(json.dumps(report, indent=2))
+    typer.echo(
+        f"predicted standard errors, 1/deg (criterion {criterion}, lower is better):"
+    )
+    typer.echo("  input       " + "".join(f"{n:>10s}" for n in DERIVATIVE_NAMES))
+    for name, row in report["inputs"].items():
+        typer.echo(
+            f"  {name:10s}  "
+            + "".join(f"{row['stderr_per_deg'][n]:10.2e}" for n in DERIVATIVE_NAMES)
+        )
+    typer.echo(f"wrote design.json, design_inputs.png, design_stderr.png in {out}")
+
+
+def _design_report(result, criterion, limits, segment) -> dict:
+    import numpy as np
+
+    from ._aerodynamics import DERIVATIVE_NAMES
+
+    best = result["inputs"]["optimised"]
+    return {
+        "criterion": criterion,
+        "segment_s": list(segment),
+        "limits": {
+            "max_deflection_deg": float(np.rad2deg(limits.max_deflection)),
+            "max_rate_deg_s": float(np.rad2deg(limits.max_rate)),
+            "max_alpha_excursion_deg": float(np.rad2deg(limits.max_excursion)),
+        },
+        "best_hand_picked": result["best_hand_picked"],
+        "criterion_start": result["history"]["start"],
+        "criterion_end": result["history"]["end"],
+        "optimised_multisine": {
+            "amplitudes_deg": (
+                np.asarray(best.inner.amplitudes) * float(best.scale)
+            ).tolist(),
+            "frequencies_hz": np.asarray(best.inner.frequencies).tolist(),
+            "phases_rad": np.asarray(best.inner.phases).tolist(),
+        },
+        "inputs": {
+            name: {
+                "criterion": row["criterion"],
+                "stderr_per_deg": dict(
+                    zip(
+                        DERIVATIVE_NAMES,
+                        (np.asarray(row["stderr"]) * np.pi / 180).tolist(),
+                        strict=True,
+                    )
+                ),
+                "peak_deflection_deg": float(np.rad2deg(row["peaks"]["deflection"])),
+                "peak_rate_deg_s": float(np.rad2deg(row["peaks"]["rate"])),
+                "peak_alpha_excursion_deg": float(
+                    np.rad2deg(row["peaks"]["excursion"])
+                ),
+            }
+            for name, row in result["rows"].items()
+        },
+    }
+
+
 estimate_app = typer.Typer(
     help="Estimate the six derivatives per window from a flight log.",
     no_args_is_help=True,
@@ -517,6 +670,13 @@ def estimate_oem_command(
     axes: Annotated[
         str, typer.Option(help="Estimate body or wind derivatives")
     ] = "body",
+    parameters: Annotated[
+        str,
+        typer.Option(
+            help="Derivatives linear in time between window boundaries, or "
+            "constant per window (the thesis's model); multiple shooting only"
+        ),
+    ] = "linear",
     units: UnitsOption = "deg",
     out: OutOption = None,
     as_json: JsonOption = False,
@@ -540,6 +700,7 @@ def estimate_oem_command(
             decimate=decimate,
             start=start,
             axes=axes,
+            parameters=parameters,
         )
     except (LogError, ValueError) as e:
         _fail(str(e))

@@ -14,7 +14,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, Bool, Float
 
 from .._aerodynamics import body_axis, load_database
 from .._atmosphere import isa
@@ -197,13 +197,14 @@ def starting_values(
 class OEMSetup(eqx.Module):
     """One flight's multiple-shooting OEM problem, ready to fit (stack several to
     fit a batch with `jax.vmap`): the problem, starting parameters `(windows, 6)`,
-    starting nodes `(segments, 4)` and the window-mean alpha `(windows,)` (rad) for
-    the axis conversion."""
+    starting nodes `(segments, 4)`, the window-mean alpha `(windows,)` (rad) for
+    the axis conversion and which windows are fitted `(windows,)`."""
 
     problem: OEMProblem
     theta0: Float[Array, "windows 6"]
     nodes0: Float[Array, "segments 4"]
     alpha: Float[Array, " windows"]
+    active: Bool[Array, " windows"]
 
 
 def oem_setup(
@@ -215,6 +216,7 @@ def oem_setup(
     start: str = "lse",
     axes: str = "body",
     single: bool = False,
+    min_qbar: float = 2000.0,
     lse=None,
 ) -> tuple[OEMSetup, np.ndarray]:
     """The OEM problem of a log with its starting values (see [`estimate_oem`][]);
@@ -241,7 +243,8 @@ def oem_setup(
         theta0 = to_body(theta0, alpha_w)
     states = measured_states(log)[idx]
     nodes0 = jnp.asarray(states[node_times(problem)])
-    return OEMSetup(problem, theta0, nodes0, alpha_w), states
+    active = layout.window_mean(jnp.asarray(log["qbar"])) >= min_qbar
+    return OEMSetup(problem, theta0, nodes0, alpha_w, active), states
 
 
 def windowed_lift_drag(fit: WindowedFit, alpha: Float[Array, " windows"], axes: str):
@@ -257,7 +260,7 @@ def windowed_lift_drag(fit: WindowedFit, alpha: Float[Array, " windows"], axes: 
         "se_inflation": jnp.mean(fit.stderr_corrected / fit.stderr, axis=1),
         "max_correlation": jnp.max(jnp.abs(off), axis=(1, 2)),
     }
-    ok = jnp.full(n_win, fit.converged)
+    ok = fit.converged & fit.active
     values, sd = _to_lift_drag_with_errors(
         fit.params, fit.stderr_corrected, alpha, axes
     )
@@ -288,6 +291,7 @@ def estimate_oem(
     start: str = "lse",
     axes: str = "body",
     parameters: str = "linear",
+    min_qbar: float = 2000.0,
     rtol: float = 1e-5,
     max_iter: int = 30,
 ) -> Estimates:
@@ -309,6 +313,9 @@ def estimate_oem(
     - `parameters` (multiple shooting): `linear` (derivatives continuous and linear
       in time between window boundaries; a window's estimate is their mean over the
       window) or `constant` per window (the thesis's model).
+    - `min_qbar` (multiple shooting): windows whose mean measured dynamic pressure is
+      below this (Pa) are not fitted and get no estimate (high in the climb the
+      aerodynamic forces vanish into the noise and nothing can be identified).
 
     **Returns:** [`Estimates`][] in lift/drag form (1/rad) with standard errors
     (multiple shooting: Cramér-Rao corrected for coloured residuals; single:
@@ -329,6 +336,7 @@ def estimate_oem(
         start=start,
         axes=axes,
         single=shooting == "single",
+        min_qbar=min_qbar,
     )
     if shooting == "multiple":
         fit = fit_windowed_oem(
@@ -336,6 +344,7 @@ def estimate_oem(
             setup.theta0,
             setup.nodes0,
             linear=parameters == "linear",
+            active=setup.active,
             rtol=rtol,
             max_iter=max_iter,
         )

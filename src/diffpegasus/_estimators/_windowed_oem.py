@@ -57,6 +57,7 @@ class WindowedFit(eqx.Module):
     stderr_corrected: Float[Array, "windows params"]
     correlation: Float[Array, "windows params params"]
     knots: Float[Array, "knots params"]
+    active: Bool[Array, " windows"]
     nodes: Float[Array, "segments states"]
     cost: Float[Array, ""]
     R: Float[Array, " outputs"]
@@ -148,11 +149,12 @@ def _segment(problem: OEMProblem, layout: _Layout, s, v):
 
 
 @functools.partial(jax.jit, static_argnames=("layout", "max_iter"))
-def _fit(problem, layout, z0, rtol, max_iter):
+def _fit(problem, layout, z0, active, rtol, max_iter):
     n_seg, nx = layout.n_seg, layout.nx
     per = layout.k * problem.window_samples
     index = jnp.arange(n_seg)[:, None] * per + jnp.arange(per)[None, :]
-    valid = index < problem.n_samples
+    in_window = jnp.minimum(index // problem.window_samples, layout.n_windows - 1)
+    valid = (index < problem.n_samples) & active[in_window]
     measured = problem.measured[jnp.minimum(index, problem.n_samples - 1)]
     c = problem.state_scale * problem.continuity_tol
     seg_ids = jnp.arange(n_seg)
@@ -162,7 +164,18 @@ def _fit(problem, layout, z0, rtol, max_iter):
     free = np.ones(layout.size, bool)
     free[knot_cols[layout.used_knots() :].ravel()] = False
     free[knot_cols[:, ~np.asarray(problem.free)].ravel()] = False
-    free_cols = jnp.asarray(free)
+    # a knot is estimated if a window that uses it is active
+    if layout.linear:
+        padded = jnp.concatenate([jnp.zeros(1, bool), active, jnp.zeros(1, bool)])
+        knot_active = padded[:-1] | padded[1:]
+    else:
+        knot_active = active
+    n_k = knot_active.shape[0]
+    free_cols = (
+        jnp.asarray(free)
+        .at[knot_cols[:n_k]]
+        .set(jnp.asarray(free)[knot_cols[:n_k]] & knot_active[:, None])
+    )
 
     def residuals(z):
         ys, ends = jax.vmap(lambda s, cols: _segment(problem, layout, s, z[cols]))(
@@ -279,6 +292,7 @@ def _fit(problem, layout, z0, rtol, max_iter):
         stderr_corrected=sd * jnp.sqrt(ratio),
         correlation=correlation,
         knots=knots,
+        active=active,
         nodes=z[node_cols],
         cost=cost,
         R=r,
@@ -296,6 +310,7 @@ def fit_windowed_oem(
     nodes0: Float[Array, "segments states"],
     *,
     linear: bool = False,
+    active=None,
     rtol: float = 1e-5,
     max_iter: int = 30,
 ) -> WindowedFit:
@@ -306,7 +321,10 @@ def fit_windowed_oem(
     parameters per window; `nodes0` starting node states (usually the measured states
     at the node times), all estimated; `linear`: parameters continuous and linear in
     time between window boundaries instead of constant per window (the boundary
-    values start from the mean of the neighbouring windows' `theta0`).
+    values start from the mean of the neighbouring windows' `theta0`); `active`
+    `(windows,)` which windows are fitted (default all; an inactive window's samples
+    are not used and its parameters stay at `theta0`, e.g. where the dynamic pressure
+    is too low to tell anything; a traced array, so it batches).
 
     **Returns:** a [`WindowedFit`][]. Pure and jitted: `jax.vmap` over problems
     (e.g. the flights of a campaign) batches it.
@@ -337,4 +355,9 @@ def fit_windowed_oem(
     )
     z0 = jnp.zeros(layout.size).at[cols].set(knots)
     z0 = z0.at[layout.local_cols()[:, : layout.nx]].set(nodes0)
-    return _fit(problem, layout, z0, rtol, max_iter)
+    active = (
+        jnp.ones(layout.n_windows, bool)
+        if active is None
+        else jnp.asarray(active, bool)
+    )
+    return _fit(problem, layout, z0, active, rtol, max_iter)
