@@ -72,7 +72,7 @@ def main():
     @jax.jit
     def oem_one(setup):
         return dp.fit_windowed_oem(
-            setup.problem, setup.theta0, setup.nodes0, linear=True
+            setup.problem, setup.theta0, setup.nodes0, linear=True, active=setup.active
         ).params
 
     loop = {"simulate": [], "lse": [], "nn": [], "oem": []}

@@ -95,3 +95,29 @@ def test_optimiser_improves_the_criterion_within_limits(design):
         )
     )[[0, 2, 3, 4, 5]]
     assert np.sum(np.log(sd)) < np.sum(np.log(sd0))
+
+
+def test_design_input_command_on_the_pegasus_model(tmp_path):
+    """The command end to end on a short segment with a few optimiser steps: the
+    report's shape, every input within the limits, the optimised criterion no worse
+    than its start."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from diffpegasus._cli import app
+
+    result = CliRunner().invoke(
+        app,
+        ["design-input", "--length", "1.0", "--steps", "3", "--out", str(tmp_path)],
+    )
+    assert result.exit_code == 0, result.output
+    d = json.loads((tmp_path / "design.json").read_text())
+    assert set(d["inputs"]) == {"pulse", "sine", "3211", "multisine", "optimised"}
+    for row in d["inputs"].values():
+        assert row["peak_deflection_deg"] <= 2.0 * (1 + 1e-9)
+        assert row["peak_rate_deg_s"] <= 40.0 * (1 + 1e-9)
+        assert row["peak_alpha_excursion_deg"] <= 2.0 * (1 + 1e-9)
+        assert all(v > 0 for v in row["stderr_per_deg"].values())
+    assert d["criterion_end"] <= d["criterion_start"] + 1e-9
+    assert (tmp_path / "design_stderr.png").exists()
