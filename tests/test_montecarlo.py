@@ -90,10 +90,15 @@ def test_rerun_resumes_without_recomputing(campaign, monkeypatch):
     assert len(calls) == 1
 
 
-def test_other_settings_in_the_same_folder_are_refused(campaign):
+def test_other_settings_in_the_same_folder_are_refused(campaign, tmp_path):
     out, _ = campaign
-    with pytest.raises(ValueError, match="other settings"):
-        mc.run_campaign(dataclasses.replace(SMALL, seed=5), out)
+    for change in (dict(seed=5), dict(min_qbar=100.0), dict(samples=4)):
+        with pytest.raises(ValueError, match="other settings"):
+            mc.run_campaign(dataclasses.replace(SMALL, **change), out)
+    # results without a manifest are not adopted
+    (tmp_path / "chunks").mkdir()
+    with pytest.raises(ValueError, match="no campaign.json"):
+        mc.run_campaign(SMALL, tmp_path)
 
 
 def test_sharded_oem_equals_unsharded(campaign):
@@ -138,11 +143,15 @@ def test_sharded_equals_unsharded():
     np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-10)
 
 
-def test_draws_do_not_depend_on_the_chunk_size():
-    k1, p1 = mc.draws(SMALL)
-    k2, p2 = mc.draws(dataclasses.replace(SMALL, batch=3))
-    np.testing.assert_array_equal(jax.random.key_data(k1), jax.random.key_data(k2))
-    np.testing.assert_array_equal(np.asarray(p1.thrust), np.asarray(p2.thrust))
+def test_draws_of_a_flight_do_not_depend_on_the_campaign_size():
+    k3, p3 = mc.draws(dataclasses.replace(SMALL, samples=3))
+    k5, p5 = mc.draws(dataclasses.replace(SMALL, samples=5))
+    np.testing.assert_array_equal(jax.random.key_data(k3), jax.random.key_data(k5)[:3])
+    for leaf3, leaf5 in zip(
+        jax.tree_util.tree_leaves(p3), jax.tree_util.tree_leaves(p5), strict=True
+    ):
+        np.testing.assert_array_equal(np.asarray(leaf3), np.asarray(leaf5)[:3])
+    assert len(set(np.asarray(p5.thrust).tolist())) == 5
     # Table 6.1 ranges
     keys, pert = mc.draws(mc.Campaign(samples=200))
     assert np.all(np.abs(np.asarray(pert.thrust) - 1) <= 0.2)

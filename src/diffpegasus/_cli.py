@@ -470,8 +470,16 @@ def montecarlo(
     flag = f"--xla_force_host_platform_device_count={os.cpu_count()}"
     if "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
         os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {flag}".strip()
+    import jax
+
     from ._montecarlo import Campaign, run_campaign
 
+    devices = len(jax.devices())
+    if batch % devices:
+        batch = -(-batch // devices) * devices
+        typer.echo(
+            f"--batch rounded up to {batch}, a multiple of the {devices} devices"
+        )
     try:
         campaign = Campaign(
             samples=samples,
@@ -663,7 +671,9 @@ def estimate_oem_command(
     node_interval: Annotated[
         float, typer.Option(help="Shooting nodes every S s")
     ] = 2.0,
-    decimate: Annotated[int, typer.Option(help="Use every n-th sample")] = 5,
+    decimate: Annotated[
+        int, typer.Option(help="Fit at 1/n of the log rate (means of n samples)")
+    ] = 5,
     start: Annotated[
         str, typer.Option(help="Starting values: lse, database or truth10")
     ] = "lse",
@@ -677,6 +687,12 @@ def estimate_oem_command(
             "constant per window (the thesis's model); multiple shooting only"
         ),
     ] = "linear",
+    min_qbar: Annotated[
+        float,
+        typer.Option(
+            help="Windows below this mean dynamic pressure (Pa) are not fitted"
+        ),
+    ] = 2000.0,
     units: UnitsOption = "deg",
     out: OutOption = None,
     as_json: JsonOption = False,
@@ -701,6 +717,7 @@ def estimate_oem_command(
             start=start,
             axes=axes,
             parameters=parameters,
+            min_qbar=min_qbar,
         )
     except (LogError, ValueError) as e:
         _fail(str(e))

@@ -9,7 +9,8 @@ mode), and an optax optimiser can minimise a design criterion of the Cramér-Rao
 covariance `M^-1` — D (log det) or A (trace), on parameters made relative to their
 a-priori values (so the criterion is scale-free) — subject to an amplitude limit, a
 rate limit and a bound on one output's excursion (e.g. alpha), enforced by a
-quadratic penalty while optimising and by scaling the excitation down at the end.
+quadratic penalty while optimising and by scaling the excitation to its binding limit
+at the end (as every input compared with it is scaled).
 """
 
 from collections.abc import Callable
@@ -110,7 +111,9 @@ def fisher_information(
 @eqx.filter_jit
 def predicted_covariance(design: DesignProblem, excitation) -> Float[Array, "k k"]:
     """The Cramér-Rao covariance of the (transformed) parameters."""
+    free = jnp.asarray(design.problem.free)
     cov = jnp.linalg.inv(fisher_information(design, excitation))
+    cov = jnp.where(free[:, None] & free[None, :], cov, 0.0)
     if design.transform is None:
         return cov
     jac = jax.jacfwd(design.transform)(design.theta)
@@ -173,13 +176,16 @@ def _violation(design, excitation, limits):
 
 @eqx.filter_jit
 def within_limits(design: DesignProblem, excitation, limits: Limits) -> Scaled:
-    """The excitation scaled down (never up) until it meets every limit (the output
-    excursion is not exactly linear in the amplitude, so the scale is refined)."""
+    """The excitation scaled (up or down) until its binding limit is just met, so
+    inputs compared under the same limits each use their whole allowance (the
+    output excursion is not exactly linear in the amplitude, so the scale is
+    refined)."""
     scale = jnp.ones(())
     for _ in range(4):
         v = _violation(design, Scaled(excitation, scale), limits)
-        scale = scale * jnp.minimum(1.0, 0.999 / v)
-    return Scaled(excitation, scale)
+        scale = scale * 0.999 / v
+    v = _violation(design, Scaled(excitation, scale), limits)
+    return Scaled(excitation, scale * jnp.minimum(1.0, 0.999 / v))
 
 
 def optimise_input(

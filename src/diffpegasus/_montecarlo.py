@@ -53,6 +53,12 @@ from ._simulate import (
 
 
 METHODS = ("lse", "nn", "oem")
+# Fixed settings of the estimators in a campaign (part of its identity on disk).
+ESTIMATOR_SETTINGS = {
+    "lse": {"window_s": 0.5, "tol": 1e-2},
+    "nn": {"width": 10, "depth": 1, "derivatives": "lse"},
+    "oem": {"parameters": "linear", "start": "lse", "axes": "body", "rtol": 1e-5},
+}
 LABELS = {"lse": "LSE", "nn": "NN+LSE", "oem": "OEM"}
 # Thesis Tables 6.2 and 6.3 (per degree squared).
 THESIS_MEANS = {
@@ -111,9 +117,14 @@ class Campaign:
         return math.ceil(self.samples / self.batch)
 
     def identity(self) -> dict:
-        """Everything that changes the numbers (`methods` only adds files)."""
+        """Everything that changes the numbers (`methods` only adds files): the
+        settings, the fixed estimator settings and the package version."""
+        from importlib.metadata import version
+
         d = dataclasses.asdict(self)
         d.pop("methods")
+        d["estimators"] = ESTIMATOR_SETTINGS
+        d["diffpegasus"] = version("diffpegasus")
         return d
 
     def flight_indices(self, chunk: int) -> np.ndarray:
@@ -124,12 +135,14 @@ class Campaign:
 
 
 def draws(campaign: Campaign) -> tuple[jax.Array, Perturbation]:
-    """Noise keys `(samples,)` and perturbations of every flight of the campaign."""
+    """Noise keys `(samples,)` and perturbations of every flight of the campaign;
+    flight `i`'s draws depend on the seed and `i` only (not on the campaign size)."""
     key = jax.random.key(campaign.seed)
     k_noise, k_pert = jax.random.split(key)
-    return jax.random.split(k_noise, campaign.samples), jax.vmap(Perturbation.sample)(
-        jax.random.split(k_pert, campaign.samples)
-    )
+    index = jnp.arange(campaign.samples)
+    noise = jax.vmap(lambda i: jax.random.fold_in(k_noise, i))(index)
+    pert = jax.vmap(lambda i: Perturbation.sample(jax.random.fold_in(k_pert, i)))(index)
+    return noise, pert
 
 
 def training_logs(t_final: float = 80.3, sample_rate: float = 1000.0):
@@ -212,6 +225,11 @@ def _check_manifest(out: pathlib.Path, campaign: Campaign) -> None:
                 "use another --out or delete it"
             )
     else:
+        if (out / "chunks").exists():
+            raise ValueError(
+                f"{out} holds campaign results but no campaign.json to check them "
+                "against; use another --out or delete it"
+            )
         out.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(ident, indent=2))
 
@@ -464,8 +482,12 @@ def write_reports(campaign, out, window_start) -> dict:
         "means": "Means of the per-flight MSE, (1/deg)^2 (thesis Table 6.2)",
         "std": "Standard deviations of the per-flight MSE, (1/deg)^2 (thesis Table 6.3)",
     }
+    dropped = {m: int(np.sum(np.all(np.isnan(v), axis=1))) for m, v in mse.items()}
+    note = "Flights without any counted estimate (left out of the means): " + ", ".join(
+        f"{LABELS[m]} {n}" for m, n in dropped.items()
+    )
     (out / "tables.md").write_text(
-        "\n\n".join(f"{title[k]}\n\n{v}" for k, v in tables.items()) + "\n"
+        "\n\n".join(f"{title[k]}\n\n{v}" for k, v in tables.items()) + f"\n\n{note}\n"
     )
     plot_campaign(mse, out)
     summary = {

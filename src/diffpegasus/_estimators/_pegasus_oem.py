@@ -261,9 +261,9 @@ def windowed_lift_drag(fit: WindowedFit, alpha: Float[Array, " windows"], axes: 
         "max_correlation": jnp.max(jnp.abs(off), axis=(1, 2)),
     }
     ok = fit.converged & fit.active
-    values, sd = _to_lift_drag_with_errors(
-        fit.params, fit.stderr_corrected, alpha, axes
-    )
+    sd_c = fit.stderr_corrected
+    cov = sd_c[:, :, None] * fit.correlation * sd_c[:, None, :]
+    values, sd = _to_lift_drag_with_errors(fit.params, cov, alpha, axes)
     return (
         jnp.where(ok[:, None], values, jnp.nan),
         jnp.where(ok[:, None], sd, jnp.nan),
@@ -272,13 +272,16 @@ def windowed_lift_drag(fit: WindowedFit, alpha: Float[Array, " windows"], axes: 
     )
 
 
-def _to_lift_drag_with_errors(body, body_sd, alpha, axes):
+def _to_lift_drag_with_errors(body, body_cov, alpha, axes):
+    """Values and standard errors in lift/drag form from body-axis values and their
+    per-window covariance `(windows, 6, 6)` (CLa and CDa both mix CXa and CZa, so
+    the correlation matters)."""
     if axes == "wind":
-        return body, body_sd
+        return body, jnp.sqrt(jnp.clip(jnp.diagonal(body_cov, axis1=1, axis2=2), 0.0))
     values = to_lift_drag(body, alpha)
-    # standard errors of the lift/drag form through the same linear map
     jac = jax.vmap(jax.jacfwd(to_lift_drag), in_axes=(0, 0))(body, alpha)
-    return values, jnp.sqrt(jnp.einsum("wij,wj->wi", jac**2, body_sd**2))
+    cov = jnp.einsum("wij,wjk,wlk->wil", jac, body_cov, jac)
+    return values, jnp.sqrt(jnp.clip(jnp.diagonal(cov, axis1=1, axis2=2), 0.0))
 
 
 def estimate_oem(
@@ -354,7 +357,8 @@ def estimate_oem(
             setup.problem, setup.theta0, states[0], rtol
         )
         flags = {"converged": ok, "iterations": its}
-        values, sd = _to_lift_drag_with_errors(body, body_sd, setup.alpha, axes)
+        cov = jax.vmap(jnp.diag)(body_sd**2)  # the sequential fits give no correlation
+        values, sd = _to_lift_drag_with_errors(body, cov, setup.alpha, axes)
         values = jnp.where(ok[:, None], values, jnp.nan)
         sd = jnp.where(ok[:, None], sd, jnp.nan)
     start_t, end_t = layout.times(float(log.t[0]))

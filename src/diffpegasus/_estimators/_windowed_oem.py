@@ -317,14 +317,17 @@ def fit_windowed_oem(
     """Multiple-shooting output error with parameters per window.
 
     **Arguments:** `problem` with `window` and `node_interval` set and `state_scale`
-    given (parameters fixed by `problem.free` stay at `theta0`); `theta0` starting
+    given (parameters fixed by `problem.free` stay at their starting values: with
+    `linear`, knots at the means of neighbouring windows' `theta0`); `theta0` starting
     parameters per window; `nodes0` starting node states (usually the measured states
     at the node times), all estimated; `linear`: parameters continuous and linear in
     time between window boundaries instead of constant per window (the boundary
     values start from the mean of the neighbouring windows' `theta0`); `active`
     `(windows,)` which windows are fitted (default all; an inactive window's samples
-    are not used and its parameters stay at `theta0`, e.g. where the dynamic pressure
-    is too low to tell anything; a traced array, so it batches).
+    are not used and its own knots stay at their starting values — with `linear` the
+    knot it shares with an active neighbour is estimated, so report inactive windows
+    as having no estimate, as `estimate_oem` does; e.g. where the dynamic pressure is
+    too low to tell anything; a traced array, so it batches).
 
     **Returns:** a [`WindowedFit`][]. Pure and jitted: `jax.vmap` over problems
     (e.g. the flights of a campaign) batches it.
