@@ -274,6 +274,19 @@ def run_campaign(
     def chunk_path(method, c):
         return out / "chunks" / method / f"{c:04d}.npz"
 
+    def finish(method, c, t0, values, stderr, valid, **arrays):
+        seconds = time.perf_counter() - t0
+        record(method, seconds)
+        _save(
+            chunk_path(method, c),
+            values=values,
+            stderr=stderr,
+            valid=valid,
+            seconds=seconds,
+            **arrays,
+        )
+        bars[method].update()
+
     stages = ("simulate", *campaign.methods)
     bars = {
         s: tqdm(
@@ -318,31 +331,11 @@ def run_campaign(
                 )
                 lse_values = np.asarray(v)
                 if "lse" in campaign.methods:
-                    seconds = time.perf_counter() - t0
-                    record("lse", seconds)
-                    _save(
-                        chunk_path("lse", c),
-                        values=v,
-                        stderr=sd,
-                        valid=ok,
-                        seconds=seconds,
-                        **common,
-                    )
-                    bars["lse"].update()
+                    finish("lse", c, t0, v, sd, ok, **common)
         if "nn" in missing:
             t0 = time.perf_counter()
             v, sd, ok = jax.block_until_ready(_nn_chunk(net, channels, layout))
-            seconds = time.perf_counter() - t0
-            record("nn", seconds)
-            _save(
-                chunk_path("nn", c),
-                values=v,
-                stderr=sd,
-                valid=ok,
-                seconds=seconds,
-                **common,
-            )
-            bars["nn"].update()
+            finish("nn", c, t0, v, sd, ok, **common)
         if "oem" in missing:
             t0 = time.perf_counter()
             setups = []
@@ -361,19 +354,7 @@ def run_campaign(
             v, sd, ok, conv, its = jax.block_until_ready(
                 map_over_devices(_oem_chunk, stacked)
             )
-            seconds = time.perf_counter() - t0
-            record("oem", seconds)
-            _save(
-                chunk_path("oem", c),
-                values=v,
-                stderr=sd,
-                valid=ok,
-                converged=conv,
-                iterations=its,
-                seconds=seconds,
-                **common,
-            )
-            bars["oem"].update()
+            finish("oem", c, t0, v, sd, ok, converged=conv, iterations=its, **common)
         del flights, channels
     for b in bars.values():
         b.close()
