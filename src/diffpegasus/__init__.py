@@ -67,6 +67,16 @@ from ._estimators import (  # noqa: E402
     WindowLayout as WindowLayout,
 )
 from ._gravity import gravity as gravity  # noqa: E402
+from ._identify import (  # noqa: E402
+    fit as fit,
+    Fit as Fit,
+    Model as Model,
+    MultipleShooting as MultipleShooting,
+    Record as Record,
+    RESULTS as RESULTS,
+    simulate_model as simulate_model,
+    SingleShooting as SingleShooting,
+)
 from ._inputs import (  # noqa: E402
     AbstractInput as AbstractInput,
     doublet as doublet,

@@ -1,0 +1,413 @@
+"""The output-error engine: one structured Levenberg-Marquardt over a parameter layout.
+
+Unknowns, in one flat vector `z = [nodes (S nx), theta (P), biases (R nb)]`:
+
+- a state at the start of every shooting segment (`S` segments over all records; a
+  record's first node is its initial state, held or estimated);
+- the model parameters `theta`, shared by every record (a traced mask holds some);
+- per record, a bias on each output listed in `biases`.
+
+A segment's output residuals depend only on its own node, `theta` and its record's
+biases, and a continuity defect `(x_end(s) - node(s + 1)) / (scale tol)` only on two
+neighbouring nodes of the same record and `theta`. So each segment's Jacobian is
+computed exactly (forward mode through its diffrax RK4 solve) with `nx + P + nb`
+tangents in one vmapped call, and the normal equations are assembled from the blocks
+by index maps. R is diagonal, re-estimated every iteration (the standard relaxation
+of the det(R) cost); the step is Levenberg-Marquardt with damping raised tenfold until
+the weighted cost falls and lowered tenfold after a success; the iteration stops when
+det(R) changes by less than `rtol` relatively.
+
+Why not `optimistix.LevenbergMarquardt` on the flat residual vector: optimistix
+linearises the whole residual function, i.e. `S nx + P + R nb` tangents through every
+segment instead of the `nx + P + nb` each segment depends on, and solves the dense
+least squares by QR of the stacked Jacobian; with the relaxation of R between steps
+it also needs an outer loop. The block form is `S` times less Jacobian work for
+multiple shooting; see the README for the measurement.
+"""
+
+import functools
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float, Int
+
+from ._model import Model
+
+
+class RESULTS(eqx.Enumeration):
+    """Why a fit stopped."""
+
+    successful = ""
+    max_iterations = (
+        "the fit did not converge within the iteration limit (raise max_iter, or "
+        "check the model and start values)"
+    )
+    nonfinite = (
+        "the model produced non-finite outputs or derivatives (a diverging "
+        "simulation: try multiple shooting or other start values)"
+    )
+
+
+class Layout(eqx.Module):
+    """The data of a fit, cut into shooting segments of `length` samples.
+
+    **Fields:** `inputs` `(records, samples, inputs)` padded with the last row; `t0`,
+    `dt`, `n` per record (s, s, samples); per segment `record`, `first` (sample index
+    in its record), `measured` `(segments, length, outputs)`, `valid` `(segments,
+    length)`; `link` `(segments - 1,)` whether segment `s` continues into `s + 1`;
+    `scale` `(states,)` state scale times the continuity tolerance; `node_free`
+    `(segments, states)`; `length` and `bias_channels` (output indices with a
+    per-record bias) are static.
+    """
+
+    inputs: Float[Array, "records samples inputs"]
+    t0: Float[Array, " records"]
+    dt: Float[Array, " records"]
+    n: Int[Array, " records"]
+    record: Int[Array, " segments"]
+    first: Int[Array, " segments"]
+    measured: Float[Array, "segments length outputs"]
+    valid: Bool[Array, "segments length"]
+    link: Bool[Array, " links"]
+    scale: Float[Array, " states"]
+    node_free: Bool[Array, "segments states"]
+    length: int = eqx.field(static=True)
+    bias_channels: tuple[int, ...] = eqx.field(static=True)
+
+    @property
+    def n_segments(self) -> int:
+        return self.record.shape[0]
+
+    @property
+    def n_records(self) -> int:
+        return self.t0.shape[0]
+
+
+def _input_at(layout: Layout, r, t, delay):
+    """Known inputs of record `r` at time `t` (s), linearly interpolated, each
+    delayed by `delay` `(inputs,)` or not (None)."""
+    u = layout.inputs[r]
+    x = (t - layout.t0[r]) / layout.dt[r]
+    if delay is not None:
+        x = x - delay / layout.dt[r]
+    i = jnp.clip(jnp.floor(x), 0, layout.n[r] - 2).astype(int)
+    frac = jnp.clip(x - i, 0.0, 1.0)
+    if delay is None:
+        return u[i] * (1 - frac) + u[i + 1] * frac
+    cols = jnp.arange(u.shape[1])
+    return u[i, cols] * (1 - frac) + u[i + 1, cols] * frac
+
+
+def segment_solve(model: Model, layout: Layout, s, node, theta):
+    """States at segment `s`'s samples and one step beyond, `(length + 1, states)`,
+    and their times: classical RK4 at the record's sample step (the middle stages
+    see the inputs averaged over the step, as flight-test codes do).
+
+    A `lax.scan`, not `diffrax.diffeqsolve`: on the HFB-320 fit the scan compiles in
+    half the time and runs twice as fast; the tests check it against diffrax's
+    solve with the same tableau ([`RK4`][])."""
+    r = layout.record[s]
+    dt = layout.dt[r]
+    t_start = layout.t0[r] + layout.first[s] * dt
+    delay = model.input_delays(theta)
+
+    def field(t, x, args):
+        del args
+        return model.f(t, x, _input_at(layout, r, t, delay), theta)
+
+    ts = t_start + dt * jnp.arange(layout.length + 1)
+
+    def step(x, t):
+        k1 = field(t, x, None)
+        k2 = field(t + dt / 2, x + dt / 2 * k1, None)
+        k3 = field(t + dt / 2, x + dt / 2 * k2, None)
+        k4 = field(t + dt, x + dt * k3, None)
+        x1 = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        return x1, x1
+
+    _, xs = jax.lax.scan(step, node, ts[:-1])
+    return jnp.concatenate([node[None], xs]), ts
+
+
+def segment_outputs(model: Model, layout: Layout, s, node, theta, bias):
+    """Model outputs of segment `s` `(length, outputs)` (record biases `bias`
+    `(nb,)` added) and its end state `(states,)`."""
+    xs, ts = segment_solve(model, layout, s, node, theta)
+    r = layout.record[s]
+    delay = model.input_delays(theta)
+    u = jax.vmap(lambda t: _input_at(layout, r, t, delay))(ts[:-1])
+    ys = jax.vmap(lambda t, x, u_: model.g(t, x, u_, theta))(ts[:-1], xs[:-1], u)
+    if layout.bias_channels:
+        ys = ys.at[:, jnp.asarray(layout.bias_channels)].add(bias[None, :])
+    return ys, xs[-1]
+
+
+def unpack(layout: Layout, z, nx, p):
+    """`(nodes (S, nx), theta (P,), biases (R, nb))` from the flat unknowns."""
+    ns = layout.n_segments * nx
+    nodes = z[:ns].reshape(layout.n_segments, nx)
+    theta = z[ns : ns + p]
+    biases = z[ns + p :].reshape(layout.n_records, len(layout.bias_channels))
+    return nodes, theta, biases
+
+
+def residuals(model, layout, nodes, theta, biases):
+    """Output residuals `(S, length, outputs)` (0 at padding), defects `(S - 1,
+    states)` (0 between records) and the model outputs."""
+    seg = jnp.arange(layout.n_segments)
+    ys, ends = jax.vmap(
+        lambda s, x0: segment_outputs(
+            model, layout, s, x0, theta, biases[layout.record[s]]
+        )
+    )(seg, nodes)
+    e = jnp.where(layout.valid[..., None], layout.measured - ys, 0.0)
+    d = (ends[:-1] - nodes[1:]) / layout.scale[None, :]
+    d = jnp.where(layout.link[:, None], d, 0.0)
+    return e, d, ys
+
+
+def _columns(layout: Layout, nx, p):
+    """Global column of each segment's local unknowns `[node, theta, bias]`."""
+    n_seg, nb = layout.n_segments, len(layout.bias_channels)
+    node = jnp.arange(n_seg)[:, None] * nx + jnp.arange(nx)[None, :]
+    par = n_seg * nx + jnp.arange(p)
+    bias = n_seg * nx + p + layout.record[:, None] * nb + jnp.arange(nb)[None, :]
+    return node, jnp.concatenate(
+        [node, jnp.broadcast_to(par, (n_seg, p)), bias], axis=1
+    )
+
+
+def _scatter(h, g, cols, jac, res):
+    """Add `J^T J` and `J^T r` of local blocks `jac` `(S, rows, k)`, `res` `(S,
+    rows)` at global columns `cols` `(S, k)`; shared columns accumulate."""
+    hh = jnp.einsum("sra,srb->sab", jac, jac)
+    gg = jnp.einsum("sra,sr->sa", jac, res)
+    h = h.at[cols[:, :, None], cols[:, None, :]].add(hh)
+    g = g.at[cols].add(gg)
+    return h, g
+
+
+def linearise(model, layout, z, nx, p, r):
+    """Normal matrix and gradient of the R-weighted least squares at `z`, with the
+    whitened output Jacobian `(S, length, outputs, nx + P + nb)`, whitened output
+    residuals, output residuals `(S, length, outputs)`, defects and model outputs.
+    One forward-mode pass per segment gives both the values and the Jacobian."""
+    nodes, theta, biases = unpack(layout, z, nx, p)
+    seg = jnp.arange(layout.n_segments)
+
+    def local(s, node):
+        b = biases[layout.record[s]]
+
+        def f(v):
+            out = segment_outputs(
+                model, layout, s, v[:nx], v[nx : nx + p], v[nx + p :]
+            )
+            return out, out
+
+        return jax.jacfwd(f, has_aux=True)(jnp.concatenate([node, theta, b]))
+
+    (jy, jx), (ys, ends) = jax.vmap(local)(seg, nodes)
+    e = jnp.where(layout.valid[..., None], layout.measured - ys, 0.0)
+    d = (ends[:-1] - nodes[1:]) / layout.scale[None, :]
+    d = jnp.where(layout.link[:, None], d, 0.0)
+    w = 1.0 / jnp.sqrt(r)
+    # residual = measured - model: its Jacobian is minus the model's; padded samples
+    # are masked with where (their values may be non-finite, and 0 * nan is nan)
+    jyw = jnp.where(layout.valid[..., None, None], -jy * w[None, None, :, None], 0.0)
+    ew = e * w[None, None, :]
+    n = z.shape[0]
+    h, g = jnp.zeros((n, n)), jnp.zeros(n)
+    node_cols, cols = _columns(layout, nx, p)
+    k = cols.shape[1]
+    h, g = _scatter(
+        h, g, cols, jyw.reshape(layout.n_segments, -1, k), ew.reshape(layout.n_segments, -1)
+    )
+    if layout.n_segments > 1:
+        link = layout.link[:, None, None]
+        jd = jnp.where(link, jx[:-1] / layout.scale[None, :, None], 0.0)
+        minus = jnp.where(link, -jnp.eye(nx)[None] / layout.scale[None, :, None], 0.0)
+        h, g = _scatter(
+            h,
+            g,
+            jnp.concatenate([cols[:-1], node_cols[1:]], axis=1),
+            jnp.concatenate([jd, minus], axis=2),
+            d,
+        )
+    return h, g, jyw, ew, e, d, ys
+
+
+def weighted_cost(model, layout, z, nx, p, r):
+    """The R-weighted least-squares cost at `z`, with the output residuals, defects
+    and model outputs."""
+    e, d, ys = residuals(model, layout, *unpack(layout, z, nx, p))
+    return jnp.sum(e**2 / r[None, None, :]) + jnp.sum(d**2), e, d, ys
+
+
+def lm_step(h, g, free, damping):
+    """Levenberg-Marquardt step `(H + damping diag(H)) step = -g` (scaled to unit
+    diagonal), columns not `free` held at zero step; `damping = 0` is Gauss-Newton."""
+    m = free.astype(h.dtype)
+    hm = h * m[:, None] * m[None, :] + jnp.diag(1.0 - m)
+    scale = jnp.sqrt(jnp.clip(jnp.diag(hm), 1e-300))
+    hs = hm / scale[:, None] / scale[None, :]
+    hs = hs + (damping + 1e-12) * jnp.eye(h.shape[0])
+    step = jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(hs), -g * m / scale)
+    return step / scale * m
+
+
+def free_columns(layout: Layout, free_params, nx):
+    nb = len(layout.bias_channels)
+    return jnp.concatenate(
+        [
+            layout.node_free.reshape(-1),
+            free_params,
+            jnp.ones(layout.n_records * nb, bool),
+        ]
+    )
+
+
+def channel_variance(layout, e):
+    """Diagonal of R: mean square residual per output over the valid samples."""
+    return jnp.sum(e**2, axis=(0, 1)) / jnp.sum(layout.valid)
+
+
+class Solution(eqx.Module):
+    """The raw result of [`solve`][] (the front end [`fit`][] wraps it).
+
+    **Fields:** `z` the unknowns; `R` `(outputs,)`; `cost` det(R); `iterations`;
+    `result` a [`RESULTS`][] code; `covariance` of `z` (the inverse Fisher
+    information, zero rows and columns for held unknowns); `corrected` the same with
+    the Morelli-Klein correction for coloured residuals (over `theta` and biases
+    only, 0 elsewhere); `outputs` `(S, length, outputs)`; `defect` the largest
+    continuity defect relative to the state scale.
+    """
+
+    z: Float[Array, " unknowns"]
+    R: Float[Array, " outputs"]
+    cost: Float[Array, ""]
+    iterations: Int[Array, ""]
+    result: RESULTS
+    covariance: Float[Array, "unknowns unknowns"]
+    corrected: Float[Array, "unknowns unknowns"]
+    outputs: Float[Array, "segments length outputs"]
+    defect: Float[Array, ""]
+
+
+@functools.partial(jax.jit, static_argnames=("model", "max_iter", "nx", "p"))
+def solve(model, layout, z0, free_params, *, nx, p, rtol, max_iter) -> Solution:
+    """Minimise det(R) over the free unknowns from `z0`. Pure and jitted; vmap
+    batches it over layouts of one shape."""
+    free = free_columns(layout, free_params, nx)
+
+    def body(carry):
+        z, r, cost_prev, it, _, damping, _, _, _ = carry
+        lin = linearise(model, layout, z, nx, p, r)
+        h, g, _, _, e, d, _ = lin
+        j0 = jnp.sum(e**2 / r[None, None, :]) + jnp.sum(d**2)
+
+        def trial(lam):
+            new = z + lm_step(h, g, free, lam)
+            return (new, *weighted_cost(model, layout, new, nx, p, r))
+
+        def increase(c):
+            lam = jnp.maximum(10.0 * c[0], 1e-8)
+            return (lam, *trial(lam))
+
+        damping, new, j1, e1, d1, ys1 = jax.lax.while_loop(
+            lambda c: ~(c[2] < j0) & (c[0] < 1e8), increase, (damping, *trial(damping))
+        )
+        accepted = j1 < j0
+        new = jnp.where(accepted, new, z)
+        r_new = jnp.where(accepted, channel_variance(layout, e1), r)
+        cost = jnp.prod(r_new)
+        small = jnp.abs(cost_prev - cost) <= rtol * jnp.abs(cost)
+        # no decrease at any damping: the minimum if the normal equations are
+        # finite, a failure (e.g. a diverged segment) if not
+        broken = ~(jnp.all(jnp.isfinite(h)) & jnp.all(jnp.isfinite(g)))
+        done = small | ~accepted | broken
+        after = (
+            jnp.where(accepted, d1, d),
+            jnp.where(accepted, ys1, lin[6]),
+        )
+        return new, r_new, cost, it + 1, done, damping / 10.0, broken, lin[:4], after
+
+    # The loop carries the last linearisation (at the point the last step started
+    # from: at convergence the step is negligible) so that the statistics below need
+    # no second copy of the Jacobian program: it compiles once.
+    _, e0, d0, ys0 = weighted_cost(
+        model, layout, z0, nx, p, jnp.ones(layout.measured.shape[-1])
+    )
+    r0 = channel_variance(layout, e0)
+    n = z0.shape[0]
+    k = nx + p + len(layout.bias_channels)
+    lin0 = (
+        jnp.zeros((n, n)),
+        jnp.zeros(n),
+        jnp.zeros((*layout.measured.shape, k)),
+        jnp.zeros(layout.measured.shape),
+    )
+    init = (z0, r0, jnp.prod(r0), jnp.array(0), jnp.array(False), jnp.array(0.0))
+    init = (*init, ~jnp.all(jnp.isfinite(r0)), lin0, (d0, ys0))
+    z, r, cost, iterations, done, _, broken, lin, (d, ys) = jax.lax.while_loop(
+        lambda c: (c[3] < max_iter) & ~c[4] & ~c[6], body, init
+    )
+    h, _, jyw, ew = lin
+    m = free.astype(h.dtype)
+    hm = h * m[:, None] * m[None, :] + jnp.diag(1.0 - m)
+    cov = jnp.linalg.inv(hm) * m[:, None] * m[None, :]
+    ns = layout.n_segments * nx
+    corrected = jnp.zeros_like(cov)
+    tail = coloured_covariance(layout, jyw, ew, cov[:, ns:], nx)
+    corrected = corrected.at[ns:, ns:].set(tail)
+    defect = jnp.max(jnp.abs(d), initial=0.0) * 1.0
+    finite = jnp.isfinite(cost) & jnp.all(jnp.isfinite(z)) & ~broken
+    result = RESULTS.where(
+        finite,
+        RESULTS.where(done, RESULTS.successful, RESULTS.max_iterations),
+        RESULTS.nonfinite,
+    )
+    return Solution(
+        z=z,
+        R=r,
+        cost=cost,
+        iterations=iterations,
+        result=result,
+        covariance=cov,
+        corrected=corrected,
+        outputs=ys,
+        defect=defect,
+    )
+
+
+def row_jacobian(layout, jyw, cols, nx):
+    """Whitened output Jacobian rows times `cols` `(unknowns, k)`: `(rows, outputs,
+    k)`, segments in order."""
+    n_seg = layout.n_segments
+    _, local = _columns(layout, nx, jyw.shape[-1] - nx - len(layout.bias_channels))
+    picked = cols[local]  # (S, nx + P + nb, k)
+    out = jnp.einsum("snoa,sak->snok", jyw, picked)
+    return out.reshape(n_seg * layout.length, out.shape[2], out.shape[3])
+
+
+def coloured_information(jw, vw):
+    """Sum over lags of residual autocorrelation times Jacobian cross-correlation,
+    per output channel (Morelli and Klein's correction), by FFT.
+
+    `jw`: `(samples, outputs, k)` whitened Jacobian rows; `vw`: `(samples, outputs)`
+    whitened residuals. Returns `(k, k)`.
+    """
+    n = jw.shape[0]
+    m = 2 * n
+    a = jnp.fft.fft(jw, n=m, axis=0)
+    v = jnp.fft.fft(vw, n=m, axis=0)
+    power = jnp.abs(v) ** 2 / n
+    total = jnp.einsum("fo,fop,foq->pq", power, jnp.conj(a), a) / m
+    return jnp.real(total)
+
+
+def coloured_covariance(layout, jyw, ew, cov_cols, nx):
+    """`K^T Sigma K` with `K = J cov[:, cols]` and Sigma the residuals'
+    autocovariance per output: the covariance corrected for coloured residuals."""
+    k = row_jacobian(layout, jyw, cov_cols, nx)
+    return coloured_information(k, ew.reshape(-1, ew.shape[-1]))
