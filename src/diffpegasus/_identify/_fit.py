@@ -338,7 +338,7 @@ def fit(
         outputs=tuple(outputs),
         iterations=int(sol.iterations),
         result=result,
-        defect=float(sol.defect),
+        defect=float(sol.defect) * getattr(shooting, "continuity_tol", 1.0),
     )
     if throw and not out.converged:
         raise RuntimeError(f"output-error fit failed: {out.message}")
