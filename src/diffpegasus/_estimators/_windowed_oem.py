@@ -28,7 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from ._global_oem import _scatter, _solve
+from .._identify._engine import _scatter, lm_step as _solve
 from ._oem import (
     _coloured_information,
     _input_at,
