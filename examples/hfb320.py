@@ -19,8 +19,11 @@ def _aero(x, u, p):
     cd = p["CD0"] + p["CDV"] * v / V0 + p["CDa"] * alpha
     cl = p["CL0"] + p["CLV"] * v / V0 + p["CLa"] * alpha
     cm = (
-        p["CM0"] + p["CMV"] * v / V0 + p["CMa"] * alpha
-        + p["CMq"] * q * CBAR / V0 + p["CMde"] * u[0]
+        p["CM0"]
+        + p["CMV"] * v / V0
+        + p["CMa"] * alpha
+        + p["CMq"] * q * CBAR / V0
+        + p["CMde"] * u[0]
     )
     return qbar, cd, cl, cm
 
@@ -31,10 +34,13 @@ def rates(t, x, u, p):
     thrust = u[1]
     return jnp.stack(
         [
-            -qbar * S_M * cd + thrust / MASS * jnp.cos(alpha + SIGMA_T)
+            -qbar * S_M * cd
+            + thrust / MASS * jnp.cos(alpha + SIGMA_T)
             - G * jnp.sin(theta - alpha),
-            -qbar * S_M / v * cl - thrust / (MASS * v) * jnp.sin(alpha + SIGMA_T)
-            + q + G / v * jnp.cos(theta - alpha),
+            -qbar * S_M / v * cl
+            - thrust / (MASS * v) * jnp.sin(alpha + SIGMA_T)
+            + q
+            + G / v * jnp.cos(theta - alpha),
             q,
             qbar * SC_IY * cm + THRUST_MOMENT * thrust,
         ]
@@ -49,7 +55,10 @@ def observe(t, x, u, p):
     cz = -cl * jnp.cos(alpha) - cd * jnp.sin(alpha)
     return jnp.stack(
         [
-            v, alpha, theta, q,
+            v,
+            alpha,
+            theta,
+            q,
             qbar * SC_IY * cm + THRUST_MOMENT * thrust,
             qbar * S_M * cx + thrust / MASS * jnp.cos(SIGMA_T),
             qbar * S_M * cz - thrust / MASS * jnp.sin(SIGMA_T),
@@ -62,16 +71,31 @@ model = dp.Model(
     inputs=("de", "thrust"),
     outputs=("V", "alpha", "theta", "q", "qdot", "ax", "az"),
     parameters={
-        "CD0": 5.67516e-3, "CDV": 7.72612e-3, "CDa": 0.674256,
-        "CL0": -0.318267, "CLV": 0.260317, "CLa": 5.37576,
-        "CM0": 4.98218e-2, "CMV": 1.89182e-2, "CMa": -0.498586,
-        "CMq": -25.8439, "CMde": -0.990687,
+        "CD0": 5.67516e-3,
+        "CDV": 7.72612e-3,
+        "CDa": 0.674256,
+        "CL0": -0.318267,
+        "CLV": 0.260317,
+        "CLa": 5.37576,
+        "CM0": 4.98218e-2,
+        "CMV": 1.89182e-2,
+        "CMa": -0.498586,
+        "CMq": -25.8439,
+        "CMde": -0.990687,
     },
     rates=rates,
     observe=observe,
 )
 columns = {
-    "t": "T", "de": "DELV", "thrust": "THRUST", "V": "TASCG", "alpha": "ALFCG",
-    "theta": "THE", "q": "Q", "qdot": "QDOT", "ax": "AXCG", "az": "AZCG",
+    "t": "T",
+    "de": "DELV",
+    "thrust": "THRUST",
+    "V": "TASCG",
+    "alpha": "ALFCG",
+    "theta": "THE",
+    "q": "Q",
+    "qdot": "QDOT",
+    "ax": "AXCG",
+    "az": "AZCG",
 }
 x0 = (106.023, 0.111685, 0.104887, -0.00332659)

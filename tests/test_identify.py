@@ -134,9 +134,7 @@ def _numpy_fit(records, biases):
 
 
 @pytest.mark.parametrize("biases", [False, True])
-def test_two_manoeuvres_reach_the_optimum_of_an_independent_implementation(
-    two, biases
-):
+def test_two_manoeuvres_reach_the_optimum_of_an_independent_implementation(two, biases):
     fit = dp.fit(MODEL, two, biases=("az",) if biases else ())
     assert fit.converged, fit.message
     ref, ref_cost = _numpy_fit(two, biases)
@@ -251,7 +249,7 @@ def test_failed_fit_says_why():
 def test_hfb320_model_reaches_the_book_optimum():
     _require(hfb320.DEFAULT_DATA)
     data = dp.read_asc(hfb320.DEFAULT_DATA)
-    from diffpegasus._vehicles._hfb320 import X0, hfb320_model
+    from diffpegasus._vehicles._hfb320 import hfb320_model, X0
 
     rec = dp.Record(
         data["T"],
@@ -287,7 +285,7 @@ def test_cli_fits_the_hfb320_vehicle():
     assert all(report["stderr"][k] > 0 for k in report["estimates"])
 
 
-MODEL_FILE = '''
+MODEL_FILE = """
 import jax.numpy as jnp
 import diffpegasus as dp
 
@@ -307,7 +305,7 @@ model = dp.Model(states=("w", "q"), inputs=("de",), outputs=("az", "w", "q"),
                              "Mde": -12.0},
                  rates=rates, observe=observe)
 biases = ("az",)
-'''
+"""
 
 
 def test_model_file_and_column_map_fit_two_files_like_the_library(two, tmp_path):
@@ -329,15 +327,35 @@ def test_model_file_and_column_map_fit_two_files_like_the_library(two, tmp_path)
     files = []
     for i, rec in enumerate(two):
         rows = np.column_stack(
-            [rec.t, np.degrees(rec.inputs[:, 0]), rec.measured[:, 0],
-             rec.measured[:, 1], np.degrees(rec.measured[:, 2])]
+            [
+                rec.t,
+                np.degrees(rec.inputs[:, 0]),
+                rec.measured[:, 0],
+                rec.measured[:, 1],
+                np.degrees(rec.measured[:, 2]),
+            ]
         )
         path = tmp_path / f"m{i}.csv"
-        np.savetxt(path, rows, delimiter=",", header="TIME,ELEV,NZ,W,QB",
-                   comments="", fmt="%.17g")
+        np.savetxt(
+            path,
+            rows,
+            delimiter=",",
+            header="TIME,ELEV,NZ,W,QB",
+            comments="",
+            fmt="%.17g",
+        )
         files.append(path)
-    res = _cli(["fit", *files, "--model", tmp_path / "model.py", "--columns",
-                tmp_path / "map.json", "--json"])
+    res = _cli(
+        [
+            "fit",
+            *files,
+            "--model",
+            tmp_path / "model.py",
+            "--columns",
+            tmp_path / "map.json",
+            "--json",
+        ]
+    )
     assert res.exit_code == 0, res.output
     report = json.loads(res.stdout.strip().splitlines()[-1])
     # the initial states come from the first samples of w and q (noisy), so the
@@ -357,8 +375,9 @@ def test_cli_holds_a_parameter_and_names_bad_input(tmp_path):
     _require(hfb320.DEFAULT_DATA)
     import json
 
-    res = _cli(["fit", hfb320.DEFAULT_DATA, "--vehicle", "hfb320", "--fix",
-                "CMq=0", "--json"])
+    res = _cli(
+        ["fit", hfb320.DEFAULT_DATA, "--vehicle", "hfb320", "--fix", "CMq=0", "--json"]
+    )
     assert res.exit_code == 0, res.output
     report = json.loads(res.stdout.strip().splitlines()[-1])
     assert report["estimates"]["CMq"] == 0.0 and report["stderr"]["CMq"] is None

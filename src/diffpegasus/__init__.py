@@ -17,12 +17,7 @@ from ._aerodynamics import (  # noqa: E402
 )
 from ._asc import read_asc as read_asc  # noqa: E402
 from ._atmosphere import Atmosphere as Atmosphere, isa as isa  # noqa: E402
-from ._dynamics import (  # noqa: E402
-    evaluate as evaluate,
-    FlightModel as FlightModel,
-    moment_about_cg as moment_about_cg,
-    pitch_plane_rates as pitch_plane_rates,
-)
+from ._dynamics import evaluate as evaluate, FlightModel as FlightModel  # noqa: E402
 from ._effects import (  # noqa: E402
     AbstractEffect as AbstractEffect,
     effect_names as effect_names,
@@ -65,6 +60,12 @@ from ._estimators import (  # noqa: E402
     windowed_lift_drag as windowed_lift_drag,
     WindowedFit as WindowedFit,
     WindowLayout as WindowLayout,
+)
+from ._flight import (  # noqa: E402
+    moment_about_cg as moment_about_cg,
+    pitch_plane as pitch_plane,
+    pitch_plane_rates as pitch_plane_rates,
+    PitchPlane as PitchPlane,
 )
 from ._gravity import gravity as gravity  # noqa: E402
 from ._identify import (  # noqa: E402
@@ -123,7 +124,36 @@ from ._training import (  # noqa: E402
     train_levenberg_marquardt as train_levenberg_marquardt,
     TrainingHistory as TrainingHistory,
 )
+from ._sixdof import (  # noqa: E402
+    Aircraft as Aircraft,
+    body_to_earth as body_to_earth,
+    business_jet as business_jet,
+    Controls as Controls,
+    euler_rates as euler_rates,
+    inertia_tensor as inertia_tensor,
+    LATERAL_DERIVATIVE_NAMES as LATERAL_DERIVATIVE_NAMES,
+    lateral_coefficients as lateral_coefficients,
+    LateralDerivatives as LateralDerivatives,
+    linearise as linearise,
+    rigid_body_rates as rigid_body_rates,
+    simulate_sixdof as simulate_sixdof,
+    sixdof_evaluate as sixdof_evaluate,
+    sixdof_rates as sixdof_rates,
+    Trim as Trim,
+    trim as trim,
+)
 from ._vehicle import Vehicle as Vehicle  # noqa: E402
+from ._vehicles import (  # noqa: E402
+    LATERAL_COLUMNS as LATERAL_COLUMNS,
+    LATERAL_DERIVATIVES as LATERAL_DERIVATIVES,
+    LATERAL_INPUTS as LATERAL_INPUTS,
+    LATERAL_OUTPUTS as LATERAL_OUTPUTS,
+    LATERAL_START as LATERAL_START,
+    lateral_model as lateral_model,
+    lateral_record as lateral_record,
+    read_lateral_asc as read_lateral_asc,
+    sixdof_lateral_model as sixdof_lateral_model,
+)
 
 
 __version__ = "0.1.0"

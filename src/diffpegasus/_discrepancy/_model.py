@@ -6,18 +6,24 @@ over the record: each coefficient is a polynomial in alpha (no constant term) pl
 term in the elevator, with every coefficient a smooth function of Mach, a clamped
 cubic B-spline with `knots` functions (breakpoints at quantiles of the log's Mach):
 
-    CL = sum_k B_k(M) (a_k1 alpha + a_k2 alpha^2 + ... + b_k de), likewise CD, CM
+    CL = sum_k B_k(M) (a_k1 alpha + a_k2 alpha^2 + ... + b_k de + c_k alpha de),
+    likewise CD, CM
 
 (CM about the cp station), plus any effects of the library through their hooks. The
 spline is scheduled on the measured Mach (a known input, as gain schedules are). The
 alpha powers stand for the alpha dependence of the derivative tables
 (`CL = CLa(alpha, M) alpha`); the default order 3 keeps the structural error of the
-Pegasus database below what the diagnosis can see on clean flights.
+Pegasus database below what the diagnosis can see on clean flights. The `alpha de`
+term stands for elevator derivatives that vary with alpha (`CLde(alpha, M)`, as in
+any table over alpha and Mach): without it, a change of trim deflection at one Mach
+number leaves a misfit that a constant moment offset explains (measured on the
+independent generator of `tests/independent_generator.py`: moment_offset flagged on
+clean flights with a score statistic of about 100).
 
 States `[u, w, q, theta, h]` (inertial body velocities, m/s; rad/s; rad; m); known
 inputs `[de, thrust, mass, Iyy, Iyy_dot, xcg, xcp, B_1..B_K]`; outputs
 [`OUTPUTS`][] in SI units. Parameters: the aerodynamic coefficients (ordered CL, CD,
-CM; within each by term `alpha^1..alpha^n, de`, then spline function), then each
+CM; within each by term `alpha^1..alpha^n, de, alpha de`, then spline function), then each
 effect's main parameter in SI units.
 """
 
@@ -29,10 +35,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._aerodynamics import body_axis
-from .._atmosphere import dynamic_pressure, isa
-from .._dynamics import moment_about_cg, pitch_plane_rates
-from .._effects import AbstractEffect, FlightCondition, make_effect
+from .._atmosphere import isa
+from .._effects import AbstractEffect, make_effect
+from .._flight import elevator_delay, has_delay, pitch_plane
 from .._gravity import gravity
 from .._log import FlightLog
 
@@ -96,12 +101,15 @@ class ModelSpec(eqx.Module):
     c_ref: float = eqx.field(static=True)
     knots: int = eqx.field(static=True, default=6)
     alpha_order: int = eqx.field(static=True, default=3)
+    alpha_elevator: bool = eqx.field(static=True, default=True)
     effects: tuple[str, ...] = eqx.field(static=True, default=())
 
     @property
     def terms(self) -> tuple[str, ...]:
-        """Regressors of each coefficient: `a1 = alpha`, `a2 = alpha^2`, ..., `de`."""
-        return tuple(f"a{p}" for p in range(1, self.alpha_order + 1)) + ("de",)
+        """Regressors of each coefficient: `a1 = alpha`, `a2 = alpha^2`, ..., `de`,
+        and `a1de = alpha de` if `alpha_elevator`."""
+        cross = ("a1de",) if self.alpha_elevator else ()
+        return tuple(f"a{p}" for p in range(1, self.alpha_order + 1)) + ("de",) + cross
 
     @property
     def n_aero(self) -> int:
@@ -130,16 +138,21 @@ def effect_parameter_name(spec: str) -> str:
     return f"{spec}.{make_effect(spec).parameter}"
 
 
-def scheduling_basis(log: FlightLog, index: np.ndarray, spec: ModelSpec) -> np.ndarray:
-    """The Mach spline basis at the log samples `index`, `(len(index), knots)`."""
+def scheduling_basis(
+    log: FlightLog | dict, index: np.ndarray, spec: ModelSpec
+) -> np.ndarray:
+    """The Mach spline basis at the samples `index` of `log` (a log or a dict of
+    channels), `(len(index), knots)`."""
     return mach_basis(log["mach"][index], spec.knots)
 
 
 def aero_columns(basis, alpha, de, spec: ModelSpec):
     """Regressors of one coefficient, `(n, len(terms) * knots)`: the basis times
-    alpha, alpha^2, ..., de (works on numpy and JAX arrays)."""
+    alpha, alpha^2, ..., de (and alpha de) (works on numpy and JAX arrays)."""
     xp = jnp if isinstance(basis, jax.Array) else np
     powers = [alpha**p for p in range(1, spec.alpha_order + 1)] + [de]
+    if spec.alpha_elevator:
+        powers.append(alpha * de)
     return xp.concatenate([basis * v[..., None] for v in powers], axis=-1)
 
 
@@ -157,78 +170,42 @@ def _coefficients(spec: ModelSpec, u, theta, alpha, de):
 
 
 def _evaluate(spec: ModelSpec, t, x, u, theta):
-    """State rates and the noise-free output channels, effects included."""
+    """State rates and the noise-free output channels, effects included: the one
+    flight model ([`pitch_plane`][]) with the spline aerodynamics and the log's
+    known inputs."""
     effects = _effects(spec, theta)
-    uu, ww, q, theta_, h = x
+    uu, ww, q, pitch, h = x
     de, thrust, mass, iyy, iyy_dot, xcg, xcp = u[: len(KNOWN)]
-
-    def air_relative(th):
-        wind = [e.wind(t, th) for e in effects]
-        return uu - sum((v[0] for v in wind), 0.0), ww - sum((v[1] for v in wind), 0.0)
-
-    ua, wa = air_relative(theta_)
-    airspeed = jnp.sqrt(ua**2 + wa**2)
-    alpha = jnp.arctan2(wa, ua)
     atm = isa(h)
-    qbar = dynamic_pressure(atm.density, airspeed)
-    g = gravity(h)
-    zero = jnp.zeros(())
-    cond = FlightCondition(
-        t=jnp.asarray(t, float),
-        alpha=alpha,
-        alpha_dot=zero,
-        airspeed=airspeed,
-        mach=airspeed / atm.speed_of_sound,
-        qbar=qbar,
-        q=q,
-        qdot=zero,
-        theta=theta_,
-        h=h,
+
+    def aero(c):
+        cl, cd, cm = _coefficients(spec, u, theta, c.alpha, c.de)
+        return cl, cd, cm
+
+    pp = pitch_plane(
+        t,
+        uu,
+        ww,
+        q,
+        pitch,
+        h,
         de=de,
-        thrust=thrust,
-        c_ref=spec.c_ref,
+        aero=aero,
+        effects=effects,
         s_ref=spec.s_ref,
+        c_ref=spec.c_ref,
+        density=atm.density,
+        speed_of_sound=atm.speed_of_sound,
+        g=gravity(h),
+        thrust=thrust,
         mass=mass,
+        iyy=iyy,
+        iyy_dot=iyy_dot,
         xcg=xcg,
+        xcp=xcp,
     )
-    cl, cd, cm = _coefficients(spec, u, theta, alpha, de)
-    for e in effects:
-        dcl, dcd = e.force_coefficients(cond)
-        cl, cd = cl + dcl, cd + dcd
-    cx, cz = body_axis(cl, cd, alpha)
-    fx = qbar * spec.s_ref * cx + thrust
-    fz = qbar * spec.s_ref * cz
-    udot, wdot, _ = pitch_plane_rates(
-        uu, ww, q, theta_, fx, fz, 0.0, mass, iyy, iyy_dot, g
-    )
-    # a steady wind in inertial axes turns with the body: its rate is d/dtheta * q
-    _, (dua, dwa) = jax.jvp(air_relative, (theta_,), (q,))
-    alpha_dot = (ua * (wdot + dwa) - wa * (udot + dua)) / airspeed**2
-    cond = eqx.tree_at(lambda c: c.alpha_dot, cond, alpha_dot)
-    extra = zero
-    for e in effects:
-        cm = cm + e.moment_coefficient(cond)
-        extra = extra + e.moment(cond)
-    moment = moment_about_cg(qbar, spec.s_ref, spec.c_ref, cm, fz, xcg, xcp) + extra
-    _, _, qdot = pitch_plane_rates(
-        uu, ww, q, theta_, fx, fz, moment, mass, iyy, iyy_dot, g
-    )
-    cond = eqx.tree_at(lambda c: c.qdot, cond, qdot)
-    hdot = uu * jnp.sin(theta_) - ww * jnp.cos(theta_)
-    rates = jnp.stack([udot, wdot, qdot, q, hdot])
-    channels = {
-        "ax": fx / mass,
-        "az": fz / mass,
-        "q": q,
-        "qdot": qdot,
-        "alpha": alpha,
-        "V": airspeed,
-        "theta": theta_,
-        "h": h,
-    }
-    for e in effects:
-        channels = e.measure(channels, cond)
-    return rates, jnp.stack([channels[c] for c in OUTPUTS])
+    rates = jnp.stack([pp.udot, pp.wdot, pp.qdot, q, pp.hdot])
+    return rates, jnp.stack([pp.channels[c] for c in OUTPUTS])
 
 
 @functools.cache
@@ -250,15 +227,15 @@ def make_model(spec: ModelSpec):
         return _evaluate(spec, t, x, u, theta)[1]
 
     def input_delay(theta):
-        tau = sum((e.elevator_delay() for e in _effects(spec, theta)), 0.0)
+        tau = elevator_delay(_effects(spec, theta))
         n_inputs = len(KNOWN) + spec.knots
         return jnp.zeros(n_inputs).at[0].set(tau)
 
-    delays = any(make_effect(n).name == "actuator_delay" for n in spec.effects)
+    delays = has_delay(tuple(make_effect(n) for n in spec.effects))
     return rates, outputs, (input_delay if delays else None)
 
 
-def measured_states(log: FlightLog, index: np.ndarray) -> Float[Array, "n 5"]:
+def measured_states(log: FlightLog | dict, index: np.ndarray) -> Float[Array, "n 5"]:
     """`[u, w, q, theta, h]` from the measured V, alpha, q, theta, h at `index`."""
     v, alpha = log["V"][index], log["alpha"][index]
     return jnp.asarray(

@@ -105,9 +105,7 @@ def _fit(problem, theta0, nodes0, free, rtol, max_iter):
     model = VectorModel(problem.rates, problem.outputs, problem.input_delay)
     layout = _layout(problem, n_seg, nx)
     z0 = jnp.concatenate([nodes0.reshape(-1), theta0])
-    sol = solve(
-        model, layout, z0, free, nx=nx, p=p, rtol=rtol, max_iter=max_iter
-    )
+    sol = solve(model, layout, z0, free, nx=nx, p=p, rtol=rtol, max_iter=max_iter)
     ns = n_seg * nx
     cov = sol.covariance[ns:, ns:]
     sd = jnp.sqrt(jnp.clip(jnp.diag(cov), 0.0))

@@ -18,7 +18,7 @@ from jaxtyping import Array, Bool, Float
 
 from .._aerodynamics import body_axis, load_database
 from .._atmosphere import isa
-from .._dynamics import moment_about_cg, pitch_plane_rates
+from .._flight import moment_about_cg, pitch_plane_rates
 from .._gravity import gravity
 from .._log import FlightLog
 from ._lse import estimate_lse, window_truth

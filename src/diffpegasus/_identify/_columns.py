@@ -110,10 +110,14 @@ def load_columns(source) -> dict[str, Column]:
         try:
             text = path.read_text(encoding="utf-8-sig")
         except OSError as e:
-            raise LogError(f"{path}: cannot read the column map ({e.strerror})") from None
+            raise LogError(
+                f"{path}: cannot read the column map ({e.strerror})"
+            ) from None
         try:
             source = (
-                tomllib.loads(text) if path.suffix.lower() == ".toml" else json.loads(text)
+                tomllib.loads(text)
+                if path.suffix.lower() == ".toml"
+                else json.loads(text)
             )
         except (ValueError, tomllib.TOMLDecodeError) as e:
             raise LogError(f"{path}: not a valid column map ({e})") from None
@@ -183,17 +187,19 @@ def _channel(table, columns, name, path):
     return values
 
 
-def load_record(
-    model: Model, path, columns=None, x0=None, time: str = "t"
-) -> Record:
+def load_record(model: Model, path, columns=None, x0=None, time: str = "t") -> Record:
     """A [`Record`][] of `model` from a file: its time, inputs and outputs by the
     column map `columns`; the initial state `x0` (default: the state channels at the
     first sample where the file has them)."""
     path = pathlib.Path(path)
-    columns = load_columns(columns) if not isinstance(columns, dict) else {
-        k: v if isinstance(v, Column) else Column(k, v, "column map")
-        for k, v in columns.items()
-    }
+    columns = (
+        load_columns(columns)
+        if not isinstance(columns, dict)
+        else {
+            k: v if isinstance(v, Column) else Column(k, v, "column map")
+            for k, v in columns.items()
+        }
+    )
     table = read_table(path)
     t = _channel(table, columns, time, path)
     inputs = np.column_stack([_channel(table, columns, n, path) for n in model.inputs])

@@ -200,9 +200,7 @@ def linearise(model, layout, z, nx, p, r):
         b = biases[layout.record[s]]
 
         def f(v):
-            out = segment_outputs(
-                model, layout, s, v[:nx], v[nx : nx + p], v[nx + p :]
-            )
+            out = segment_outputs(model, layout, s, v[:nx], v[nx : nx + p], v[nx + p :])
             return out, out
 
         return jax.jacfwd(f, has_aux=True)(jnp.concatenate([node, theta, b]))
@@ -221,7 +219,11 @@ def linearise(model, layout, z, nx, p, r):
     node_cols, cols = _columns(layout, nx, p)
     k = cols.shape[1]
     h, g = _scatter(
-        h, g, cols, jyw.reshape(layout.n_segments, -1, k), ew.reshape(layout.n_segments, -1)
+        h,
+        g,
+        cols,
+        jyw.reshape(layout.n_segments, -1, k),
+        ew.reshape(layout.n_segments, -1),
     )
     if layout.n_segments > 1:
         link = layout.link[:, None, None]

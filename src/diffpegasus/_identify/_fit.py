@@ -7,6 +7,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+
 from ._engine import Layout, RESULTS, solve
 from ._model import Model, Record
 
@@ -239,7 +240,7 @@ def fit(
     model: Model,
     records: Record | Sequence[Record],
     *,
-    shooting: SingleShooting | MultipleShooting = SingleShooting(),
+    shooting: SingleShooting | MultipleShooting | None = None,
     initial_state: str = "fixed",
     biases: Sequence[str] = (),
     start=None,
@@ -254,7 +255,7 @@ def fit(
 
     - `model`: the [`Model`][] (its `fixed` parameters are held at `start`).
     - `records`: a [`Record`][] or a list of them, of any lengths and sample rates.
-    - `shooting`: [`SingleShooting`][] (default) or [`MultipleShooting`][].
+    - `shooting`: [`SingleShooting`][] (the default) or [`MultipleShooting`][].
     - `initial_state`: `"fixed"` (each record's `x0`, by default its first measured
       sample, is held) or `"estimated"`.
     - `biases`: outputs that get a constant bias per record (estimated).
@@ -267,6 +268,7 @@ def fit(
     **Returns:** a [`Fit`][].
     """
     records = (records,) if isinstance(records, Record) else tuple(records)
+    shooting = SingleShooting() if shooting is None else shooting
     if not records:
         raise ValueError("no records to fit")
     if initial_state not in ("fixed", "estimated"):

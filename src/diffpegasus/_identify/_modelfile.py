@@ -44,7 +44,9 @@ def load_model_file(path) -> ModelSpec:
     try:
         ns = runpy.run_path(str(path), run_name="diffpegasus_model")
     except Exception as e:  # the user's code: report where it failed, in one line
-        frames = [f for f in traceback.extract_tb(e.__traceback__) if f.filename == str(path)]
+        frames = [
+            f for f in traceback.extract_tb(e.__traceback__) if f.filename == str(path)
+        ]
         line = f" line {frames[-1].lineno}" if frames else ""
         raise LogError(f"{path}:{line}: {type(e).__name__}: {e}") from None
     model = ns.get("model")
@@ -60,7 +62,9 @@ def spec_from_namespace(ns: dict, name: str) -> ModelSpec:
     x0 = ns.get("x0")
     shooting = ns.get("shooting", SingleShooting())
     if not isinstance(shooting, SingleShooting | MultipleShooting):
-        raise LogError(f"{name}: `shooting` must be dp.SingleShooting() or dp.MultipleShooting(...)")
+        raise LogError(
+            f"{name}: `shooting` must be dp.SingleShooting() or dp.MultipleShooting(...)"
+        )
     initial_state = ns.get("initial_state", "fixed")
     if initial_state not in ("fixed", "estimated"):
         raise LogError(f"{name}: initial_state must be 'fixed' or 'estimated'")

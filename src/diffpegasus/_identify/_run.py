@@ -37,7 +37,11 @@ def parse_holds(holds: list[str], spec: ModelSpec) -> ModelSpec:
                 raise LogError(f"--fix {text}: {value!r} is not a number") from None
         if name not in fixed:
             fixed.append(name)
-    model = model.replace(start=start or None, fixed=tuple(fixed)) if start else model.replace(fixed=tuple(fixed))
+    model = (
+        model.replace(start=start or None, fixed=tuple(fixed))
+        if start
+        else model.replace(fixed=tuple(fixed))
+    )
     return ModelSpec(
         model=model,
         name=spec.name,
@@ -75,14 +79,18 @@ def fit_report(result: Fit, spec: ModelSpec) -> dict:
         "estimates": {},
         "stderr": {},
         "stderr_crb": {},
-        "fixed": [p for p, f in zip(model.parameters, result.free, strict=True) if not f],
+        "fixed": [
+            p for p, f in zip(model.parameters, result.free, strict=True) if not f
+        ],
         "high_correlations": [],
         "R": {o: num(v) for o, v in zip(model.outputs, result.R, strict=True)},
     }
     for row in result.table():
         name = row["parameter"]
         out["estimates"][name] = num(row["estimate"]) if ok else None
-        out["stderr"][name] = None if not ok or row["stderr"] is None else num(row["stderr"])
+        out["stderr"][name] = (
+            None if not ok or row["stderr"] is None else num(row["stderr"])
+        )
         out["stderr_crb"][name] = (
             None if not ok or row["stderr_crb"] is None else num(row["stderr_crb"])
         )
@@ -102,7 +110,9 @@ def fit_report(result: Fit, spec: ModelSpec) -> dict:
             for i, rec in enumerate(result.records)
         }
     out["initial_states"] = {
-        rec.name: dict(zip(model.states, result.initial_states[i].tolist(), strict=True))
+        rec.name: dict(
+            zip(model.states, result.initial_states[i].tolist(), strict=True)
+        )
         for i, rec in enumerate(result.records)
     }
     return out
@@ -136,7 +146,9 @@ def plot_fit(result: Fit, out: pathlib.Path) -> list[pathlib.Path]:
     paths = []
     names = result.model.outputs
     for i, rec in enumerate(result.records):
-        fig, axes = plt.subplots(len(names), 1, figsize=(9, 1.6 * len(names) + 1), sharex=True, squeeze=False)
+        fig, axes = plt.subplots(
+            len(names), 1, figsize=(9, 1.6 * len(names) + 1), sharex=True, squeeze=False
+        )
         for j, (ax, name) in enumerate(zip(axes[:, 0], names, strict=True)):
             ax.plot(rec.t, rec.measured[:, j], "k-", lw=1, label="measured")
             ax.plot(rec.t, result.outputs[i][:, j], "r--", lw=1, label="model")
