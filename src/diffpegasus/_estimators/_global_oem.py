@@ -18,14 +18,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from .._identify._engine import (
-    coloured_information,
-    Layout,
-    linearise,
-    RESULTS,
-    row_jacobian,
-    solve,
-)
+from .._identify._engine import Layout, RESULTS, solve
+from .._identify._score import score, ScoreTest
 from ._oem import OEMProblem, theil_inequality
 
 
@@ -164,80 +158,20 @@ def fit_global_oem(
     return _fit(problem, theta0, nodes0, free, rtol, max_iter)
 
 
-class ScoreTest(eqx.Module):
-    """Score (Lagrange-multiplier) test of fixed parameters at a fit, one parameter
-    at a time, each with all free parameters and nodes re-adjusted.
-
-    **Fields** (one entry per tested parameter): `statistic` (chi-square, 1 degree
-    of freedom, with the score's variance corrected for coloured residuals);
-    `p_value`; `estimate` (the Gauss-Newton step from zero: the parameter's
-    predicted value) and `stderr` (corrected, from the residuals after that step);
-    `cost_ratio` (predicted det(R) after the step over det(R) now); `ls_reduction`
-    (predicted fraction of the weighted residual sum of squares removed);
-    `correlation` `(k, k)` between the tested parameters' sensitivities once the
-    free unknowns are projected out (near +/-1: the data cannot tell them apart).
-    """
-
-    statistic: Float[Array, " k"]
-    p_value: Float[Array, " k"]
-    estimate: Float[Array, " k"]
-    stderr: Float[Array, " k"]
-    cost_ratio: Float[Array, " k"]
-    ls_reduction: Float[Array, " k"]
-    correlation: Float[Array, "k k"]
-
-
 @jax.jit
 def _score(problem, fit, candidates):
     n_seg, nx = fit.nodes.shape
-    p = fit.params.shape[0]
     model = VectorModel(problem.rates, problem.outputs, problem.input_delay)
-    layout = _layout(problem, n_seg, nx)
     z = jnp.concatenate([fit.nodes.reshape(-1), fit.params])
-    h, g, jyw, ew, _, d, _ = linearise(model, layout, z, nx, p, fit.R)
-    nb = n_seg * nx
-    free_cols = jnp.concatenate([jnp.ones(nb, bool), fit.free])
-    m = free_cols.astype(h.dtype)
-    hb = h * m[:, None] * m[None, :] + jnp.diag(1.0 - m)
-    cand = nb + candidates
-    e_c = jnp.zeros((h.shape[0], cand.shape[0]))
-    e_c = e_c.at[cand, jnp.arange(cand.shape[0])].set(1.0)
-    # projected sensitivity direction: the candidate column minus its best fit by the
-    # free unknowns
-    coef = jnp.linalg.solve(hb, h[:, cand] * m[:, None])
-    direction = e_c - coef * m[:, None]
-    s = jnp.einsum("ik,ij,jk->k", direction, h, direction)
-    score = direction.T @ g
-    step = -score / s
-    rows = row_jacobian(layout, jyw, direction, nx)  # (N, ny, k)
-    ewf = ew.reshape(-1, ew.shape[-1])
-
-    def robust_variance(col, a):
-        # the score's variance with the residuals' colour, from the residuals the
-        # step leaves: at the current point the residual still contains the
-        # candidate's signature, whose zero-lag product would cancel the score
-        after = ewf + a * col
-        return coloured_information(col[:, :, None], after)[0, 0]
-
-    coloured = jax.vmap(robust_variance, in_axes=(2, 0))(rows, step)
-    variance = jnp.maximum(coloured, s)
-    statistic = score**2 / variance
-    # per channel: mean of (e_w + step * rows)^2 relative to 1 (R is the residual
-    # variance, so whitened channels have unit mean square)
-    cross = jnp.einsum("no,nok->ok", ewf, rows)
-    sq = jnp.einsum("nok,nok->ok", rows, rows)
-    now = jnp.sum(ewf**2, axis=0)[:, None]
-    ratio_ch = (now + 2.0 * step[None, :] * cross + step[None, :] ** 2 * sq) / now
-    total = jnp.sum(ewf**2) + jnp.sum(d**2)
-    norms = jnp.sqrt(s)
-    return ScoreTest(
-        statistic=statistic,
-        p_value=jax.scipy.special.gammaincc(0.5, statistic / 2.0),
-        estimate=fit.params[candidates] + step,
-        stderr=jnp.sqrt(variance) / s,
-        cost_ratio=jnp.prod(jnp.clip(ratio_ch, 1e-12), axis=0),
-        ls_reduction=score**2 / s / total,
-        correlation=(direction.T @ h @ direction) / (norms[:, None] * norms[None, :]),
+    return score(
+        model,
+        _layout(problem, n_seg, nx),
+        z,
+        fit.R,
+        fit.free,
+        candidates,
+        nx=nx,
+        p=fit.params.shape[0],
     )
 
 

@@ -116,6 +116,7 @@ class Fit(eqx.Module):
     - `outputs`: per record, the model outputs `(samples, outputs)`.
     - `iterations`; `result` a [`RESULTS`][] code (`result.converged` is the bool);
       `defect`: the largest continuity defect relative to the state scale.
+    - `layout`: the segments the engine solved (for the score test).
     """
 
     model: Model
@@ -137,6 +138,14 @@ class Fit(eqx.Module):
     iterations: int
     result: RESULTS
     defect: float
+    layout: Layout
+
+    @property
+    def z(self) -> np.ndarray:
+        """All unknowns in the engine's order: nodes, parameters, biases."""
+        return np.concatenate(
+            [self.nodes.reshape(-1), self.params, self.biases.reshape(-1)]
+        )
 
     @property
     def converged(self) -> bool:
@@ -341,6 +350,7 @@ def fit(
         iterations=int(sol.iterations),
         result=result,
         defect=float(sol.defect) * getattr(shooting, "continuity_tol", 1.0),
+        layout=lay,
     )
     if throw and not out.converged:
         raise RuntimeError(f"output-error fit failed: {out.message}")

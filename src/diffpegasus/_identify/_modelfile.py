@@ -7,7 +7,9 @@ The file is ordinary Python. It must define `model`, a [`Model`][], and may defi
   record's first sample);
 - `initial_state`: `"fixed"` (default) or `"estimated"`;
 - `biases`: outputs with a per-record bias, e.g. `("ax", "az")`;
-- `shooting`: a shooting strategy, e.g. `dp.MultipleShooting(interval=2.0)`.
+- `shooting`: a shooting strategy, e.g. `dp.MultipleShooting(interval=2.0)`;
+- `candidates`: held parameters (start 0) that `diagnose` score-tests, e.g. a
+  pitch-damping term the model may be missing.
 
 The built-in vehicles other than Pegasus are such files' contents, too.
 """
@@ -33,6 +35,7 @@ class ModelSpec:
     initial_state: str = "fixed"
     biases: tuple[str, ...] = ()
     shooting: SingleShooting | MultipleShooting = SingleShooting()
+    candidates: tuple[str, ...] = ()
 
 
 def load_model_file(path) -> ModelSpec:
@@ -76,4 +79,5 @@ def spec_from_namespace(ns: dict, name: str) -> ModelSpec:
         initial_state=initial_state,
         biases=tuple(ns.get("biases", ())),
         shooting=shooting,
+        candidates=tuple(ns.get("candidates", ())),
     )

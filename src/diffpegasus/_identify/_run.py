@@ -1,6 +1,7 @@
 """`diffpegasus fit DATA... --model FILE` / `--vehicle NAME`: fit a model to files,
 report estimates with standard errors, correlations and the cost."""
 
+import dataclasses
 import pathlib
 import sys
 
@@ -8,6 +9,7 @@ import numpy as np
 
 from .._log import LogError
 from ._columns import load_columns, load_record
+from ._diagnose import score_candidates
 from ._fit import Fit, fit
 from ._modelfile import ModelSpec
 
@@ -42,15 +44,7 @@ def parse_holds(holds: list[str], spec: ModelSpec) -> ModelSpec:
         if start
         else model.replace(fixed=tuple(fixed))
     )
-    return ModelSpec(
-        model=model,
-        name=spec.name,
-        columns=spec.columns,
-        x0=spec.x0,
-        initial_state=spec.initial_state,
-        biases=spec.biases,
-        shooting=spec.shooting,
-    )
+    return dataclasses.replace(spec, model=model)
 
 
 def load_records(spec: ModelSpec, files, columns=None):
@@ -165,18 +159,7 @@ def plot_fit(result: Fit, out: pathlib.Path) -> list[pathlib.Path]:
     return paths
 
 
-def run_model_fit(
-    spec: ModelSpec,
-    files,
-    *,
-    columns=None,
-    holds=(),
-    initial_state: str | None = None,
-    biases: tuple[str, ...] | None = None,
-    shooting=None,
-    out: pathlib.Path | None = None,
-) -> dict:
-    """Fit `spec`'s model to `files` (one manoeuvre each); the JSON-ready report."""
+def _fit_spec(spec, files, columns, holds, initial_state, biases, shooting):
     spec = parse_holds(list(holds), spec)
     records = load_records(spec, files, columns)
     _say(
@@ -194,6 +177,73 @@ def run_model_fit(
         )
     except ValueError as e:
         raise LogError(str(e)) from None
+    return spec, result
+
+
+def run_model_diagnose(
+    spec: ModelSpec,
+    files,
+    *,
+    columns=None,
+    holds=(),
+    initial_state=None,
+    biases=None,
+    shooting=None,
+) -> dict:
+    """Fit `spec`'s model with its candidates held, then rank the candidates by
+    score test; the JSON-ready report (`ranking`, `significant`, `message`)."""
+    if not spec.candidates:
+        raise LogError(
+            f"{spec.name} names no candidate terms to test (a model file lists held "
+            "parameters in `candidates`)"
+        )
+    spec, result = _fit_spec(
+        spec, files, columns, holds, initial_state, biases, shooting
+    )
+    report = {"fit": fit_report(result, spec), "ranking": [], "significant": []}
+    if not result.converged:
+        report["message"] = (
+            f"the output-error fit did not converge ({result.message}): no ranking"
+        )
+        return report
+    ranking = score_candidates(result, spec.candidates)
+    for row in ranking:
+        row["effect"] = row["parameter"].split(".")[0]
+        row["hard_to_tell_from"] = [n.split(".")[0] for n in row["hard_to_tell_from"]]
+    report["ranking"] = ranking
+    report["significant"] = [r["effect"] for r in ranking if r["significant"]]
+    top = ranking[0]
+    if not report["significant"]:
+        report["message"] = "no candidate is significant"
+    else:
+        close = (
+            f" (cannot be told from {', '.join(top['hard_to_tell_from'])})"
+            if top["hard_to_tell_from"]
+            else ""
+        )
+        report["message"] = (
+            f"{top['effect']} would remove {100 * top['cost_reduction']:.0f}% of det(R) "
+            f"(p = {top['p_value']:.2g}){close}"
+        )
+    report["cost"] = result.cost
+    return report
+
+
+def run_model_fit(
+    spec: ModelSpec,
+    files,
+    *,
+    columns=None,
+    holds=(),
+    initial_state: str | None = None,
+    biases: tuple[str, ...] | None = None,
+    shooting=None,
+    out: pathlib.Path | None = None,
+) -> dict:
+    """Fit `spec`'s model to `files` (one manoeuvre each); the JSON-ready report."""
+    spec, result = _fit_spec(
+        spec, files, columns, holds, initial_state, biases, shooting
+    )
     report = fit_report(result, spec)
     if out is not None:
         report["figures"] = [str(p) for p in plot_fit(result, out)]

@@ -14,13 +14,38 @@ VEHICLES = {
 }
 
 
-def vehicle_spec(name_or_file: str) -> ModelSpec:
+def vehicle_spec(
+    name_or_file: str, add: tuple[str, ...] = (), candidates: bool = False
+) -> ModelSpec:
     """The model of a built-in vehicle other than Pegasus, or of a vehicle/model
-    file (`.py`)."""
-    if name_or_file == "hfb320":
-        from ._hfb320 import COLUMNS, hfb320_model, X0
+    file (`.py`).
 
-        return ModelSpec(model=hfb320_model(), name="hfb320", columns=COLUMNS, x0=X0)
+    **Arguments:** `add`: library effects to estimate with the vehicle's model;
+    `candidates`: also compose every effect the vehicle supports, held at zero, as
+    the candidates of `diagnose`.
+    """
+    if name_or_file == "hfb320":
+        from ._hfb320 import CANDIDATES, COLUMNS, effect_parameter, hfb320_model, X0
+
+        unknown = [a for a in add if a not in CANDIDATES]
+        if unknown:
+            raise LogError(
+                f"effects {unknown} do not compose with hfb320; it takes "
+                f"{', '.join(CANDIDATES)}"
+            )
+        effects = tuple(dict.fromkeys(add + (CANDIDATES if candidates else ())))
+        return ModelSpec(
+            model=hfb320_model(effects=effects, free=add),
+            name="hfb320",
+            columns=COLUMNS,
+            x0=X0,
+            candidates=tuple(effect_parameter(e) for e in effects if e not in add),
+        )
+    if add:
+        raise LogError(
+            "--add composes library effects with a built-in vehicle; in a model file "
+            "write the term into the model (held terms to test go in `candidates`)"
+        )
     if name_or_file.endswith(".py") or pathlib.Path(name_or_file).is_file():
         return load_model_file(name_or_file)
     raise LogError(
