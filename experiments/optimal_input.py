@@ -37,8 +37,8 @@ def realised_errors(design, excitation, runs, key):
 
     def fit(measured):
         p = eqx.tree_at(lambda q: q.measured, problem, measured)
-        res = dp.fit_oem(p, design.theta * 1.1, design.x0[None])
-        return design.transform(res.params[0]), res.converged
+        res = dp.fit_global_oem(p, design.theta * 1.1, design.x0[None])
+        return design.transform(res.params), res.converged
 
     est, ok = jax.jit(jax.vmap(fit))(clean[None] + noise)
     err = np.asarray(est - design.transform(design.theta))[np.asarray(ok)]

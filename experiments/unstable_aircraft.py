@@ -1,8 +1,9 @@
 """Unstable short-period aircraft (SPEC section 7): single vs multiple shooting OEM.
 
-Model: w' = Zw w + (u0 + Zq) q + Zde de, q' = Mw w + Mq q + Mde de; outputs az, w, q
-with az = Zw w + Zq q + Zde de; u0 = 44.5695 m/s, Zq fixed at -1.4768, initial state
-zero. Data: `shared/data/unstable_aircraft/unStabAC_sim.asc` (12.5 s at 20 Hz).
+Model (`examples/unstable_aircraft.py`, a model-definition file): w' = Zw w + (u0 +
+Zq) q + Zde de, q' = Mw w + Mq q + Mde de; outputs az, w, q with az = Zw w + Zq q +
+Zde de; u0 = 44.5695 m/s, Zq held at -1.4768, initial state zero. Data:
+`shared/data/unstable_aircraft/unStabAC_sim.asc` (12.5 s at 20 Hz).
 The last stdout line is one JSON object `{"single": {...}, "multiple": {...}}`.
 
 Run: `python experiments/unstable_aircraft.py [--data FILE] [--out DIR]`.
@@ -12,7 +13,6 @@ import argparse
 import json
 import pathlib
 
-import jax.numpy as jnp
 import matplotlib
 import numpy as np
 
@@ -24,70 +24,49 @@ from _shared import shared_data  # noqa: E402
 import diffpegasus as dp  # noqa: E402
 
 
-U0 = 44.5695
-NAMES = ["Zw", "Zq", "Zde", "Mw", "Mq", "Mde"]
-START = jnp.array([-1.22871, -1.4768, -4.20491, 0.116197, -2.70670, -18.7718])
-FREE = (True, False, True, True, True, True)
 DEFAULT_DATA = shared_data("unstable_aircraft/unStabAC_sim.asc")
+U0 = 44.5695  # m/s, the model file's trim speed (for the eigenvalues)
+MODEL_FILE = (
+    pathlib.Path(__file__).resolve().parents[1] / "examples" / "unstable_aircraft.py"
+)
 
 
-def rates(t, x, u, p):
-    zw, zq, zde, mw, mq, mde = p
-    w, q = x
-    return jnp.stack(
-        [zw * w + (U0 + zq) * q + zde * u[0], mw * w + mq * q + mde * u[0]]
+def fit(path=DEFAULT_DATA, node_interval: float | None = None):
+    """The fit with single shooting (`node_interval=None`) or multiple shooting with
+    a node every `node_interval` s, and a JSON-ready summary."""
+    spec = dp.load_model_file(MODEL_FILE)
+    record = dp.load_record(spec.model, path, spec.columns, x0=spec.x0)
+    shooting = (
+        dp.SingleShooting()
+        if node_interval is None
+        else dp.MultipleShooting(interval=node_interval)
     )
-
-
-def outputs(t, x, u, p):
-    zw, zq, zde = p[0], p[1], p[2]
-    w, q = x
-    return jnp.stack([zw * w + zq * q + zde * u[0], w, q])
-
-
-def problem(data, node_interval=None):
-    z = np.column_stack([data["AZ"], data["W"], data["Q"]])
-    return dp.OEMProblem(
-        rates=rates,
-        outputs=outputs,
-        t0=float(data["T"][0]),
-        dt=float(data["T"][1] - data["T"][0]),
-        inputs=jnp.asarray(data["DE"])[:, None],
-        measured=jnp.asarray(z),
-        free=FREE,
-        node_interval=node_interval,
-        state_scale=jnp.array([1.0, 0.1]),
-    )
-
-
-def fit(data, node_interval=None):
-    prob = problem(data, node_interval)
-    idx = dp.node_times(prob)
-    nodes = np.column_stack([data["W"], data["Q"]])[idx]
-    nodes[0] = 0.0
-    res = dp.fit_oem(prob, START, jnp.asarray(nodes))
-    p = np.asarray(res.params[0])
-    a = np.array([[p[0], U0 + p[1]], [p[3], p[4]]])
+    res = dp.fit(spec.model, record, shooting=shooting, throw=False)
+    p = res.estimates()
+    a = np.array([[p["Zw"], U0 + p["Zq"]], [p["Mw"], p["Mq"]]])
     eig = np.linalg.eigvals(a)
-    ok = bool(res.converged) and bool(np.isfinite(float(res.cost)))
+    rms = np.sqrt(np.mean((record.measured - res.outputs[0]) ** 2, axis=0))
+    scale = np.sqrt(np.mean(record.measured**2, axis=0)) + np.sqrt(
+        np.mean(res.outputs[0] ** 2, axis=0)
+    )
+    tic = rms / scale
     return res, {
-        "params": {n: float(v) for n, v in zip(NAMES, p, strict=True) if n != "Zq"},
+        "params": {n: v for n, v in p.items() if n != "Zq"},
         "stderr": {
             n: float(v)
-            for n, v in zip(NAMES, np.asarray(res.stderr[0]), strict=True)
-            if n != "Zq"
+            for n, v, free in zip(
+                res.model.parameters, res.stderr, res.free, strict=True
+            )
+            if free
         },
-        "cost": float(res.cost),
-        "converged": ok,
-        "poor_fit": bool(res.poor_fit),
-        "failed": (not ok) or bool(res.poor_fit),
-        "tic": {
-            n: float(v)
-            for n, v in zip(["az", "w", "q"], np.asarray(res.tic), strict=True)
-        },
-        "iterations": int(res.iterations),
+        "cost": res.cost,
+        "converged": res.converged,
+        "message": res.message,
+        "tic": dict(zip(res.model.outputs, tic.tolist(), strict=True)),
+        "poor_fit": bool(np.any(tic > 0.3)),
+        "iterations": res.iterations,
         "eigenvalues": {"real": eig.real.tolist(), "imag": eig.imag.tolist()},
-        "max_continuity_defect": float(res.defect),
+        "max_continuity_defect": res.defect,
     }
 
 
@@ -102,29 +81,23 @@ def main():
     )
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    data = dp.read_asc(args.data)
-    dt = float(data["T"][1] - data["T"][0])
-    single_res, single = fit(data)
-    multi_res, multiple = fit(data, int(round(args.node_interval / dt)))
+    single_res, single = fit(args.data)
+    multi_res, multiple = fit(args.data, args.node_interval)
+    record = single_res.records[0]
     fig, axes = plt.subplots(3, 1, figsize=(9, 8), sharex=True)
-    z = np.column_stack([data["AZ"], data["W"], data["Q"]])
     for j, (ax, label) in enumerate(
         zip(axes, ["az, m/s^2", "w, m/s", "q, rad/s"], strict=True)
     ):
-        ax.plot(data["T"], z[:, j], "k.", ms=3, label="measured")
-        ys = np.asarray(single_res.outputs)[:, j]
+        z = record.measured[:, j]
+        ax.plot(record.t, z, "k.", ms=3, label="measured")
+        ys = single_res.outputs[0][:, j]
         ax.plot(
-            data["T"],
-            np.where(np.abs(ys) < 10 * np.abs(z[:, j]).max(), ys, np.nan),
+            record.t,
+            np.where(np.abs(ys) < 10 * np.abs(z).max(), ys, np.nan),
             "-",
             label="single shooting",
         )
-        ax.plot(
-            data["T"],
-            np.asarray(multi_res.outputs)[:, j],
-            "-",
-            label="multiple shooting",
-        )
+        ax.plot(record.t, multi_res.outputs[0][:, j], "-", label="multiple shooting")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
     axes[0].legend()
@@ -134,9 +107,12 @@ def main():
     fig.savefig(args.out / "fits.png", dpi=110)
     plt.close(fig)
     print("multiple shooting:")
+    names = multi_res.model.parameters
     print(
         dp.format_parameter_table(
-            dp.parameter_table(NAMES, multi_res.params[0], multi_res.stderr[0], FREE)
+            dp.parameter_table(
+                names, multi_res.params, multi_res.stderr, multi_res.free
+            )
         )
     )
     summary = {"single": single, "multiple": multiple}

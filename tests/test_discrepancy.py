@@ -23,8 +23,6 @@ from diffpegasus.discrepancy import diagnose, fit, Settings
 
 
 sys.path.insert(0, str(pathlib.Path(__file__).parents[1] / "experiments"))
-import hfb320  # noqa: E402
-import hfb320_diagnosis  # noqa: E402
 
 
 SETTINGS = Settings()
@@ -175,18 +173,6 @@ def test_two_effects_diagnose_add_diagnose_again():
     both = fit(log, tuple(planted), SETTINGS, start=one)
     assert both.cost < 0.1 * base.cost
     assert diagnose(both, SETTINGS)["significant"] == []
-
-
-def test_hfb320_without_pitch_damping_is_diagnosed_with_pitch_damping():
-    if not hfb320.DEFAULT_DATA.exists():
-        pytest.skip(f"real data not found: {hfb320.DEFAULT_DATA}")
-    result = hfb320_diagnosis.diagnose_missing_pitch_damping(
-        dp.read_asc(hfb320.DEFAULT_DATA)
-    )
-    assert result["ranking"][0]["effect"] == "pitch_damping"
-    assert "pitch_damping" in result["significant"]
-    # the full OEM fit of the record gives CMq about -29 (hfb320.py)
-    assert -40 < result["ranking"][0]["estimate"] < -15
 
 
 def test_metrics_against_closed_form():

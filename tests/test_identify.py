@@ -16,7 +16,7 @@ from diffpegasus._estimators._rk4 import RK4
 from diffpegasus._identify import _engine
 from diffpegasus._identify._fit import layout
 
-from .test_oem import _numpy_cost, _require, hfb320
+from .test_oem import _BOOK, _numpy_cost, _require, hfb320
 
 
 U0, ZQ = 45.0, -1.5
@@ -254,7 +254,7 @@ def test_hfb320_model_reaches_the_book_optimum():
     rec = dp.Record(
         data["T"],
         np.column_stack([data["DELV"], data["THRUST"]]),
-        np.column_stack([data[c] for c in hfb320.OUTPUTS]),
+        np.column_stack([data[c] for c in _BOOK.OUTPUTS]),
         x0=X0,
     )
     fit = dp.fit(hfb320_model(), rec)
@@ -401,16 +401,36 @@ def test_hfb320_diagnosis_finds_the_missing_pitch_damping_with_library_effects()
     _require(hfb320.DEFAULT_DATA)
     import json
 
-    res = _cli(["diagnose", hfb320.DEFAULT_DATA, "--vehicle", "hfb320", "--fix",
-                "CMq=0", "--json"])
+    res = _cli(
+        [
+            "diagnose",
+            hfb320.DEFAULT_DATA,
+            "--vehicle",
+            "hfb320",
+            "--fix",
+            "CMq=0",
+            "--json",
+        ]
+    )
     assert res.exit_code == 0, res.output
     report = json.loads(res.stdout.strip().splitlines()[-1])
     top = report["ranking"][0]
     assert top["effect"] in ("pitch_damping", "alpha_dot_damping")
     assert top["significant"] and top["cost_reduction"] > 0.5
     assert {"pitch_damping", "alpha_dot_damping"} <= set(report["significant"])
-    res = _cli(["fit", hfb320.DEFAULT_DATA, "--vehicle", "hfb320", "--fix", "CMq=0",
-                "--add", "pitch_damping", "--json"])
+    res = _cli(
+        [
+            "fit",
+            hfb320.DEFAULT_DATA,
+            "--vehicle",
+            "hfb320",
+            "--fix",
+            "CMq=0",
+            "--add",
+            "pitch_damping",
+            "--json",
+        ]
+    )
     assert res.exit_code == 0, res.output
     refit = json.loads(res.stdout.strip().splitlines()[-1])
     # the held fit is 16x worse than the book's; the library term brings it back to

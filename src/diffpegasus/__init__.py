@@ -33,7 +33,6 @@ from ._estimators import (  # noqa: E402
     estimate_oem as estimate_oem,
     Estimates as Estimates,
     fit_global_oem as fit_global_oem,
-    fit_oem as fit_oem,
     fit_windowed_oem as fit_windowed_oem,
     format_parameter_table as format_parameter_table,
     GlobalFit as GlobalFit,
@@ -44,7 +43,6 @@ from ._estimators import (  # noqa: E402
     node_times as node_times,
     oem_setup as oem_setup,
     OEMProblem as OEMProblem,
-    OEMResult as OEMResult,
     OEMSetup as OEMSetup,
     parameter_table as parameter_table,
     reconstruct_coefficients as reconstruct_coefficients,
@@ -69,6 +67,12 @@ from ._flight import (  # noqa: E402
 )
 from ._gravity import gravity as gravity  # noqa: E402
 from ._identify import (  # noqa: E402
+    diagnose_model as diagnose_model,
+    load_columns as load_columns,
+    load_model_file as load_model_file,
+    load_record as load_record,
+    ModelSpec as ModelSpec,
+    score_candidates as score_candidates,
     fit as fit,
     Fit as Fit,
     Model as Model,
@@ -144,6 +148,8 @@ from ._sixdof import (  # noqa: E402
 )
 from ._vehicle import Vehicle as Vehicle  # noqa: E402
 from ._vehicles import (  # noqa: E402
+    hfb320_model as hfb320_model,
+    vehicle_spec as vehicle_spec,
     LATERAL_COLUMNS as LATERAL_COLUMNS,
     LATERAL_DERIVATIVES as LATERAL_DERIVATIVES,
     LATERAL_INPUTS as LATERAL_INPUTS,

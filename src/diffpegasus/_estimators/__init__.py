@@ -26,14 +26,10 @@ from ._nn import (
     train_network as train_network,
 )
 from ._oem import (
-    fit_oem as fit_oem,
     format_parameter_table as format_parameter_table,
-    HalvingGaussNewton as HalvingGaussNewton,
     node_times as node_times,
     OEMProblem as OEMProblem,
-    OEMResult as OEMResult,
     parameter_table as parameter_table,
-    simulate_segments as simulate_segments,
 )
 from ._pegasus_oem import (
     estimate_oem as estimate_oem,

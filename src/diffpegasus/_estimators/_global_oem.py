@@ -1,9 +1,9 @@
-"""Output error with parameters global over a long record, on the one engine, and a
-score test for parameters held at zero.
+"""Output error with parameters global over a record, on the one engine, and a score
+test for parameters held at zero.
 
 [`fit_global_oem`][] takes the [`OEMProblem`][] form (vector parameters, one record,
-multiple shooting every `node_interval` samples, all nodes estimated) and solves it
-with the engine of `diffpegasus._identify`: a structured Levenberg-Marquardt over
+single shooting, or multiple shooting every `node_interval` samples with all nodes
+estimated) and solves it with the engine of `diffpegasus._identify`: a structured Levenberg-Marquardt over
 exact per-segment Jacobian blocks. Which parameters are estimated is a traced mask,
 so fits with different free sets (the baseline, the baseline plus an effect) reuse
 one compiled program, and the score test of the held parameters at the optimum
@@ -75,18 +75,23 @@ def _layout(problem: OEMProblem, n_seg: int, nx: int) -> Layout:
     index = np.arange(n_seg)[:, None] * per + np.arange(per)[None, :]
     valid = index < problem.n_samples
     measured = problem.measured[jnp.minimum(jnp.asarray(index), problem.n_samples - 1)]
+    node_free = np.ones((n_seg, nx), bool)
+    node_free[0] = problem.free_initial_state or problem.node_interval is not None
+    scale = problem.state_scale
+    if scale is None:
+        scale = jnp.ones(nx)
     return Layout(
         inputs=problem.inputs[None],
         t0=jnp.asarray(problem.t0, float)[None],
         dt=jnp.asarray([problem.dt], float),
-        n=jnp.asarray([problem.n_samples]),
+        n=jnp.asarray([problem.inputs.shape[0]]),
         record=jnp.zeros(n_seg, int),
         first=jnp.asarray(np.arange(n_seg) * per),
         measured=jnp.where(jnp.asarray(valid)[..., None], measured, 0.0),
         valid=jnp.asarray(valid),
         link=jnp.ones(n_seg - 1, bool),
-        scale=problem.state_scale * problem.continuity_tol,
-        node_free=jnp.ones((n_seg, nx), bool),
+        scale=scale * problem.continuity_tol,
+        node_free=jnp.asarray(node_free),
         length=per,
         bias_channels=(),
     )
@@ -133,22 +138,23 @@ def fit_global_oem(
     rtol: float = 1e-5,
     max_iter: int = 40,
 ) -> GlobalFit:
-    """Multiple-shooting output error with one parameter set for the record.
+    """Output error with one parameter set for the record: multiple shooting (all
+    node states estimated) when `problem.node_interval` is set, else single
+    shooting from `nodes0[0]` (held unless `problem.free_initial_state`).
 
-    **Arguments:** `problem` with `node_interval` set, `window=None` and
-    `state_scale`; `theta0` `(params,)` starting (and fixed) values; `nodes0`
-    `(segments, states)` starting node states (all estimated); `free` which
-    parameters to estimate (an array: changing it does not recompile; default all;
-    `problem.free` is ignored).
+    **Arguments:** `problem` with `window=None` (and `state_scale` for multiple
+    shooting); `theta0` `(params,)` starting (and fixed) values; `nodes0`
+    `(segments, states)` starting node states; `free` which parameters to estimate
+    (an array: changing it does not recompile; default `problem.free`).
 
     **Returns:** a [`GlobalFit`][]. Pure and jitted; `jax.vmap` batches it.
     """
-    if problem.window is not None or problem.node_interval is None:
-        raise ValueError("fit_global_oem needs window=None and a node_interval")
-    if problem.state_scale is None:
-        raise ValueError("fit_global_oem needs the problem's state_scale")
+    if problem.window is not None:
+        raise ValueError("fit_global_oem needs window=None (one parameter set)")
+    if problem.node_interval is not None and problem.state_scale is None:
+        raise ValueError("multiple shooting needs the problem's state_scale")
     theta0 = jnp.asarray(theta0, float)
-    free = jnp.ones(theta0.shape, bool) if free is None else jnp.asarray(free, bool)
+    free = jnp.asarray(problem.free if free is None else free, bool)
     nodes0 = jnp.asarray(nodes0, float)
     if nodes0.shape[0] != problem.n_segments:
         raise ValueError(

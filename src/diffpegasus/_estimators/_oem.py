@@ -1,4 +1,5 @@
-"""The output-error method: maximum likelihood by Gauss-Newton with exact Jacobians.
+"""The vector form of an output-error problem, shared by the windowed Pegasus fit and
+the engine's adapter (`_global_oem.py`), and helpers to report a fit.
 
 A model is two pure functions of time, state, known inputs and parameters:
 `rates(t, x, u, theta) -> x'` and `outputs(t, x, u, theta) -> y`. The record is cut
@@ -7,54 +8,20 @@ and shooting segments (groups of windows, each integrated from its own node stat
 Inside a window the model is integrated by RK4 at the sample step in one diffrax solve,
 with the known inputs interpolated linearly between samples.
 
-Cost: det(R), R the covariance of the output residuals (full or diagonal), relaxed in
-the standard way: with R fixed, the R^-1-weighted least-squares problem is solved by
-Gauss-Newton (optimistix, Newton descent with a backtracking search that halves the
-step until the cost falls), then R is re-estimated from the residuals; this repeats
-until det(R) changes by less than `rtol` (1e-5) relatively, or `max_outer` times.
-Jacobians are exact, by forward-mode differentiation through the diffrax solves.
-
-Multiple shooting: the node states are unknowns (initial guesses from the
-measurements) and continuity is enforced by defect residuals
-`(x_end(segment j) - node(j + 1)) / (state_scale * continuity_tol)` in the same least
-squares, a quadratic penalty that keeps the defects at `continuity_tol` times the state
-scale or below; the final defects are reported.
+The windowed fit (`_windowed_oem.py`) integrates each window with `_window_solve`
+(diffrax RK4 at the sample step); problems with one parameter set go to the engine
+through [`fit_global_oem`][].
 """
 
-import functools
 from collections.abc import Callable
 
 import diffrax
 import equinox as eqx
-import jax
-import jax.flatten_util
 import jax.numpy as jnp
-import lineax as lx
 import numpy as np
-import optimistix as optx
-from jaxtyping import Array, Bool, Float, Int
+from jaxtyping import Array, Float
 
 from ._rk4 import RK4
-
-
-def _silent(**kwargs):
-    del kwargs
-
-
-class HalvingGaussNewton(optx.AbstractGaussNewton):
-    """Gauss-Newton whose step is halved until the cost decreases (Armijo
-    backtracking with factor 1/2), as flight-test output-error codes do."""
-
-    rtol: float
-    atol: float
-    norm: Callable = eqx.field(static=True, default=optx.rms_norm)
-    descent: optx.NewtonDescent = optx.NewtonDescent(
-        linear_solver=lx.AutoLinearSolver(well_posed=None)
-    )
-    search: optx.BacktrackingArmijo = optx.BacktrackingArmijo(
-        decrease_factor=0.5, slope=1e-4
-    )
-    verbose: Callable = eqx.field(static=True, default=_silent)
 
 
 class OEMProblem(eqx.Module):
@@ -142,13 +109,6 @@ class OEMProblem(eqx.Module):
         return np.flatnonzero(np.asarray(self.free))
 
 
-class Unknowns(eqx.Module):
-    """What Gauss-Newton solves for: free parameters per window and node states."""
-
-    params: Float[Array, "sets free"]
-    nodes: Float[Array, "segments states"]
-
-
 def _input_at(problem: OEMProblem, t, theta=None):
     n = problem.inputs.shape[0]
     if problem.input_delay is None or theta is None:
@@ -200,115 +160,6 @@ def _theta_at(args, t, span):
     return theta + (theta_end - theta) * ((t - t_start) / span)
 
 
-def full_parameters(problem, base, unknowns):
-    """All parameters per set, shape `(sets, params)`: free ones from the unknowns."""
-    return base.at[:, problem.free_index].set(unknowns.params)
-
-
-def simulate_segments(problem, base, unknowns):
-    """Model outputs for every padded sample and each segment's end state.
-
-    **Returns:** `(outputs (segments, per_segment, outputs), end_states (segments,
-    states), sample_index (segments, per_segment))`.
-    """
-    theta_all = full_parameters(problem, base, unknowns)
-    k, length = problem.windows_per_segment, problem.window_samples
-
-    def segment(s, x0):
-        def step(x, j):
-            w = s * k + j
-            theta = theta_all[jnp.minimum(w, problem.n_param_sets - 1)]
-            t_start = problem.t0 + w * length * problem.dt
-            xs, ts = _window_solve(problem, x, theta, t_start)
-            u = jax.vmap(lambda t: _input_at(problem, t, theta))(ts[:-1])
-            y = jax.vmap(lambda t, x_, u_: problem.outputs(t, x_, u_, theta))(
-                ts[:-1], xs[:-1], u
-            )
-            return xs[-1], y
-
-        x_end, ys = jax.lax.scan(step, x0, jnp.arange(k))
-        return ys.reshape(k * length, -1), x_end
-
-    seg = jnp.arange(problem.n_segments)
-    ys, ends = jax.vmap(segment)(seg, unknowns.nodes)
-    index = seg[:, None] * (k * length) + jnp.arange(k * length)[None, :]
-    return ys, ends, index
-
-
-def _output_residuals(problem, base, unknowns):
-    ys, ends, index = simulate_segments(problem, base, unknowns)
-    valid = index < problem.n_samples
-    measured = problem.measured[jnp.minimum(index, problem.n_samples - 1)]
-    e = jnp.where(valid[..., None], measured - ys, 0.0)
-    return e, valid, ends
-
-
-def _defects(problem, unknowns, ends):
-    if problem.n_segments == 1:
-        return jnp.zeros((0, unknowns.nodes.shape[1]))
-    scale = problem.state_scale
-    if scale is None:
-        scale = jnp.ones(unknowns.nodes.shape[1])
-    return (ends[:-1] - unknowns.nodes[1:]) / (scale[None, :] * problem.continuity_tol)
-
-
-def _whitening(r):
-    """Lower-triangular W with W^T W = R^-1 (so W e has identity covariance)."""
-    chol = jnp.linalg.cholesky(r)
-    return jnp.linalg.inv(chol)
-
-
-def _residual_vector(unknowns, args):
-    problem, base, white, init_nodes = args
-    e, _, ends = _output_residuals(problem, base, unknowns)
-    ew = jnp.einsum("ij,snj->sni", white, e)
-    parts = [ew.reshape(-1), _defects(problem, unknowns, ends).reshape(-1)]
-    if not problem.free_initial_state:
-        # the first node is known: pin it (its Jacobian column then stays regular)
-        parts.append(1e6 * (unknowns.nodes[0] - init_nodes[0]))
-    return jnp.concatenate(parts)
-
-
-def _covariance(problem, e, valid):
-    n = jnp.sum(valid)
-    r = jnp.einsum("sni,snj->ij", e, e) / n
-    if not problem.full_covariance:
-        r = jnp.diag(jnp.diag(r))
-    return r
-
-
-class OEMResult(eqx.Module):
-    """An output-error fit.
-
-    **Fields:** `params` `(sets, params)` (all parameters, fixed ones at their given
-    values); `stderr` `(sets, params)` Cramér-Rao standard errors (0 for fixed ones);
-    `stderr_corrected` the same corrected for coloured residuals; `correlation`
-    `(free, free)` for the first parameter set; `nodes` `(segments, states)`; `cost`
-    det(R); `R` `(outputs, outputs)`; `outputs` `(samples, outputs)` the model
-    outputs; `defect` the largest continuity defect relative to the state scale;
-    `iterations` (outer R updates); `converged` (bool); `result` (optimistix result of
-    the last inner solve); `tic` `(outputs,)` Theil's inequality coefficient per output
-    (0 perfect, above about 0.3 a poor fit); `poor_fit` whether any output's TIC
-    exceeds 0.3, which flags a fit that converged to a useless optimum (typical of
-    single shooting on an unstable system).
-    """
-
-    params: Float[Array, "sets params"]
-    stderr: Float[Array, "sets params"]
-    stderr_corrected: Float[Array, "sets params"]
-    correlation: Float[Array, "free free"]
-    nodes: Float[Array, "segments states"]
-    cost: Float[Array, ""]
-    R: Float[Array, "outputs outputs"]
-    outputs: Float[Array, "samples outputs"]
-    defect: Float[Array, ""]
-    iterations: Int[Array, ""]
-    converged: Bool[Array, ""]
-    result: optx.RESULTS
-    tic: Float[Array, " outputs"]
-    poor_fit: Bool[Array, ""]
-
-
 def theil_inequality(measured, outputs):
     """Theil's inequality coefficient per output column, `(outputs,)`: 0 a perfect
     fit, above about 0.3 a poor one."""
@@ -317,161 +168,6 @@ def theil_inequality(measured, outputs):
         return jnp.sqrt(jnp.mean(a**2, axis=0))
 
     return rms(measured - outputs) / (rms(measured) + rms(outputs))
-
-
-def _coloured_information(jw, vw):
-    """Sum over lags of residual autocorrelation times Jacobian cross-correlation,
-    per output channel (Morelli and Klein's correction), by FFT.
-
-    `jw`: `(samples, outputs, unknowns)` whitened Jacobian rows; `vw`: `(samples,
-    outputs)` whitened residuals. Returns `(unknowns, unknowns)`.
-    """
-    n = jw.shape[0]
-    m = 2 * n
-    a = jnp.fft.fft(jw, n=m, axis=0)  # (m, outputs, P)
-    v = jnp.fft.fft(vw, n=m, axis=0)  # (m, outputs)
-    power = jnp.abs(v) ** 2 / n  # spectrum of the autocorrelation estimate
-    total = jnp.einsum("fo,fop,foq->pq", power, jnp.conj(a), a) / m
-    return jnp.real(total)
-
-
-@functools.partial(jax.jit, static_argnames=("max_outer", "max_inner"))
-def _fit(problem, base, unknowns0, rtol, max_outer, max_inner):
-    solver = HalvingGaussNewton(rtol=rtol, atol=1e-12)
-    init_nodes = unknowns0.nodes
-
-    def solve(unknowns, white):
-        sol = optx.least_squares(
-            _residual_vector,
-            solver,
-            unknowns,
-            args=(problem, base, white, init_nodes),
-            max_steps=max_inner,
-            throw=False,
-        )
-        return sol.value, sol.result
-
-    e0, valid0, _ = _output_residuals(problem, base, unknowns0)
-    r0 = _covariance(problem, e0, valid0)
-    r0 = r0 + 1e-12 * jnp.eye(r0.shape[0])
-
-    def cond(carry):
-        _, _, _, it, done, _ = carry
-        return (it < max_outer) & ~done
-
-    def body(carry):
-        unknowns, r, cost_prev, it, _, _ = carry
-        new, result = solve(unknowns, _whitening(r))
-        e, valid, _ = _output_residuals(problem, base, new)
-        r_new = _covariance(problem, e, valid) + 1e-300 * jnp.eye(r.shape[0])
-        cost = jnp.linalg.det(r_new)
-        done = jnp.abs(cost_prev - cost) <= rtol * jnp.abs(cost)
-        return new, r_new, cost, it + 1, done, result
-
-    init = (
-        unknowns0,
-        r0,
-        jnp.linalg.det(r0),
-        jnp.array(0),
-        jnp.array(False),
-        optx.RESULTS.successful,
-    )
-    unknowns, r, cost, iterations, done, result = jax.lax.while_loop(cond, body, init)
-
-    # Uncertainty at the optimum: Fisher information of the whitened residuals.
-    white = _whitening(r)
-    args = (problem, base, white, init_nodes)
-    flat, unflatten = jax.flatten_util.ravel_pytree(unknowns)
-    jac = jax.jacfwd(lambda z: _residual_vector(unflatten(z), args))(flat)
-    info = jac.T @ jac
-    cov = jnp.linalg.pinv(info, hermitian=True)
-    e, valid, ends = _output_residuals(problem, base, unknowns)
-    n_out = e.shape[-1]
-    n_rows = e.shape[0] * e.shape[1]
-    jw = jac[: n_rows * n_out].reshape(n_rows, n_out, -1)
-    vw = jnp.einsum("ij,snj->sni", white, e).reshape(n_rows, n_out)
-    keep = valid.reshape(-1)
-    jw = jnp.where(keep[:, None, None], jw, 0.0)
-    vw = jnp.where(keep[:, None], vw, 0.0)
-    # Chronological order of padded rows is already by segment then sample.
-    coloured = cov @ _coloured_information(jw, vw) @ cov
-    n_free = unknowns.params.size
-    sd = jnp.sqrt(jnp.clip(jnp.diag(cov)[:n_free], 0.0))
-    sd_c = jnp.sqrt(jnp.clip(jnp.diag(coloured)[:n_free], 0.0))
-    sets, nf = unknowns.params.shape
-    stderr = jnp.zeros_like(base).at[:, problem.free_index].set(sd.reshape(sets, nf))
-    stderr_c = (
-        jnp.zeros_like(base).at[:, problem.free_index].set(sd_c.reshape(sets, nf))
-    )
-    block = cov[:nf, :nf]
-    d = jnp.sqrt(jnp.clip(jnp.diag(block), 1e-300))
-    correlation = block / (d[:, None] * d[None, :])
-    defects = _defects(problem, unknowns, ends)
-    defect = (
-        jnp.max(jnp.abs(defects)) * problem.continuity_tol
-        if defects.size
-        else jnp.zeros(())
-    )
-    ys, _, index = simulate_segments(problem, base, unknowns)
-    outputs = ys.reshape(-1, ys.shape[-1])[: problem.n_samples]
-    tic = theil_inequality(problem.measured, outputs)
-    tic = jnp.where(jnp.isfinite(tic), tic, 1.0)
-    finite = jnp.isfinite(cost) & jnp.all(jnp.isfinite(unknowns.params))
-    converged = done & finite & (result == optx.RESULTS.successful)
-    return OEMResult(
-        params=full_parameters(problem, base, unknowns),
-        stderr=stderr,
-        stderr_corrected=stderr_c,
-        correlation=correlation,
-        nodes=unknowns.nodes,
-        cost=cost,
-        R=r,
-        outputs=outputs,
-        defect=defect,
-        iterations=iterations,
-        converged=converged,
-        result=result,
-        tic=tic,
-        poor_fit=jnp.any(tic > 0.3),
-    )
-
-
-def fit_oem(
-    problem: OEMProblem,
-    theta0: Float[Array, " params"] | Float[Array, "sets params"],
-    nodes0: Float[Array, "segments states"],
-    *,
-    rtol: float = 1e-5,
-    max_outer: int = 30,
-    max_inner: int = 50,
-) -> OEMResult:
-    """Maximum-likelihood output-error estimate.
-
-    **Arguments:**
-
-    - `problem`: the [`OEMProblem`][].
-    - `theta0`: starting parameters, `(params,)` (the same for every window) or
-      `(sets, params)`; fixed parameters keep these values.
-    - `nodes0`: starting node states `(segments, states)`, usually the measured states
-      at the node times; the first is kept fixed unless `free_initial_state`.
-    - `rtol`: stop when det(R) changes by less than this, relatively.
-    - `max_outer`, `max_inner`: caps on R updates and Gauss-Newton steps per update.
-
-    **Returns:** an [`OEMResult`][]; a fit that did not converge or diverged has
-    `converged = False` (it never raises inside a batch). `jax.vmap` over problems
-    and starting values fits a batch in one call.
-    """
-    theta0 = jnp.asarray(theta0, float)
-    if theta0.ndim == 1:
-        theta0 = jnp.broadcast_to(theta0, (problem.n_param_sets, theta0.shape[0]))
-    nodes0 = jnp.asarray(nodes0, float)
-    if nodes0.shape[0] != problem.n_segments:
-        raise ValueError(
-            f"nodes0 has {nodes0.shape[0]} rows but the problem has "
-            f"{problem.n_segments} shooting segments"
-        )
-    unknowns0 = Unknowns(params=theta0[:, problem.free_index], nodes=nodes0)
-    return _fit(problem, theta0, unknowns0, rtol, max_outer, max_inner)
 
 
 def node_times(problem: OEMProblem) -> np.ndarray:

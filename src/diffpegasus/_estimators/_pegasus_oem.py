@@ -8,6 +8,7 @@ alpha, V]`. The same building blocks as the simulator (`pitch_plane_rates`,
 `moment_about_cg`, `isa`, `gravity`) give the dynamics.
 """
 
+import dataclasses
 import functools
 
 import equinox as eqx
@@ -21,8 +22,9 @@ from .._atmosphere import isa
 from .._flight import moment_about_cg, pitch_plane_rates
 from .._gravity import gravity
 from .._log import FlightLog
+from ._global_oem import fit_global_oem
 from ._lse import estimate_lse, window_truth
-from ._oem import _window_solve, fit_oem, node_times, OEMProblem
+from ._oem import _window_solve, node_times, OEMProblem
 from ._result import Estimates
 from ._windowed_oem import fit_windowed_oem, WindowedFit
 from ._windows import WindowLayout
@@ -377,29 +379,36 @@ def estimate_oem(
 
 
 def _sequential_single(problem, theta0, x0, rtol):
-    """The thesis's single shooting: window by window (optimistix Gauss-Newton), each
+    """The thesis's single shooting: window by window (the engine, one segment), each
     window starting from the previous window's simulated end state."""
     n, length = problem.n_windows, problem.window_samples
     inputs = _pad(problem.inputs, n * length + 1)
     measured = _pad(problem.measured, n * length)
+    # one window as a single-shooting problem of its own (start state held)
+    single = dataclasses.replace(
+        problem,
+        inputs=inputs[: length + 1],
+        measured=measured[:length],
+        window=None,
+        node_interval=None,
+        free_initial_state=False,
+    )
 
     def one(x_start, w):
         sub = eqx.tree_at(
             lambda p: (p.inputs, p.measured, p.t0),
-            problem,
+            single,
             (
                 jax.lax.dynamic_slice_in_dim(inputs, w * length, length + 1),
                 jax.lax.dynamic_slice_in_dim(measured, w * length, length),
                 problem.t0 + w * length * problem.dt,
             ),
         )
-        res = fit_oem(
-            sub, theta0[w], x_start[None], rtol=rtol, max_outer=10, max_inner=20
-        )
-        xs, _ = _window_solve(sub, x_start, res.params[0], sub.t0)
+        res = fit_global_oem(sub, theta0[w], x_start[None], rtol=rtol, max_iter=30)
+        xs, _ = _window_solve(problem, x_start, res.params, sub.t0)
         ok = res.converged & jnp.all(jnp.isfinite(xs[-1]))
         x_next = jnp.where(ok, xs[-1], x_start)
-        return x_next, (res.params[0], res.stderr[0], ok, res.iterations)
+        return x_next, (res.params, res.stderr, ok, res.iterations)
 
     _, (params, sd, ok, its) = jax.lax.scan(one, jnp.asarray(x0, float), jnp.arange(n))
     return params, sd, ok, its

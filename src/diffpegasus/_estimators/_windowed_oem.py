@@ -28,9 +28,12 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from .._identify._engine import _scatter, lm_step as _solve
+from .._identify._engine import (
+    _scatter,
+    coloured_information as _coloured_information,
+    lm_step as _solve,
+)
 from ._oem import (
-    _coloured_information,
     _input_at,
     _window_solve,
     OEMProblem,
