@@ -229,14 +229,21 @@ def simulate_batch(
     )
 
 
-def flight_to_log(flight: Flight, metadata: dict | None = None) -> FlightLog:
-    """A single (unbatched) simulated [`Flight`][] as a [`FlightLog`][]."""
+def flight_to_log(
+    flight: Flight, metadata: dict | None = None, vehicle: Vehicle | None = None
+) -> FlightLog:
+    """A single (unbatched) simulated [`Flight`][] as a [`FlightLog`][], its sidecar
+    stamped with the reference area and length of `vehicle` (the one simulated;
+    default the standard Pegasus)."""
     channels = {"t": np.asarray(flight.t)}
     channels.update({k: np.asarray(v) for k, v in flight.channels.items()})
     if channels["t"].ndim != 1:
         raise ValueError("flight_to_log takes one flight; index a batch first")
+    vehicle = Vehicle() if vehicle is None else vehicle
     meta = {
         **PEGASUS_METADATA,
+        "S_ref": vehicle.s_ref,
+        "c_ref": vehicle.c_ref,
         "sample_rate_hz": float(1.0 / (channels["t"][1] - channels["t"][0])),
     }
     meta.update(metadata or {})

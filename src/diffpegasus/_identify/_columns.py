@@ -9,7 +9,8 @@ in which unit, and with what extra scale factor. It is a dict (or a JSON / TOML 
      "az": {"column": "NZ", "unit": "g", "scale": -1.0}}
 
 Units understood: see [`UNITS`][]; a value is multiplied by the unit's factor to SI,
-then by `scale`. A channel missing from the map is looked up by its own name. Files:
+then by `scale`. A channel missing from the map, or whose mapped column the file does
+not have, is looked up by its own name (in SI units). Files:
 CSV with a header row (`.csv`, or anything with commas in its header) and the column
 text files of FVSysID (`.asc`: free-text lines, a row of names starting with `T`, a
 row of units, then numbers).
@@ -171,6 +172,9 @@ def read_table(path: str | os.PathLike) -> dict[str, np.ndarray]:
 
 def _channel(table, columns, name, path):
     col = columns.get(name) or Column(name, name, "column map")
+    if col.column not in table and name in table:
+        # a log in our own layout (e.g. simulated) read through a vehicle's map
+        col = Column(name, name, "column map")
     if col.column not in table:
         raise LogError(
             f"{path}: no column {col.column!r} for channel {name!r} (columns: "

@@ -245,6 +245,31 @@ def simulate(model: Model, record: Record, params=None, x0=None) -> np.ndarray:
     return np.asarray(xs)[: len(record.t)]
 
 
+def simulate_outputs(
+    model: Model, t, inputs, params=None, x0=None, oversample: int = 1
+) -> np.ndarray:
+    """Noise-free model outputs `(samples, outputs)` at the times `t` (uniform) with
+    known inputs `inputs` `(samples, inputs)`, integrated by RK4 at `1/oversample` of
+    the sample step (inputs linearly interpolated) from `x0` (default: zeros) with
+    `params` (default: the model's start values)."""
+    from ._engine import segment_outputs
+
+    t = np.asarray(t, float)
+    inputs = np.asarray(inputs, float).reshape(len(t), -1)
+    fine = np.linspace(t[0], t[-1], (len(t) - 1) * oversample + 1)
+    u = np.column_stack(
+        [np.interp(fine, t, inputs[:, j]) for j in range(inputs.shape[1])]
+    )
+    params = np.asarray(model.start if params is None else params, float)
+    x0 = np.zeros(len(model.states)) if x0 is None else np.asarray(x0, float)
+    rec = Record(fine, u, np.zeros((len(fine), len(model.outputs))), x0=x0)
+    lay = layout(model, [rec], SingleShooting(), "fixed", (), np.ones(len(x0)))
+    ys, _ = jax.jit(segment_outputs, static_argnums=0)(
+        model, lay, 0, jnp.asarray(x0), jnp.asarray(params), jnp.zeros(0)
+    )
+    return np.asarray(ys)[: len(fine)][::oversample]
+
+
 def fit(
     model: Model,
     records: Record | Sequence[Record],

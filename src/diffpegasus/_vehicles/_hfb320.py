@@ -18,6 +18,7 @@ The record shipped in
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 
 from .._effects import make_effect
 from .._flight import elevator_delay, has_delay, pitch_plane
@@ -191,3 +192,76 @@ def hfb320_model(
     if changes.get("fixed"):
         changes["fixed"] = tuple(changes["fixed"]) + held
     return model.replace(**changes) if changes else model
+
+
+# The output-error estimates on the real record (`diffpegasus fit ... --vehicle
+# hfb320`): the truth of simulated flights.
+IDENTIFIED = {
+    "CD0": 0.117776,
+    "CDV": -0.0517719,
+    "CDa": 0.234949,
+    "CL0": -0.204497,
+    "CLV": 0.363406,
+    "CLa": 3.21170,
+    "CM0": 0.134393,
+    "CMV": -0.0138949,
+    "CMa": -1.00232,
+    "CMq": -27.0630,
+    "CMde": -1.43719,
+}
+# Sensor noise of simulated flights (1 sigma, SI units, radians).
+NOISE = {
+    "V": 0.1,
+    "alpha": 1e-3,
+    "theta": 1e-3,
+    "q": 5e-4,
+    "qdot": 2e-3,
+    "ax": 0.02,
+    "az": 0.05,
+}
+TRIM = {"de": -0.0075, "thrust": 11633.0}  # elevator (rad), thrust (N) of the record
+
+
+def simulate_log(
+    duration: float = 30.0,
+    rate: float = 10.0,
+    seed: int = 0,
+    noise: bool = True,
+    hidden: dict[str, float] | None = None,
+) -> tuple[dict[str, np.ndarray], dict]:
+    """A simulated HFB-320 flight: a 3-2-1-1 elevator input (0.01 rad, 1 s unit,
+    from 2 s) about the record's trim, constant thrust, the identified aerodynamics
+    ([`IDENTIFIED`][]) plus any library effects `hidden` (name -> value, SI), RK4 at
+    1/10 of the log step, white noise ([`NOISE`][]). Returns the log's channels and
+    its sidecar metadata."""
+    from .._identify._fit import simulate_outputs
+    from .._inputs import three_two_one_one
+
+    hidden = dict(hidden or {})
+    names = tuple(hidden)
+    model = hfb320_model(effects=names)
+    params = dict(IDENTIFIED)
+    params.update({effect_parameter(n): v for n, v in hidden.items()})
+    theta = np.array([params[k] for k in model.parameters])
+    t = np.arange(0.0, duration + 0.5 / rate, 1.0 / rate)
+    pulse = three_two_one_one(0.01, 1.0, start=2.0)
+    de = TRIM["de"] + np.array([float(pulse(x)) for x in t])
+    inputs = np.column_stack([de, np.full_like(t, TRIM["thrust"])])
+    y = simulate_outputs(model, t, inputs, theta, X0, oversample=10)
+    rng = np.random.default_rng(seed)
+    channels = {"t": t, "de": de, "thrust": inputs[:, 1]}
+    for j, name in enumerate(model.outputs):
+        channels[name] = y[:, j] + (
+            rng.normal(size=len(t)) * NOISE[name] if noise else 0
+        )
+    metadata = {
+        "vehicle": "hfb320",
+        "S_ref": S_REF,
+        "c_ref": CBAR,
+        "sample_rate_hz": rate,
+        "seed": seed,
+        "noise_sigmas": NOISE if noise else {},
+        "truth": params,
+        "hidden_effects": hidden,
+    }
+    return channels, metadata
