@@ -11,7 +11,7 @@ import pytest
 
 import diffpegasus as dp
 from diffpegasus._estimators._global_oem import _layout, VectorModel
-from diffpegasus._estimators._windowed_oem import _Layout, _segment
+from diffpegasus._estimators._windowed_oem import _make_layout, _segment
 from diffpegasus._identify._engine import (
     coloured_information as _coloured_information,
     segment_outputs,
@@ -193,7 +193,7 @@ def _windowed(measured, de):
 def test_windowed_segment_jacobian_matches_finite_differences(drifting):
     de, clean, _ = drifting
     prob, theta0, nodes0 = _windowed(clean, de)
-    layout = _Layout(n_seg=2, nx=2, p=6, k=2, linear=True, n_windows=4)
+    layout = _make_layout(prob, jnp.ones(4, bool), 2, 2, 6, 2, True, 4)
     v = jnp.concatenate(
         [nodes0[0], jnp.ravel(jax.vmap(_theta_at)(jnp.arange(3) * 2.5))]
     )

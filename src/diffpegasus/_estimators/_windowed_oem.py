@@ -29,10 +29,12 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from .._identify._engine import (
-    _scatter,
+    AbstractLayout,
     coloured_information as _coloured_information,
-    lm_step as _solve,
+    RESULTS,
+    solve,
 )
+from ._global_oem import VectorModel
 from ._oem import (
     _input_at,
     _window_solve,
@@ -71,11 +73,19 @@ class WindowedFit(eqx.Module):
     converged: Bool[Array, ""]
 
 
-class _Layout(eqx.Module):
-    """Where each unknown lives in the flat vector `[blocks (S nb), tail (P)]`: a
-    block is `[node (nx), k knots x P]`; with linear parameters the knot at the end
-    of the last window is the tail."""
+class _Layout(AbstractLayout):
+    """The engine's layout for parameters per window: where each unknown lives in
+    the flat vector `[blocks (S nb), tail (P)]`: a block is `[node (nx), k knots x
+    P]`; with linear parameters the knot at the end of the last window is the tail.
+    Carries the problem (data, model functions) and the traced `active` window mask.
+    """
 
+    problem: OEMProblem
+    active: Bool[Array, " windows"]
+    measured: Float[Array, "segments length outputs"]
+    valid: Bool[Array, "segments length"]
+    link: Bool[Array, " links"]
+    scale: Float[Array, " states"]
     n_seg: int = eqx.field(static=True)
     nx: int = eqx.field(static=True)
     p: int = eqx.field(static=True)
@@ -123,6 +133,58 @@ class _Layout(eqx.Module):
                     a[self.nx + j * self.p + i, col] = 1.0
         return a
 
+    def local_columns(self, nx, p):
+        del nx, p
+        return jnp.asarray(self.local_cols())
+
+    def node_columns(self, nx, p):
+        return self.local_columns(nx, p)[:, :nx]
+
+    def segment(self, model, s, v, nx, p):
+        del model, nx, p
+        return _segment(self.problem, self, s, v)
+
+    def free_columns(self, free_params, nx, p):
+        del free_params, nx, p
+        knot_cols = self.knot_cols()
+        free = np.ones(self.size, bool)
+        free[knot_cols[self.used_knots() :].ravel()] = False
+        free[knot_cols[:, ~np.asarray(self.problem.free)].ravel()] = False
+        # a knot is estimated if a window that uses it is active
+        if self.linear:
+            padded = jnp.concatenate(
+                [jnp.zeros(1, bool), self.active, jnp.zeros(1, bool)]
+            )
+            knot_active = padded[:-1] | padded[1:]
+        else:
+            knot_active = self.active
+        n_k = knot_active.shape[0]
+        return (
+            jnp.asarray(free)
+            .at[knot_cols[:n_k]]
+            .set(jnp.asarray(free)[knot_cols[:n_k]] & knot_active[:, None])
+        )
+
+
+def _make_layout(problem, active, n_seg, nx, p, k, linear, n_windows) -> _Layout:
+    per = k * problem.window_samples
+    index = jnp.arange(n_seg)[:, None] * per + jnp.arange(per)[None, :]
+    in_window = jnp.minimum(index // problem.window_samples, n_windows - 1)
+    return _Layout(
+        problem=problem,
+        active=active,
+        measured=problem.measured[jnp.minimum(index, problem.n_samples - 1)],
+        valid=(index < problem.n_samples) & active[in_window],
+        link=jnp.ones(n_seg - 1, bool),
+        scale=problem.state_scale * problem.continuity_tol,
+        n_seg=n_seg,
+        nx=nx,
+        p=p,
+        k=k,
+        linear=linear,
+        n_windows=n_windows,
+    )
+
 
 def _segment(problem: OEMProblem, layout: _Layout, s, v):
     """Outputs of segment `s` (padded, `(k L, outputs)`) and its end state, from its
@@ -151,113 +213,28 @@ def _segment(problem: OEMProblem, layout: _Layout, s, v):
     return ys.reshape(k * length, -1), x_end
 
 
-@functools.partial(jax.jit, static_argnames=("layout", "max_iter"))
-def _fit(problem, layout, z0, active, rtol, max_iter):
-    n_seg, nx = layout.n_seg, layout.nx
-    per = layout.k * problem.window_samples
-    index = jnp.arange(n_seg)[:, None] * per + jnp.arange(per)[None, :]
-    in_window = jnp.minimum(index // problem.window_samples, layout.n_windows - 1)
-    valid = (index < problem.n_samples) & active[in_window]
-    measured = problem.measured[jnp.minimum(index, problem.n_samples - 1)]
-    c = problem.state_scale * problem.continuity_tol
-    seg_ids = jnp.arange(n_seg)
-    local = jnp.asarray(layout.local_cols())
-    node_cols = local[:, :nx]
+@functools.partial(jax.jit, static_argnames=("structure", "max_iter"))
+def _fit(problem, structure, z0, active, rtol, max_iter):
+    layout = _make_layout(problem, active, *structure)
+    nx, p = layout.nx, layout.p
+    model = VectorModel(problem.rates, problem.outputs, problem.input_delay)
+    sol = solve(
+        model,
+        layout,
+        z0,
+        jnp.asarray(problem.free),
+        nx=nx,
+        p=p,
+        rtol=rtol,
+        max_iter=max_iter,
+        coloured=False,
+    )
+    z, cov, jyw, ew = sol.z, sol.covariance, sol.jacobian, sol.whitened
+    local = layout.local_columns(nx, p)
     knot_cols = layout.knot_cols()
-    free = np.ones(layout.size, bool)
-    free[knot_cols[layout.used_knots() :].ravel()] = False
-    free[knot_cols[:, ~np.asarray(problem.free)].ravel()] = False
-    # a knot is estimated if a window that uses it is active
-    if layout.linear:
-        padded = jnp.concatenate([jnp.zeros(1, bool), active, jnp.zeros(1, bool)])
-        knot_active = padded[:-1] | padded[1:]
-    else:
-        knot_active = active
-    n_k = knot_active.shape[0]
-    free_cols = (
-        jnp.asarray(free)
-        .at[knot_cols[:n_k]]
-        .set(jnp.asarray(free)[knot_cols[:n_k]] & knot_active[:, None])
-    )
-
-    def residuals(z):
-        ys, ends = jax.vmap(lambda s, cols: _segment(problem, layout, s, z[cols]))(
-            seg_ids, local
-        )
-        e = jnp.where(valid[..., None], measured - ys, 0.0)
-        d = (ends[:-1] - z[node_cols[1:]]) / c[None, :]
-        return e, d, ys
-
-    def covariance(e):
-        return jnp.sum(e**2, axis=(0, 1)) / jnp.sum(valid)
-
-    def cost_ls(z, r):
-        e, d, _ = residuals(z)
-        return jnp.sum(e**2 / r[None, None, :]) + jnp.sum(d**2)
-
-    def normal_equations(z, r):
-        def jac(s, cols):
-            return jax.jacfwd(lambda v: _segment(problem, layout, s, v))(z[cols])
-
-        jy, jx = jax.vmap(jac)(seg_ids, local)  # (S, n, ny, nl), (S, nx, nl)
-        e, d, _ = residuals(z)
-        w = 1.0 / jnp.sqrt(r)
-        # padded samples past the record are masked with where: their values may be
-        # non-finite, and 0 * nan is nan
-        jyw = jnp.where(valid[..., None, None], -jy * w[None, None, :, None], 0.0)
-        ew = e * w[None, None, :]
-        h = jnp.zeros((layout.size, layout.size))
-        g = jnp.zeros(layout.size)
-        h, g = _scatter(
-            h, g, local, jyw.reshape(n_seg, -1, jy.shape[-1]), ew.reshape(n_seg, -1)
-        )
-        if n_seg > 1:
-            minus = jnp.broadcast_to(-jnp.eye(nx) / c[:, None], (n_seg - 1, nx, nx))
-            jd = jnp.concatenate([jx[:-1] / c[None, :, None], minus], axis=2)
-            cols = jnp.concatenate([local[:-1], node_cols[1:]], axis=1)
-            h, g = _scatter(h, g, cols, jd, d)
-        return h, g, jyw, ew
-
-    def body(carry):
-        z, r, cost_prev, it, _, damping, _ = carry
-        h, g, _, _ = normal_equations(z, r)
-        j0 = cost_ls(z, r)
-
-        def trial(lam):
-            new = z + _solve(h, g, free_cols, lam)
-            return new, cost_ls(new, r)
-
-        def increase(c_):
-            lam = jnp.maximum(10.0 * c_[0], 1e-8)
-            return (lam, *trial(lam))
-
-        damping, new, j1 = jax.lax.while_loop(
-            lambda c_: ~(c_[2] < j0) & (c_[0] < 1e8),
-            increase,
-            (damping, *trial(damping)),
-        )
-        accepted = j1 < j0
-        new = jnp.where(accepted, new, z)
-        e, _, _ = residuals(new)
-        r_new = covariance(e)
-        cost = jnp.prod(r_new)
-        small = jnp.abs(cost_prev - cost) <= rtol * jnp.abs(cost)
-        broken = ~(jnp.all(jnp.isfinite(h)) & jnp.all(jnp.isfinite(g)))
-        return new, r_new, cost, it + 1, small | ~accepted, damping / 10.0, broken
-
-    e0, _, _ = residuals(z0)
-    r0 = covariance(e0)
-    init = (z0, r0, jnp.prod(r0), jnp.array(0), jnp.array(False), jnp.array(0.0))
-    z, r, cost, iterations, done, _, broken = jax.lax.while_loop(
-        lambda c_: (c_[3] < max_iter) & ~c_[4], body, (*init, jnp.array(False))
-    )
-    h, _, jyw, ew = normal_equations(z, r)
-    m = free_cols.astype(h.dtype)
-    cov = jnp.linalg.inv(h * m[:, None] * m[None, :] + jnp.diag(1.0 - m))
-    cov = cov * m[:, None] * m[None, :]
 
     # each window's parameters as a linear map of the unknowns
-    n_win, p = layout.n_windows, layout.p
+    n_win = layout.n_windows
     a = knot_cols[:n_win]
     b = knot_cols[1 : n_win + 1] if layout.linear else a
     knots = z[knot_cols[: layout.used_knots()]]
@@ -285,10 +262,8 @@ def _fit(problem, layout, z0, active, rtol, max_iter):
         return jnp.maximum(coloured / jnp.clip(white, 1e-300), 1.0)
 
     ratio = jax.vmap(inflation)(jyw, ew, local).reshape(-1, p)[:n_win]
-    e, d, ys = residuals(z)
-    outputs = ys.reshape(-1, ys.shape[-1])[: problem.n_samples]
-    defect = jnp.max(jnp.abs(d)) * problem.continuity_tol if n_seg > 1 else 0.0
-    converged = done & ~broken & jnp.isfinite(cost) & jnp.all(jnp.isfinite(params))
+    outputs = sol.outputs.reshape(-1, sol.outputs.shape[-1])[: problem.n_samples]
+    converged = (sol.result == RESULTS.successful) & jnp.all(jnp.isfinite(params))
     return WindowedFit(
         params=params,
         stderr=sd,
@@ -296,13 +271,13 @@ def _fit(problem, layout, z0, active, rtol, max_iter):
         correlation=correlation,
         knots=knots,
         active=active,
-        nodes=z[node_cols],
-        cost=cost,
-        R=r,
+        nodes=z[local[:, :nx]],
+        cost=sol.cost,
+        R=sol.R,
         outputs=outputs,
         tic=theil_inequality(problem.measured, outputs),
-        defect=jnp.asarray(defect),
-        iterations=iterations,
+        defect=sol.defect * problem.continuity_tol,
+        iterations=sol.iterations,
         converged=converged,
     )
 
@@ -339,14 +314,20 @@ def fit_windowed_oem(
         raise ValueError("fit_windowed_oem needs both window and node_interval")
     theta0 = jnp.asarray(theta0, float)
     nodes0 = jnp.asarray(nodes0, float)
-    layout = _Layout(
-        n_seg=problem.n_segments,
-        nx=nodes0.shape[1],
-        p=theta0.shape[1],
-        k=problem.windows_per_segment,
-        linear=linear,
-        n_windows=problem.n_windows,
+    structure = (
+        problem.n_segments,
+        nodes0.shape[1],
+        theta0.shape[1],
+        problem.windows_per_segment,
+        linear,
+        problem.n_windows,
     )
+    active = (
+        jnp.ones(problem.n_windows, bool)
+        if active is None
+        else jnp.asarray(active, bool)
+    )
+    layout = _make_layout(problem, active, *structure)
     if theta0.shape[0] != layout.n_windows or nodes0.shape[0] != layout.n_seg:
         raise ValueError(
             f"theta0 {theta0.shape} and nodes0 {nodes0.shape} must have one row per "
@@ -361,9 +342,4 @@ def fit_windowed_oem(
     )
     z0 = jnp.zeros(layout.size).at[cols].set(knots)
     z0 = z0.at[layout.local_cols()[:, : layout.nx]].set(nodes0)
-    active = (
-        jnp.ones(layout.n_windows, bool)
-        if active is None
-        else jnp.asarray(active, bool)
-    )
-    return _fit(problem, layout, z0, active, rtol, max_iter)
+    return _fit(problem, structure, z0, active, rtol, max_iter)

@@ -25,11 +25,13 @@ it also needs an outer loop. The block form is `S` times less Jacobian work for
 multiple shooting; see the README for the measurement.
 """
 
+import abc
 import functools
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from equinox import AbstractVar
 from jaxtyping import Array, Bool, Float, Int
 
 from ._model import Model
@@ -49,7 +51,47 @@ class RESULTS(eqx.Enumeration):
     )
 
 
-class Layout(eqx.Module):
+class AbstractLayout(eqx.Module):
+    """Where the unknowns live and how a segment is simulated: what the engine needs
+    of a parameter layout.
+
+    The unknowns are one flat vector `z`. Each shooting segment `s` depends on a
+    local vector `z[local_columns()[s]]` only, whose first `states` entries are its
+    node state (`node_columns()[s]`); `segment(model, s, v)` gives its outputs
+    `(length, outputs)` and its end state. Fields: `measured` `(segments, length,
+    outputs)` and `valid` `(segments, length)`; `link` `(segments - 1,)`, whether
+    segment `s` continues into `s + 1` (a continuity defect between them); `scale`
+    `(states,)`, the state scale times the continuity tolerance.
+    """
+
+    measured: AbstractVar[Float[Array, "segments length outputs"]]
+    valid: AbstractVar[Bool[Array, "segments length"]]
+    link: AbstractVar[Bool[Array, " links"]]
+    scale: AbstractVar[Float[Array, " states"]]
+
+    @property
+    def n_segments(self) -> int:
+        return self.measured.shape[0]
+
+    @abc.abstractmethod
+    def local_columns(self, nx: int, p: int) -> Int[Array, "segments local"]:
+        """Global column of every entry of each segment's local vector."""
+
+    @abc.abstractmethod
+    def node_columns(self, nx: int, p: int) -> Int[Array, "segments states"]:
+        """Global columns of each segment's node state."""
+
+    @abc.abstractmethod
+    def segment(self, model, s, v, nx: int, p: int):
+        """Outputs `(length, outputs)` and end state `(states,)` of segment `s`
+        from its local vector `v`."""
+
+    @abc.abstractmethod
+    def free_columns(self, free_params, nx: int, p: int) -> Bool[Array, " unknowns"]:
+        """Which unknowns are estimated, given the model parameters' mask."""
+
+
+class Layout(AbstractLayout):
     """The data of a fit, cut into shooting segments of `length` samples.
 
     **Fields:** `inputs` `(records, samples, inputs)` padded with the last row; `t0`,
@@ -76,12 +118,28 @@ class Layout(eqx.Module):
     bias_channels: tuple[int, ...] = eqx.field(static=True)
 
     @property
-    def n_segments(self) -> int:
-        return self.record.shape[0]
-
-    @property
     def n_records(self) -> int:
         return self.t0.shape[0]
+
+    def local_columns(self, nx, p):
+        return _columns(self, nx, p)[1]
+
+    def node_columns(self, nx, p):
+        return _columns(self, nx, p)[0]
+
+    def segment(self, model, s, v, nx, p):
+        return segment_outputs(model, self, s, v[:nx], v[nx : nx + p], v[nx + p :])
+
+    def free_columns(self, free_params, nx, p):
+        del p
+        nb = len(self.bias_channels)
+        return jnp.concatenate(
+            [
+                self.node_free.reshape(-1),
+                free_params,
+                jnp.ones(self.n_records * nb, bool),
+            ]
+        )
 
 
 def _input_at(layout: Layout, r, t, delay):
@@ -188,26 +246,39 @@ def _scatter(h, g, cols, jac, res):
     return h, g
 
 
-def linearise(model, layout, z, nx, p, r):
+def residuals_at(model, layout: AbstractLayout, z, nx, p):
+    """Output residuals `(S, length, outputs)` (0 at padding), defects `(S - 1,
+    states)` (0 where segments do not link) and model outputs, at the unknowns `z`."""
+    local = layout.local_columns(nx, p)
+    nodes = layout.node_columns(nx, p)
+    ys, ends = jax.vmap(lambda s, cols: layout.segment(model, s, z[cols], nx, p))(
+        jnp.arange(layout.n_segments), local
+    )
+    e = jnp.where(layout.valid[..., None], layout.measured - ys, 0.0)
+    d = (ends[:-1] - z[nodes[1:]]) / layout.scale[None, :]
+    d = jnp.where(layout.link[:, None], d, 0.0)
+    return e, d, ys
+
+
+def linearise(model, layout: AbstractLayout, z, nx, p, r):
     """Normal matrix and gradient of the R-weighted least squares at `z`, with the
-    whitened output Jacobian `(S, length, outputs, nx + P + nb)`, whitened output
+    whitened output Jacobian `(S, length, outputs, local)`, whitened output
     residuals, output residuals `(S, length, outputs)`, defects and model outputs.
-    One forward-mode pass per segment gives both the values and the Jacobian."""
-    nodes, theta, biases = unpack(layout, z, nx, p)
-    seg = jnp.arange(layout.n_segments)
+    One forward-mode pass per segment, in its local unknowns only, gives both the
+    values and the Jacobian."""
+    local = layout.local_columns(nx, p)
+    node_cols = layout.node_columns(nx, p)
 
-    def local(s, node):
-        b = biases[layout.record[s]]
-
+    def block(s, cols):
         def f(v):
-            out = segment_outputs(model, layout, s, v[:nx], v[nx : nx + p], v[nx + p :])
+            out = layout.segment(model, s, v, nx, p)
             return out, out
 
-        return jax.jacfwd(f, has_aux=True)(jnp.concatenate([node, theta, b]))
+        return jax.jacfwd(f, has_aux=True)(z[cols])
 
-    (jy, jx), (ys, ends) = jax.vmap(local)(seg, nodes)
+    (jy, jx), (ys, ends) = jax.vmap(block)(jnp.arange(layout.n_segments), local)
     e = jnp.where(layout.valid[..., None], layout.measured - ys, 0.0)
-    d = (ends[:-1] - nodes[1:]) / layout.scale[None, :]
+    d = (ends[:-1] - z[node_cols[1:]]) / layout.scale[None, :]
     d = jnp.where(layout.link[:, None], d, 0.0)
     w = 1.0 / jnp.sqrt(r)
     # residual = measured - model: its Jacobian is minus the model's; padded samples
@@ -216,23 +287,17 @@ def linearise(model, layout, z, nx, p, r):
     ew = e * w[None, None, :]
     n = z.shape[0]
     h, g = jnp.zeros((n, n)), jnp.zeros(n)
-    node_cols, cols = _columns(layout, nx, p)
-    k = cols.shape[1]
-    h, g = _scatter(
-        h,
-        g,
-        cols,
-        jyw.reshape(layout.n_segments, -1, k),
-        ew.reshape(layout.n_segments, -1),
-    )
-    if layout.n_segments > 1:
+    k = local.shape[1]
+    n_seg = layout.n_segments
+    h, g = _scatter(h, g, local, jyw.reshape(n_seg, -1, k), ew.reshape(n_seg, -1))
+    if n_seg > 1:
         link = layout.link[:, None, None]
         jd = jnp.where(link, jx[:-1] / layout.scale[None, :, None], 0.0)
         minus = jnp.where(link, -jnp.eye(nx)[None] / layout.scale[None, :, None], 0.0)
         h, g = _scatter(
             h,
             g,
-            jnp.concatenate([cols[:-1], node_cols[1:]], axis=1),
+            jnp.concatenate([local[:-1], node_cols[1:]], axis=1),
             jnp.concatenate([jd, minus], axis=2),
             d,
         )
@@ -242,7 +307,7 @@ def linearise(model, layout, z, nx, p, r):
 def weighted_cost(model, layout, z, nx, p, r):
     """The R-weighted least-squares cost at `z`, with the output residuals, defects
     and model outputs."""
-    e, d, ys = residuals(model, layout, *unpack(layout, z, nx, p))
+    e, d, ys = residuals_at(model, layout, z, nx, p)
     return jnp.sum(e**2 / r[None, None, :]) + jnp.sum(d**2), e, d, ys
 
 
@@ -256,17 +321,6 @@ def lm_step(h, g, free, damping):
     hs = hs + (damping + 1e-12) * jnp.eye(h.shape[0])
     step = jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(hs), -g * m / scale)
     return step / scale * m
-
-
-def free_columns(layout: Layout, free_params, nx):
-    nb = len(layout.bias_channels)
-    return jnp.concatenate(
-        [
-            layout.node_free.reshape(-1),
-            free_params,
-            jnp.ones(layout.n_records * nb, bool),
-        ]
-    )
 
 
 def channel_variance(layout, e):
@@ -294,13 +348,22 @@ class Solution(eqx.Module):
     corrected: Float[Array, "unknowns unknowns"]
     outputs: Float[Array, "segments length outputs"]
     defect: Float[Array, ""]
+    jacobian: Float[Array, "segments length outputs local"]
+    whitened: Float[Array, "segments length outputs"]
 
 
-@functools.partial(jax.jit, static_argnames=("model", "max_iter", "nx", "p"))
-def solve(model, layout, z0, free_params, *, nx, p, rtol, max_iter) -> Solution:
+@functools.partial(
+    jax.jit, static_argnames=("model", "max_iter", "nx", "p", "coloured")
+)
+def solve(
+    model, layout, z0, free_params, *, nx, p, rtol, max_iter, coloured=True
+) -> Solution:
     """Minimise det(R) over the free unknowns from `z0`. Pure and jitted; vmap
-    batches it over layouts of one shape."""
-    free = free_columns(layout, free_params, nx)
+    batches it over layouts of one shape. `coloured=False` skips the coloured-
+    residual covariance of the unknowns after the first `S nx` (`corrected` is then
+    0; a layout whose unknowns are ordered otherwise corrects its own, from
+    `jacobian` and `whitened`)."""
+    free = layout.free_columns(free_params, nx, p)
 
     def body(carry):
         z, r, cost_prev, it, _, damping, _, _, _ = carry
@@ -342,7 +405,7 @@ def solve(model, layout, z0, free_params, *, nx, p, rtol, max_iter) -> Solution:
     )
     r0 = channel_variance(layout, e0)
     n = z0.shape[0]
-    k = nx + p + len(layout.bias_channels)
+    k = layout.local_columns(nx, p).shape[1]
     lin0 = (
         jnp.zeros((n, n)),
         jnp.zeros(n),
@@ -360,8 +423,9 @@ def solve(model, layout, z0, free_params, *, nx, p, rtol, max_iter) -> Solution:
     cov = jnp.linalg.inv(hm) * m[:, None] * m[None, :]
     ns = layout.n_segments * nx
     corrected = jnp.zeros_like(cov)
-    tail = coloured_covariance(layout, jyw, ew, cov[:, ns:], nx)
-    corrected = corrected.at[ns:, ns:].set(tail)
+    if coloured:
+        tail = coloured_covariance(layout, jyw, ew, cov[:, ns:], nx, p)
+        corrected = corrected.at[ns:, ns:].set(tail)
     defect = jnp.max(jnp.abs(d), initial=0.0) * 1.0
     finite = jnp.isfinite(cost) & jnp.all(jnp.isfinite(z)) & ~broken
     result = RESULTS.where(
@@ -379,17 +443,17 @@ def solve(model, layout, z0, free_params, *, nx, p, rtol, max_iter) -> Solution:
         corrected=corrected,
         outputs=ys,
         defect=defect,
+        jacobian=jyw,
+        whitened=ew,
     )
 
 
-def row_jacobian(layout, jyw, cols, nx):
+def row_jacobian(layout, jyw, cols, nx, p):
     """Whitened output Jacobian rows times `cols` `(unknowns, k)`: `(rows, outputs,
     k)`, segments in order."""
-    n_seg = layout.n_segments
-    _, local = _columns(layout, nx, jyw.shape[-1] - nx - len(layout.bias_channels))
-    picked = cols[local]  # (S, nx + P + nb, k)
+    picked = cols[layout.local_columns(nx, p)]  # (S, local, k)
     out = jnp.einsum("snoa,sak->snok", jyw, picked)
-    return out.reshape(n_seg * layout.length, out.shape[2], out.shape[3])
+    return out.reshape(-1, out.shape[2], out.shape[3])
 
 
 def coloured_information(jw, vw):
@@ -408,8 +472,8 @@ def coloured_information(jw, vw):
     return jnp.real(total)
 
 
-def coloured_covariance(layout, jyw, ew, cov_cols, nx):
+def coloured_covariance(layout, jyw, ew, cov_cols, nx, p):
     """`K^T Sigma K` with `K = J cov[:, cols]` and Sigma the residuals'
     autocovariance per output: the covariance corrected for coloured residuals."""
-    k = row_jacobian(layout, jyw, cov_cols, nx)
+    k = row_jacobian(layout, jyw, cov_cols, nx, p)
     return coloured_information(k, ew.reshape(-1, ew.shape[-1]))

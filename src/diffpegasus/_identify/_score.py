@@ -10,7 +10,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from ._engine import coloured_information, free_columns, linearise, row_jacobian
+from ._engine import coloured_information, linearise, row_jacobian
 
 
 class ScoreTest(eqx.Module):
@@ -41,7 +41,7 @@ def score(model, layout, z, r, free, candidates, *, nx, p) -> ScoreTest:
     """Score test, at the unknowns `z` with residual variances `r` `(outputs,)`, of
     the parameters `candidates` (indices into theta, held in `free`)."""
     h, g, jyw, ew, _, d, _ = linearise(model, layout, z, nx, p, r)
-    free_cols = free_columns(layout, free, nx)
+    free_cols = layout.free_columns(free, nx, p)
     m = free_cols.astype(h.dtype)
     hb = h * m[:, None] * m[None, :] + jnp.diag(1.0 - m)
     cand = layout.n_segments * nx + candidates
@@ -54,7 +54,7 @@ def score(model, layout, z, r, free, candidates, *, nx, p) -> ScoreTest:
     s = jnp.einsum("ik,ij,jk->k", direction, h, direction)
     slope = direction.T @ g
     step = -slope / s
-    rows = row_jacobian(layout, jyw, direction, nx)  # (N, ny, k)
+    rows = row_jacobian(layout, jyw, direction, nx, p)  # (N, ny, k)
     ewf = ew.reshape(-1, ew.shape[-1])
 
     def robust_variance(col, a):
