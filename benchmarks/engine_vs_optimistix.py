@@ -53,7 +53,7 @@ def _engine_run(model, rec, shooting):
 def _optimistix_run(model, first, max_outer=30, rtol=1e-7):
     lay = first.layout
     nx, p = len(model.states), len(model.parameters)
-    free = _engine.free_columns(lay, jnp.asarray(model.free), nx)
+    free = lay.free_columns(jnp.asarray(model.free), nx, p)
     z0 = jnp.asarray(first.z)
     fixed_part = jnp.where(free, 0.0, z0)
     idx = jnp.flatnonzero(free)
