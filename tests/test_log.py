@@ -9,14 +9,60 @@ import diffpegasus as dp
 from diffpegasus._log import REQUIRED_CHANNELS
 
 
+def plausible_channels(
+    n=50, rate=100.0, theta0=0.08, theta_amplitude=0.1, acceleration=5.0
+) -> dict[str, np.ndarray]:
+    """Channels of a smooth pitch-plane flight that obey the kinematics, the standard
+    atmosphere and plausible coefficients exactly, so only a planted fault fails the
+    plausibility checks."""
+    from diffpegasus._checks import G, isa_density_and_sound
+
+    t = np.arange(n) / rate
+    w1, w2 = 2 * np.pi * 0.5, 2 * np.pi * 0.3
+    alpha = 0.05 + 0.03 * np.sin(w1 * t)
+    alpha_dot = 0.03 * w1 * np.cos(w1 * t)
+    theta = theta0 + theta_amplitude * np.sin(w2 * t)
+    q = theta_amplitude * w2 * np.cos(w2 * t)
+    qdot = -theta_amplitude * w2**2 * np.sin(w2 * t)
+    v = 250.0 + acceleration * t
+    gamma = theta - alpha
+    along = acceleration + G * np.sin(gamma)
+    normal = -v * (q - alpha_dot) - G * np.cos(gamma)
+    climb = v * np.sin(gamma)
+    h = (
+        5000.0
+        + np.concatenate([[0.0], np.cumsum(0.5 * (climb[1:] + climb[:-1]))]) / rate
+    )
+    rho, sound = isa_density_and_sound(h)
+    qbar = 0.5 * rho * v**2
+    mass = np.full(n, 5000.0)
+    ax = along * np.cos(alpha) - normal * np.sin(alpha)
+    az = along * np.sin(alpha) + normal * np.cos(alpha)
+    return {
+        "t": t,
+        "de": 0.01 * np.sin(2 * np.pi * t),
+        "ax": ax,
+        "az": az,
+        "q": q,
+        "qdot": qdot,
+        "alpha": alpha,
+        "V": v,
+        "theta": theta,
+        "h": h,
+        "mach": v / sound,
+        "qbar": qbar,
+        "thrust": mass * ax + 0.02 * qbar * 13.5,
+        "mass": mass,
+        "Iyy": np.full(n, 1e5),
+        "Iyy_dot": np.zeros(n),
+        "xcg": np.full(n, 5.0),
+        "xcp": np.full(n, 5.5),
+    }
+
+
 def _log(n=50, rate=100.0) -> dp.FlightLog:
     rng = np.random.default_rng(0)
-    t = np.arange(n) / rate
-    channels = {c: rng.uniform(0.1, 0.3, n) for c in REQUIRED_CHANNELS}
-    channels["t"] = t
-    channels["V"] = 300 + t
-    channels["mass"] = np.full(n, 1e4)
-    channels["Iyy"] = np.full(n, 1e5)
+    channels = plausible_channels(n, rate)
     channels["true_CLa"] = rng.normal(size=n)
     return dp.FlightLog(channels=channels, metadata={"seed": 3})
 

@@ -7,16 +7,22 @@ import pathlib
 
 import numpy as np
 
-from ._log import LogError
+from ._log import _NUMBER, LogError
 
 
 def read_asc(path: str | os.PathLike) -> dict[str, np.ndarray]:
-    """Channels of an `.asc` file by name (upper case as in the file), SI units."""
+    """Channels of an `.asc` file by name (upper case as in the file), SI units.
+
+    **Raises:** [`LogError`][] naming the file, line, channel and value of the first
+    problem (no header, a ragged line, a cell that is not a plain number, no data).
+    """
     path = pathlib.Path(path)
     try:
-        lines = path.read_text().splitlines()
+        lines = path.read_text(encoding="utf-8-sig").splitlines()
     except OSError as e:
         raise LogError(f"{path}: cannot read the file ({e.strerror})") from None
+    except UnicodeDecodeError:
+        raise LogError(f"{path}: not a UTF-8 text file") from None
     rows = [line.split() for line in lines]
     for i, row in enumerate(rows):
         if row and row[0] == "T":
@@ -33,11 +39,13 @@ def read_asc(path: str | os.PathLike) -> dict[str, np.ndarray]:
             raise LogError(
                 f"{path}: line {j} has {len(row)} values, expected {len(names)}"
             )
-        try:
-            data.append([float(x) for x in row])
-        except ValueError:
-            raise LogError(
-                f"{path}: line {j} has a value that is not a number"
-            ) from None
+        for name, cell in zip(names, row, strict=True):
+            if not _NUMBER.fullmatch(cell):
+                raise LogError(
+                    f"{path}: line {j}, channel {name!r}: {cell!r} is not a number"
+                )
+        data.append([float(x) for x in row])
+    if not data:
+        raise LogError(f"{path}: no data rows after the header and units rows")
     arr = np.asarray(data)
     return {name: arr[:, k] for k, name in enumerate(names)}

@@ -23,6 +23,23 @@ def _fail(message: str) -> None:
     raise typer.Exit(code=2)
 
 
+# Exit code of a command whose input was fine but whose fit failed (nothing estimated).
+FIT_FAILED = 3
+
+
+def _check_out(out: pathlib.Path | None, kind: str) -> None:
+    """Refuse an `--out` that cannot be written before any work is done."""
+    from ._checks import out_problem
+
+    if out is not None and (problem := out_problem(out, kind)) is not None:
+        _fail(problem)
+
+
+def _os_error(e: OSError) -> str:
+    where = e.filename if e.filename is not None else "output"
+    return f"{where}: cannot write ({e.strerror or e})"
+
+
 def _check_units(units: str) -> None:
     if units not in ("deg", "rad"):
         _fail(f"--units must be deg or rad, got {units!r}")
@@ -119,17 +136,21 @@ def simulate(
     from ._log import write_log
     from ._plotting import plot_trajectory
 
+    _check_out(out, "file")
     try:
         log = _simulate_to_log(
             seed, input, hidden or [], perturb, duration, sample_rate, noise
         )
     except ValueError as e:
         _fail(str(e))
-    path = write_log(out, log)
-    typer.echo(f"wrote {path} and {path.with_suffix('.json')}")
-    if plot:
-        plot_trajectory(log, path.with_suffix(".png"))
-        typer.echo(f"wrote {path.with_suffix('.png')}")
+    try:
+        path = write_log(out, log)
+        typer.echo(f"wrote {path} and {path.with_suffix('.json')}")
+        if plot:
+            plot_trajectory(log, path.with_suffix(".png"))
+            typer.echo(f"wrote {path.with_suffix('.png')}")
+    except OSError as e:
+        _fail(_os_error(e))
     typer.echo(_summary(log))
 
 
@@ -248,6 +269,32 @@ def _json_out(result):
     typer.echo(json.dumps(_finite(result), allow_nan=False, default=float))
 
 
+def _global_fit_failed(result: dict, what: str) -> str | None:
+    """The words for a global output-error fit that did not converge, or `None`;
+    sets `result["message"]`."""
+    its = result.get("iterations")
+    after = f" after {its} iterations" if its is not None else ""
+    if result.get("converged", True):
+        result["message"] = f"{what} converged{after}"
+        return None
+    result["message"] = (
+        f"{what} did not converge{after}, so it estimated nothing: no derivatives "
+        "are reported (the log may not excite the vehicle, or the model cannot "
+        "follow it; check the log with `diffpegasus check` and the residual plots)"
+    )
+    return result["message"]
+
+
+def _banner(report: pathlib.Path, message: str) -> None:
+    """Head a written report with the failure, so no one reads its numbers as
+    estimates."""
+    try:
+        if report.exists():
+            report.write_text(f"> **{message}**\n\n{report.read_text()}")
+    except OSError as e:
+        _fail(_os_error(e))
+
+
 @app.command()
 def compare(
     log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
@@ -266,14 +313,29 @@ def compare(
     from ._discrepancy import run_compare
 
     settings = _settings(knots, alpha_order, rate, node_interval)
+    _check_out(out, "folder")
     flight = _read(log, resample)
     try:
         result, _ = run_compare(flight, settings, out)
     except ValueError as e:
         _fail(str(e))
+    except OSError as e:
+        _fail(_os_error(e))
+    failed = _global_fit_failed(result, "the output-error fit of the model")
+    if failed:
+        result["derivatives"] = None
+        if out is not None:
+            _banner(out / "compare.md", failed)
     if as_json:
         _json_out(result)
-        return
+    else:
+        _print_compare(result)
+    if failed:
+        typer.echo(f"error: {log}: {failed}", err=True)
+        raise typer.Exit(code=FIT_FAILED)
+
+
+def _print_compare(result):
     typer.echo(f"output-error cost det(R) = {result['cost']:.4g}")
     typer.echo(
         f"{'channel':>8s} {'rms':>10s} {'TIC':>7s} {'R^2':>8s} {'rms/noise':>9s} {'white p':>8s}"
@@ -311,11 +373,27 @@ def diagnose(
     add = tuple(add or ())
     settings = _settings(knots, alpha_order, rate, node_interval)
     _check_addable(add, settings)
+    _check_out(out, "folder")
     flight = _read(log, resample)
     try:
-        result, _ = run_diagnose(flight, settings, out, add)
+        result, base = run_diagnose(flight, settings, out, add)
     except ValueError as e:
         _fail(str(e))
+    except OSError as e:
+        _fail(_os_error(e))
+    if not bool(base.result.converged):
+        failed = (
+            f"the output-error fit of the model did not converge after "
+            f"{int(base.result.iterations)} iterations, so the ranking of effects "
+            "measures nothing: none is reported"
+        )
+        result.update(message=failed, ranking=[], significant=[])
+        if out is not None:
+            _banner(out / "diagnose.md", failed)
+        if as_json:
+            _json_out(result)
+        typer.echo(f"error: {log}: {failed}", err=True)
+        raise typer.Exit(code=FIT_FAILED)
     if as_json:
         _json_out(result)
         return
@@ -354,11 +432,26 @@ def fit(
         _fail("name at least one effect with --add NAME (see `diffpegasus effects`)")
     settings = _settings(knots, alpha_order, rate, node_interval)
     _check_addable(add, settings)
+    _check_out(out, "folder")
     flight = _read(log, resample)
     try:
         result = run_fit(flight, add, settings, out)
     except ValueError as e:
         _fail(str(e))
+    except OSError as e:
+        _fail(_os_error(e))
+    failed = _global_fit_failed(
+        result["after"], "the output-error fit with the added effects"
+    )
+    result["message"] = result["after"]["message"]
+    if failed:
+        result["effects"] = {name: None for name in result["effects"]}
+        if out is not None:
+            _banner(out / "fit.md", failed)
+        if as_json:
+            _json_out(result)
+        typer.echo(f"error: {log}: {failed}", err=True)
+        raise typer.Exit(code=FIT_FAILED)
     if as_json:
         _json_out(result)
         return
@@ -610,18 +703,77 @@ estimate_app = typer.Typer(
 app.add_typer(estimate_app, name="estimate")
 
 
+def _estimates_verdict(est, d: dict) -> tuple[str, str]:
+    """What the estimator achieved, in words, and how it went (`"ok"`, `"warning"`
+    or `"error"` when nothing was estimated). Nulls every estimate of a window whose
+    fit did not converge."""
+    import numpy as np
+
+    valid = np.asarray(est.valid, bool).reshape(-1)
+    n = valid.size
+    flags = d.get("flags", {})
+    converged = flags.get("converged")
+    if converged is not None:
+        bad = [i for i, ok in enumerate(converged) if not ok]
+        for table in (d["estimates"], d.get("stderr") or {}):
+            for column in table.values():
+                for i in bad:
+                    column[i] = None
+        if len(bad) == n:
+            its = flags.get("iterations")
+            after = f" after {max(its)} iterations" if its else ""
+            return (
+                f"the {est.method} fit did not converge{after}, so it estimated "
+                "nothing: every derivative is null (the log may not excite the "
+                "vehicle, or the model cannot follow it)",
+                "error",
+            )
+        if bad:
+            return (
+                f"{len(bad)} of {n} windows did not converge; their derivatives are "
+                "null",
+                "warning",
+            )
+    if not valid.any():
+        return (
+            f"no window has an estimate of its own ({n} windows; the {est.method} "
+            "regressors are rank-deficient or every window is below the dynamic-"
+            "pressure threshold): every derivative is null",
+            "error",
+        )
+    return f"{int(valid.sum())} of {n} windows estimated", "ok"
+
+
 def _emit_estimates(est, out: pathlib.Path | None, as_json: bool, units: str) -> None:
     from ._plotting import plot_estimates
 
+    d = est.to_dict(units)
+    message, level = _estimates_verdict(est, d)
+    failed = level == "error"
+    if failed:
+        for table in (d["estimates"], d.get("stderr") or {}):
+            for column in table.values():
+                column[:] = [None] * len(column)
+    d["message"] = message
     if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
-        est.write_csv(out / f"{est.method}_estimates.csv", units)
-        plot_estimates(est, out / f"{est.method}_estimates.png", units)
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+            est.write_csv(out / f"{est.method}_estimates.csv", units)
+            plot_estimates(est, out / f"{est.method}_estimates.png", units)
+        except OSError as e:
+            _fail(_os_error(e))
         typer.echo(f"wrote {out / f'{est.method}_estimates.csv'} and .png", err=True)
     if as_json:
-        typer.echo(json.dumps(est.to_dict(units)))
-        return
-    d = est.to_dict(units)
+        typer.echo(json.dumps(_finite(d), allow_nan=False))
+    else:
+        _print_estimates(est, d, units, failed)
+    if level != "ok":
+        typer.echo(f"{level}: {message}", err=True)
+    if failed:
+        raise typer.Exit(code=FIT_FAILED)
+
+
+def _print_estimates(est, d: dict, units: str, failed: bool) -> None:
     typer.echo(f"{len(d['window_start'])} windows; estimates in {d['units']}:")
     names = list(d["estimates"])
     typer.echo("  window      " + "".join(f"{n:>12s}" for n in names))
@@ -631,7 +783,7 @@ def _emit_estimates(est, out: pathlib.Path | None, as_json: bool, units: str) ->
             f"  {t0:7.2f} s   "
             + "".join(f"{'-':>12s}" if v is None else f"{v:12.5g}" for v in vals)
         )
-    if est.truth is not None:
+    if est.truth is not None and not failed:
         mse = est.mse(units)
         typer.echo("MSE vs window-mean truth (valid windows), (" + d["units"] + ")^2:")
         typer.echo("  " + "  ".join(f"{k} {v:.3g}" for k, v in mse.items()))
@@ -655,6 +807,7 @@ def estimate_lse_command(
     from ._log import read_log
 
     _check_units(units)
+    _check_out(out, "folder")
     try:
         flight = read_log(log, resample=resample)
         est = estimate_lse(flight, window=window, intercept=intercept, tol=tol)
@@ -703,6 +856,7 @@ def estimate_oem_command(
     from ._log import read_log
 
     _check_units(units)
+    _check_out(out, "folder")
     if shooting not in ("single", "multiple"):
         _fail(f"--shooting must be single or multiple, got {shooting!r}")
     try:
@@ -766,6 +920,7 @@ def estimate_nn_command(
     from ._log import read_log
 
     _check_units(units)
+    _check_out(out, "folder")
     try:
         flight = read_log(log, resample=resample)
         if model is None:
@@ -792,4 +947,8 @@ def main() -> None:
         app()
     except LogError as e:
         typer.echo(f"error: {e}", err=True)
+        sys.exit(2)
+    except OSError as e:
+        # a file the command reads or writes that the checks could not foresee
+        typer.echo(f"error: {_os_error(e)}", err=True)
         sys.exit(2)
