@@ -91,7 +91,9 @@ def _truth(k):
             x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
         xs.append(x)
     xs = np.array(xs)
-    acc = np.array([rates(xi, np.array([a, r]))[1] for xi, a, r in zip(xs, da, dr)])
+    acc = np.array(
+        [rates(xi, np.array([a, r]))[1] for xi, a, r in zip(xs, da, dr, strict=True)]
+    )
     # the measured accelerations carry output biases, not the state biases
     acc[:, 0] -= bx[0]
     acc[:, 1] -= bx[1]
@@ -134,7 +136,9 @@ def _np_outputs(theta, names, data):
     stages (the flight-test convention), `x0 = 0`."""
     theta = np.atleast_2d(theta)
     p = {n: theta[:, i] for i, n in enumerate(names)}
-    a = np.stack([np.stack([p["Lp"], p["Lr"]], -1), np.stack([p["Np"], p["Nr"]], -1)], 1)
+    a = np.stack(
+        [np.stack([p["Lp"], p["Lr"]], -1), np.stack([p["Np"], p["Nr"]], -1)], 1
+    )
     b = np.stack(
         [
             np.stack([p["Lda"], p["Ldr"], p["Lbeta"]], -1),
@@ -149,7 +153,7 @@ def _np_outputs(theta, names, data):
     for k, (t, u, _) in enumerate(data):
         bx = np.stack([p[f"bx_p_{k + 1}"], p[f"bx_r_{k + 1}"]], -1)
 
-        def f(x, uu):
+        def f(x, uu, bx=bx):
             return np.einsum("bij,bj->bi", a, x) + np.einsum("bij,j->bi", b, uu) + bx
 
         x = np.zeros((theta.shape[0], 2))

@@ -159,6 +159,9 @@ from ._vehicles import (  # noqa: E402
     lateral_record as lateral_record,
     read_lateral_asc as read_lateral_asc,
     sixdof_lateral_model as sixdof_lateral_model,
+    SIXDOF_LATERAL_INPUTS as SIXDOF_LATERAL_INPUTS,
+    SIXDOF_LATERAL_OUTPUTS as SIXDOF_LATERAL_OUTPUTS,
+    SIXDOF_LATERAL_STATES as SIXDOF_LATERAL_STATES,
 )
 
 

@@ -27,6 +27,7 @@ from ._inputs import AbstractInput, NoInput
 
 
 G = 9.80665  # m/s^2
+_NONE = NoInput()
 STATE_NAMES = ("u", "v", "w", "p", "q", "r", "phi", "theta", "psi", "x", "y", "h")
 LATERAL_DERIVATIVE_NAMES = (
     "CY_beta", "CY_p", "CY_r", "CY_da", "CY_dr",
@@ -223,10 +224,7 @@ def sixdof_evaluate(y, controls: Controls, aircraft: Aircraft):
     cl = a.CL0 + a.CLa * alpha
     cd = a.CD0 + a.CDa * alpha
     cm = (
-        a.Cm0
-        + a.Cma * alpha
-        + a.Cmq * q * a.c_ref / (2 * speed)
-        + a.Cmde * controls.de
+        a.Cm0 + a.Cma * alpha + a.Cmq * q * a.c_ref / (2 * speed) + a.Cmde * controls.de
     )
     cy, cr, cn = lateral_coefficients(
         a.lateral, beta, p, r, controls.da, controls.dr, speed, a.b_ref
@@ -241,9 +239,7 @@ def sixdof_evaluate(y, controls: Controls, aircraft: Aircraft):
         vel, omega, euler, force, moment, a.mass, a.inertia, jnp.zeros((3, 3)), G
     )
     ned_dot = body_to_earth(euler) @ vel
-    rates = jnp.concatenate(
-        [vel_dot, omega_dot, euler_dot, ned_dot[:2], -ned_dot[2:]]
-    )
+    rates = jnp.concatenate([vel_dot, omega_dot, euler_dot, ned_dot[:2], -ned_dot[2:]])
     specific = force / a.mass
     channels = {
         "u": u, "v": v, "w": w, "p": p, "q": q, "r": r,
@@ -299,24 +295,8 @@ def trim(aircraft: Aircraft, speed: float, altitude: float = 1000.0) -> Trim:
     return Trim(y=state(z), de=z[1], thrust=z[2])
 
 
-def simulate_sixdof(
-    aircraft: Aircraft,
-    start: Trim,
-    *,
-    aileron: AbstractInput = NoInput(),
-    rudder: AbstractInput = NoInput(),
-    elevator: AbstractInput = NoInput(),
-    t_final: float = 20.0,
-    dt: float = 0.02,
-) -> dict[str, np.ndarray]:
-    """A 6-DOF flight from the trim `start` with aileron, rudder and elevator
-    schedules added to the trim controls (rad; e.g. `doublet(...)`).
-
-    Classical RK4 at the sample step `dt` (s) with the inputs evaluated at the
-    stage times. **Returns:** channels of [`sixdof_evaluate`][] at the samples plus
-    `t`, each `(samples,)`; `da, dr, de` are the deflections applied.
-    """
-    n = int(round(t_final / dt)) + 1
+@eqx.filter_jit
+def _simulate(aircraft, start, aileron, rudder, elevator, dt, n):
     ts = dt * jnp.arange(n)
 
     def controls(t):
@@ -338,17 +318,32 @@ def simulate_sixdof(
         y1 = y + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
         return y1, y1
 
-    @jax.jit
-    def run(y0):
-        _, ys = jax.lax.scan(step, y0, ts[:-1])
-        ys = jnp.concatenate([y0[None], ys])
-        return jax.vmap(lambda t, y: sixdof_evaluate(y, controls(t), aircraft)[1])(
-            ts, ys
-        )
+    _, ys = jax.lax.scan(step, start.y, ts[:-1])
+    ys = jnp.concatenate([start.y[None], ys])
+    out = jax.vmap(lambda t, y: sixdof_evaluate(y, controls(t), aircraft)[1])(ts, ys)
+    return {**out, "t": ts}
 
-    out = {k: np.asarray(v) for k, v in run(start.y).items()}
-    out["t"] = np.asarray(ts)
-    return out
+
+def simulate_sixdof(
+    aircraft: Aircraft,
+    start: Trim,
+    *,
+    aileron: AbstractInput = _NONE,
+    rudder: AbstractInput = _NONE,
+    elevator: AbstractInput = _NONE,
+    t_final: float = 20.0,
+    dt: float = 0.02,
+) -> dict[str, np.ndarray]:
+    """A 6-DOF flight from the trim `start` with aileron, rudder and elevator
+    schedules added to the trim controls (rad; e.g. `doublet(...)`).
+
+    Classical RK4 at the sample step `dt` (s) with the inputs evaluated at the
+    stage times. **Returns:** channels of [`sixdof_evaluate`][] at the samples plus
+    `t`, each `(samples,)`; `da, dr, de` are the deflections applied.
+    """
+    n = int(round(t_final / dt)) + 1
+    out = _simulate(aircraft, start, aileron, rudder, elevator, dt, n)
+    return {k: np.asarray(v) for k, v in out.items()}
 
 
 def linearise(aircraft: Aircraft, start: Trim):

@@ -9,5 +9,8 @@ from ._lateral import (
     lateral_record as lateral_record,
     read_lateral_asc as read_lateral_asc,
     sixdof_lateral_model as sixdof_lateral_model,
+    SIXDOF_LATERAL_INPUTS as SIXDOF_LATERAL_INPUTS,
+    SIXDOF_LATERAL_OUTPUTS as SIXDOF_LATERAL_OUTPUTS,
+    SIXDOF_LATERAL_STATES as SIXDOF_LATERAL_STATES,
 )
 from ._registry import vehicle_spec as vehicle_spec, VEHICLES as VEHICLES
