@@ -31,6 +31,12 @@ them). This is exact, not an approximation: a per-record parameter is a shared
 parameter times a per-record constant input. (Per-manoeuvre output biases instead:
 `output_biases=False` and `fit(..., biases=LATERAL_OUTPUTS)`.)
 
+*Sideslip as a state* (`sideslip="state"`): output error takes inputs as exact, so
+a noisy sideslip vane biases the derivatives (measured in the README: 6 standard
+errors on `Ndr` with 1e-3 rad of noise). The variant makes `beta` and the bank angle
+`phi` states driven by the modelled side force, linearised about a reference flight
+`(V, alpha, theta)`, and outputs: same 15 derivatives, two more output biases.
+
 **The nonlinear lateral model** ([`sixdof_lateral_model`][]): the 6-DOF side-force
 and moment equations of [`rigid_body_rates`][] with the measured longitudinal
 motion `u, w, q, theta` as pseudo-inputs; states `v, p, r, phi`; the 15 coefficient
@@ -96,9 +102,19 @@ def _state_bias_names(manoeuvres: int) -> tuple[str, ...]:
     return tuple(f"bx_{s}_{k}" for k in range(1, manoeuvres + 1) for s in ("p", "r"))
 
 
-def _linear_rates_and_outputs(x, u, p, manoeuvres, state_biases, output_biases):
-    roll, yaw = x[0], x[1]
-    da, dr, beta = u[0], u[1], u[2]
+def _linear_rates_and_outputs(x, u, p, setup):
+    """State rates and outputs of the linear model; `setup` holds the static
+    choices `(manoeuvres, state_biases, output_biases, flight)`, `flight` the
+    `(speed, alpha, theta)` of the sideslip-as-state variant or None."""
+    manoeuvres, state_biases, output_biases, flight = setup
+    if flight is None:
+        roll, yaw = x[0], x[1]
+        da, dr, beta = u[0], u[1], u[2]
+        n_known = 3
+    else:
+        beta, roll, yaw, phi = x[0], x[1], x[2], x[3]
+        da, dr = u[0], u[1]
+        n_known = 2
 
     def row(k):
         return (
@@ -115,14 +131,33 @@ def _linear_rates_and_outputs(x, u, p, manoeuvres, state_biases, output_biases):
         if manoeuvres == 1:
             bx = jnp.stack([p["bx_p"], p["bx_r"]])
         else:
-            which = u[3 : 3 + manoeuvres]
+            which = u[n_known : n_known + manoeuvres]
             bp = jnp.stack([p[f"bx_p_{k}"] for k in range(1, manoeuvres + 1)])
             br = jnp.stack([p[f"bx_r_{k}"] for k in range(1, manoeuvres + 1)])
             bx = jnp.stack([jnp.dot(which, bp), jnp.dot(which, br)])
-    y = jnp.stack([pdot, rdot, ay, roll, yaw])
+    y = [pdot, rdot, ay, roll, yaw]
+    if flight is None:
+        rates = jnp.stack([pdot, rdot]) + bx
+    else:
+        speed, alpha, theta = flight
+        # the side-force equation linearised about wings-level flight at
+        # (speed, alpha, theta): m V betadot = m ay + m g cos(theta) phi + ...
+        betadot = (
+            (ay + G * np.cos(theta) * phi) / speed
+            + roll * np.sin(alpha)
+            - yaw * np.cos(alpha)
+        )
+        phidot = roll + yaw * np.tan(theta)
+        rates = jnp.stack([betadot, pdot + bx[0], rdot + bx[1], phidot])
+        y += [beta, phi]
+    y = jnp.stack(y)
     if output_biases:
-        y = y + jnp.stack([p["by_" + name] for name in LATERAL_OUTPUTS])
-    return jnp.stack([pdot, rdot]) + bx, y
+        y = y + jnp.stack([p["by_" + name] for name in _outputs(flight)])
+    return rates, y
+
+
+def _outputs(flight):
+    return LATERAL_OUTPUTS if flight is None else LATERAL_OUTPUTS + ("beta", "phi")
 
 
 def lateral_model(
@@ -130,6 +165,8 @@ def lateral_model(
     manoeuvres: int = 1,
     state_biases: bool = True,
     output_biases: bool = True,
+    sideslip: str = "input",
+    flight: tuple[float, float, float] | None = None,
     start: dict | None = None,
     fixed: Sequence[str] = (),
 ) -> Model:
@@ -140,53 +177,75 @@ def lateral_model(
     - `manoeuvres`: how many records are fitted together; above 1 each gets its own
       state biases, selected by the inputs `manoeuvre_k`.
     - `state_biases`: estimate `bx_p, bx_r` (per manoeuvre); with them records must
-      start from `x0 = 0`.
-    - `output_biases`: estimate `by_pdot, by_rdot, by_ay, by_p, by_r` (shared).
+      start from `x0 = 0` (with `sideslip="state"`, from the initial sideslip and
+      bank angle and zero rates: [`lateral_record`][] does both).
+    - `output_biases`: estimate `by_pdot, by_rdot, by_ay, by_p, by_r` (and `by_beta,
+      by_phi` with `sideslip="state"`), shared by all manoeuvres.
+    - `sideslip`: `"input"` (measured sideslip drives the model, as in the book) or
+      `"state"`: sideslip and bank angle become states, driven by the modelled side
+      force, `betadot = (ay + g cos(theta) phi) / V + p sin(alpha) - r cos(alpha)`,
+      `phidot = p + r tan(theta)`; use it when the sideslip measurement is noisy
+      (output error takes inputs as exact).
+    - `flight`: `(V m/s, alpha rad, theta rad)` of the reference flight, required
+      with `sideslip="state"`.
     - `start`: start values by name (default the book's; biases 0.02).
     - `fixed`: names of parameters held at their start values.
 
-    **Returns:** a [`Model`][] with states `p, r`, inputs `da, dr, beta` (then
-    `manoeuvre_1..n` if `manoeuvres > 1`) and outputs `pdot, rdot, ay, p, r`.
+    **Returns:** a [`Model`][] with states `p, r`, inputs `da, dr, beta` and outputs
+    `pdot, rdot, ay, p, r`; with `sideslip="state"`, states `beta, p, r, phi`, inputs
+    `da, dr` and outputs `pdot, rdot, ay, p, r, beta, phi`; then the selector inputs
+    `manoeuvre_1..n` if `manoeuvres > 1`.
     """
     if manoeuvres < 1:
         raise ValueError(f"manoeuvres must be at least 1, got {manoeuvres}")
+    if sideslip not in ("input", "state"):
+        raise ValueError(f"sideslip must be 'input' or 'state', got {sideslip!r}")
+    if sideslip == "state":
+        if flight is None:
+            raise ValueError(
+                "sideslip='state' needs flight=(V m/s, alpha rad, theta rad) of the "
+                "reference flight"
+            )
+        flight = tuple(float(f) for f in flight)
+    else:
+        flight = None
     names = list(LATERAL_DERIVATIVES)
     if state_biases:
         names += _state_bias_names(manoeuvres)
     if output_biases:
-        names += ["by_" + name for name in LATERAL_OUTPUTS]
+        names += ["by_" + name for name in _outputs(flight)]
     values = {n: LATERAL_START.get(n, BIAS_START) for n in names}
     for k, v in (start or {}).items():
         if k not in values:
             raise ValueError(f"{k!r} is not a parameter of this model: {names}")
         values[k] = float(v)
-    inputs = LATERAL_INPUTS
+    inputs = LATERAL_INPUTS if flight is None else LATERAL_INPUTS[:2]
     if manoeuvres > 1:
         inputs = inputs + tuple(f"manoeuvre_{k}" for k in range(1, manoeuvres + 1))
+    setup = (manoeuvres, state_biases, output_biases, flight)
 
     def rates(t, x, u, p):
         del t
-        return _linear_rates_and_outputs(
-            x, u, p, manoeuvres, state_biases, output_biases
-        )[0]
+        return _linear_rates_and_outputs(x, u, p, setup)[0]
 
     def observe(t, x, u, p):
         del t
-        return _linear_rates_and_outputs(
-            x, u, p, manoeuvres, state_biases, output_biases
-        )[1]
+        return _linear_rates_and_outputs(x, u, p, setup)[1]
 
-    # typical p, r of a lateral manoeuvre (rad/s), so that multiple shooting does
-    # not take the scale of the zero initial state
+    # typical magnitudes of a lateral manoeuvre (rad/s, rad), so that multiple
+    # shooting does not take the scale of the zero initial state
+    states, scale = ("p", "r"), (0.05, 0.05)
+    if flight is not None:
+        states, scale = ("beta", "p", "r", "phi"), (0.02, 0.05, 0.05, 0.05)
     return Model(
-        states=("p", "r"),
+        states=states,
         inputs=inputs,
-        outputs=LATERAL_OUTPUTS,
+        outputs=_outputs(flight),
         parameters=values,
         rates=rates,
         observe=observe,
         fixed=tuple(fixed),
-        state_scale=(0.05, 0.05),
+        state_scale=scale,
     )
 
 
@@ -200,14 +259,19 @@ def lateral_record(
     name: str = "record",
 ) -> Record:
     """A [`Record`][] for a [`lateral_model`][]: `inputs` `(samples, 3)` are `da, dr,
-    beta` (rad), `measured` `(samples, 5)` are `pdot, rdot, ay, p, r` (rad/s^2,
-    m/s^2, rad/s). Appends the `manoeuvre_k` selector columns when the model has
-    them (`manoeuvre` counts from 1) and starts from `x0 = 0` when the model has
-    state biases (else from the measured `p, r`)."""
+    beta` (rad; `da, dr` only with the sideslip a state), `measured` are the
+    model's outputs `pdot, rdot, ay, p, r` (rad/s^2, m/s^2, rad/s; then `beta, phi`,
+    rad). Appends the `manoeuvre_k` selector columns when the model has them
+    (`manoeuvre` counts from 1). With state biases the rates start from zero (the
+    biases absorb their initial values) and sideslip and bank angle from their
+    first measured sample; without, every state starts from its first measurement.
+    """
     inputs = np.asarray(inputs, float)
-    if inputs.ndim != 2 or inputs.shape[1] != 3:
+    known = [n for n in model.inputs if not n.startswith("manoeuvre_")]
+    if inputs.ndim != 2 or inputs.shape[1] != len(known):
         raise ValueError(
-            f"inputs must be (samples, 3): da, dr, beta; got {inputs.shape}"
+            f"inputs must be (samples, {len(known)}): {', '.join(known)}; got "
+            f"{inputs.shape}"
         )
     extra = [n for n in model.inputs if n.startswith("manoeuvre_")]
     if extra:
@@ -218,8 +282,13 @@ def lateral_record(
         select = np.zeros((len(inputs), len(extra)))
         select[:, manoeuvre - 1] = 1.0
         inputs = np.concatenate([inputs, select], axis=1)
-    lumped = any(p.startswith("bx_") for p in model.parameters)
-    x0 = np.zeros(2) if lumped else None
+    x0 = None
+    if any(p.startswith("bx_") for p in model.parameters):
+        measured = np.asarray(measured, float)
+        x0 = np.zeros(len(model.states))
+        for k, s in enumerate(model.states):
+            if s in ("beta", "phi"):
+                x0[k] = measured[0, model.outputs.index(s)]
     return Record(t, inputs, measured, x0=x0, name=name)
 
 
