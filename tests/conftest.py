@@ -1,4 +1,6 @@
 import os
+import shutil
+import tempfile
 
 
 # Two CPU devices, so the sharded paths run sharded (set before JAX's backend starts).
@@ -7,8 +9,28 @@ if "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", "")
         os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=2"
     ).strip()
 
+# One persistent compilation cache per test run, shared by the pytest-xdist workers
+# (and the commands the tests start as subprocesses): a program several workers use
+# is compiled once, not once per worker. The controller imports this file first and
+# the workers inherit its environment; a folder the user set is used and kept.
+_CREATED_CACHE = None
+if not os.environ.get("JAX_COMPILATION_CACHE_DIR") and not os.environ.get(
+    "DIFFPEGASUS_NO_CACHE"
+):
+    _CREATED_CACHE = tempfile.mkdtemp(prefix="diffpegasus-test-jax-cache-")
+    os.environ["JAX_COMPILATION_CACHE_DIR"] = _CREATED_CACHE
+
 import jax  # noqa: E402
+
+from diffpegasus._cache import enable_cache  # noqa: E402
 
 
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_rank_promotion", "raise")
+enable_cache()
+
+
+def pytest_unconfigure(config):
+    # only the process that made the folder (the controller) removes it
+    if _CREATED_CACHE is not None and not hasattr(config, "workerinput"):
+        shutil.rmtree(_CREATED_CACHE, ignore_errors=True)

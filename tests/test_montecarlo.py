@@ -2,6 +2,7 @@
 
 import csv
 import dataclasses
+import io
 import json
 
 import jax
@@ -157,3 +158,50 @@ def test_draws_of_a_flight_do_not_depend_on_the_campaign_size():
     assert np.all(np.abs(np.asarray(pert.thrust) - 1) <= 0.2)
     assert np.all(np.abs(np.asarray(pert.cg_shift)) <= 0.5)
     assert np.all(np.abs(np.asarray(pert.mass) - 1) <= 0.05)
+
+
+@pytest.mark.parametrize(
+    "damage",
+    [
+        lambda b: b[: len(b) // 2],  # a copy cut short
+        lambda b: b"not a chunk at all",  # garbage
+        lambda b: b.replace(b"values", b"vxlues", 1),  # a file without its values
+    ],
+    ids=["truncated", "garbage", "missing-array"],
+)
+def test_damaged_chunk_is_reported_and_computed_again(campaign, capsys, damage):
+    out, summary = campaign
+    path = out / "chunks" / "lse" / "0001.npz"
+    good = np.load(path)["values"]
+    path.write_bytes(damage(path.read_bytes()))
+    # reading the results names the file, and never suggests unpickling
+    with pytest.raises(ValueError, match="0001.npz: damaged campaign chunk") as e:
+        mc.load_results(SMALL, out)
+    assert "pickle" not in str(e.value)
+    capsys.readouterr()
+    again = mc.run_campaign(SMALL, out, progress=False)
+    err = capsys.readouterr().err
+    assert f"damaged campaign chunk {path}" in err and "computing it again" in err
+    np.testing.assert_array_equal(np.load(path)["values"], good)
+    assert again["means"] == summary["means"]
+
+
+def test_chunk_of_another_chunk_is_computed_again(campaign, capsys):
+    out, _ = campaign
+    path = out / "chunks" / "lse" / "0000.npz"
+    good = path.read_bytes()
+    path.write_bytes((out / "chunks" / "lse" / "0001.npz").read_bytes())
+    mc.run_campaign(SMALL, out, progress=False)
+    assert "are not those of chunk 0" in capsys.readouterr().err
+    assert path.read_bytes() != (out / "chunks" / "lse" / "0001.npz").read_bytes()
+    np.testing.assert_array_equal(
+        np.load(path)["values"], np.load(io.BytesIO(good))["values"]
+    )
+
+
+def test_damaged_manifest_names_the_file(tmp_path):
+    (tmp_path / "campaign.json").write_text('{"samples": 3, ')
+    with pytest.raises(ValueError, match="campaign.json is damaged") as e:
+        mc.run_campaign(SMALL, tmp_path, progress=False)
+    assert str(tmp_path / "campaign.json") in str(e.value)
+    assert "another --out" in str(e.value)

@@ -553,40 +553,99 @@ def montecarlo(
     nn_epochs: Annotated[
         int, typer.Option(help="Maximum training epochs of the network")
     ] = 1000,
+    processes: Annotated[
+        int,
+        typer.Option(
+            help="Run the campaign in N processes on this machine (the cores "
+            "shared out among them), coordinated by jax.distributed on 127.0.0.1"
+        ),
+    ] = 1,
+    coordinator: Annotated[
+        str | None,
+        typer.Option(
+            help="Several hosts: HOST:PORT of process 0's coordination service (the "
+            "same on every host), with --num-processes and --process-id; `auto` to "
+            "take all three from SLURM, Open MPI, ... (jax.distributed.initialize)"
+        ),
+    ] = None,
+    num_processes: Annotated[
+        int | None, typer.Option(help="Several hosts: how many processes in all")
+    ] = None,
+    process_id: Annotated[
+        int | None, typer.Option(help="Several hosts: this process's index, 0..N-1")
+    ] = None,
 ):
     """Monte Carlo comparison of LSE, NN+LSE and OEM on perturbed flights (thesis
     chapter 6): per-flight MSE, tables beside the thesis, box plots, coverage and
-    wall times in --out. Interrupted runs resume without recomputing."""
+    wall times in --out. Interrupted runs resume without recomputing; damaged chunk
+    files are reported and computed again. With --processes, or --coordinator on
+    several hosts, the processes share the chunks out and process 0 writes the
+    summary."""
     import os
 
-    # one CPU device per core, before JAX starts its backend
-    flag = f"--xla_force_host_platform_device_count={os.cpu_count()}"
-    if "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
-        os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {flag}".strip()
-    import jax
+    from ._montecarlo import launch_local, start_distributed
 
-    from ._montecarlo import Campaign, run_campaign
+    if processes < 1:
+        _fail(f"--processes must be at least 1, got {processes}")
+    if processes > 1:
+        if coordinator is not None:
+            _fail("use either --processes (one machine) or --coordinator (hosts)")
+        args = [
+            f"--samples={samples}",
+            f"--methods={methods}",
+            f"--seed={seed}",
+            f"--out={out}",
+            f"--batch={batch}",
+            f"--duration={duration!r}",
+            f"--sample-rate={sample_rate!r}",
+            f"--nn-epochs={nn_epochs}",
+        ]
+        try:
+            launch_local(["montecarlo", *args], processes)
+        except (ValueError, OSError) as e:
+            _fail(str(e))
+        summary = json.loads((out / "summary.json").read_text())
+    else:
+        # one CPU device per core (or per core of this process's share), before
+        # JAX starts its backend
+        if "xla_force_host_platform_device_count" not in os.environ.get(
+            "XLA_FLAGS", ""
+        ):
+            flag = f"--xla_force_host_platform_device_count={os.cpu_count()}"
+            os.environ["XLA_FLAGS"] = (
+                f"{os.environ.get('XLA_FLAGS', '')} {flag}".strip()
+            )
+        try:
+            start_distributed(coordinator, num_processes, process_id)
+        except (ValueError, RuntimeError) as e:
+            _fail(str(e))
+        import jax
 
-    devices = len(jax.devices())
-    if batch % devices:
-        batch = -(-batch // devices) * devices
-        typer.echo(
-            f"--batch rounded up to {batch}, a multiple of the {devices} devices"
-        )
-    try:
-        campaign = Campaign(
-            samples=samples,
-            methods=tuple(m.strip() for m in methods.split(",") if m.strip()),
-            seed=seed,
-            batch=batch,
-            t_final=duration,
-            sample_rate=sample_rate,
-            decimate=max(1, int(round(sample_rate / 200.0))),
-            nn_epochs=nn_epochs,
-        )
-        summary = run_campaign(campaign, out)
-    except ValueError as e:
-        _fail(str(e))
+        from ._montecarlo import Campaign, run_campaign
+
+        devices = len(jax.local_devices())
+        if batch % devices:
+            batch = -(-batch // devices) * devices
+            typer.echo(
+                f"--batch rounded up to {batch}, a multiple of the {devices} devices",
+                err=True,
+            )
+        try:
+            campaign = Campaign(
+                samples=samples,
+                methods=tuple(m.strip() for m in methods.split(",") if m.strip()),
+                seed=seed,
+                batch=batch,
+                t_final=duration,
+                sample_rate=sample_rate,
+                decimate=max(1, int(round(sample_rate / 200.0))),
+                nn_epochs=nn_epochs,
+            )
+            summary = run_campaign(campaign, out)
+        except (ValueError, OSError) as e:
+            _fail(str(e))
+        if jax.process_index() != 0:
+            return  # process 0 prints the tables
     typer.echo((out / "tables.md").read_text())
     if "oem_coverage_2sigma" in summary:
         cov = summary["oem_coverage_2sigma"]["overall"]
@@ -943,6 +1002,19 @@ def estimate_nn_command(
 
 def main() -> None:
     """Entry point of the `diffpegasus` script."""
+    import os
+
+    from ._cache import enable_cache
+
+    # `--no-cache` anywhere on the line (before a `--`) is the same as
+    # DIFFPEGASUS_NO_CACHE=1: no persistent compilation cache for this run
+    args = sys.argv[1:]
+    end = args.index("--") if "--" in args else len(args)
+    if "--no-cache" in args[:end]:
+        sys.argv = [sys.argv[0], *(a for a in args[:end] if a != "--no-cache")]
+        sys.argv += args[end:]
+        os.environ["DIFFPEGASUS_NO_CACHE"] = "1"
+    enable_cache()
     try:
         app()
     except LogError as e:

@@ -7,7 +7,14 @@ sharded over the devices (`jax.sharding`, see `_sharding.py`). Each result is sa
 as `chunks/<method>/<chunk>.npz` the moment it exists, so an interrupted campaign
 resumes where it stopped and a rerun with the same settings recomputes nothing; the
 draws depend on the seed and the flight index only (not on `batch`), so the same seed
-gives the same numbers.
+gives the same numbers. A chunk file that cannot be read back (truncated, garbage, or
+from another campaign) is reported on stderr with its path and computed again.
+
+Several processes (on one machine or many hosts, after `jax.distributed.initialize()`)
+run one campaign into a shared folder: process 0 checks the folder and trains the
+network, every process then takes the next chunk not yet taken (a counter in JAX's
+coordination service) and computes it on its own devices, and process 0 writes the
+summary once all chunks exist.
 
 MSE of a flight and method: the mean over the counted windows with an estimate of
 their own of (estimate - truth)^2 per degree, truth being the true derivative
@@ -23,7 +30,9 @@ import json
 import math
 import os
 import pathlib
+import sys
 import time
+import zipfile
 
 import equinox as eqx
 import jax
@@ -213,17 +222,28 @@ def _save(path: pathlib.Path, **arrays) -> None:
     os.replace(tmp, path)
 
 
-def _check_manifest(out: pathlib.Path, campaign: Campaign) -> None:
+def _check_manifest(out: pathlib.Path, campaign: Campaign, create: bool = True) -> None:
     path = out / "campaign.json"
     ident = campaign.identity()
     if path.exists():
-        old = json.loads(path.read_text())
+        try:
+            old = json.loads(path.read_text())
+            if not isinstance(old, dict):
+                raise ValueError("not a JSON object")
+        except (OSError, UnicodeDecodeError, ValueError) as e:
+            raise ValueError(
+                f"{path} is damaged ({e}), so the results beside it cannot be checked "
+                "against the settings; use another --out, or delete the folder to "
+                "start the campaign again"
+            ) from None
         if old != ident:
             diff = {k: (old.get(k), v) for k, v in ident.items() if old.get(k) != v}
             raise ValueError(
                 f"{out} holds a campaign with other settings {diff} (old, new); "
                 "use another --out or delete it"
             )
+    elif not create:
+        raise ValueError(f"{path} is missing (process 0 writes it)")
     else:
         if (out / "chunks").exists():
             raise ValueError(
@@ -231,7 +251,219 @@ def _check_manifest(out: pathlib.Path, campaign: Campaign) -> None:
                 "against; use another --out or delete it"
             )
         out.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(ident, indent=2))
+        tmp = path.with_suffix(".json.tmp")
+        tmp.write_text(json.dumps(ident, indent=2))
+        os.replace(tmp, path)
+
+
+# Errors numpy raises on a chunk file that is not a complete .npz of plain arrays.
+_READ_ERRORS = (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile)
+_CHUNK_KEYS = {
+    "lse": ("values", "stderr", "valid", "seconds", "flight", "truth", "qbar"),
+    "nn": ("values", "stderr", "valid", "seconds", "flight", "truth", "qbar"),
+    "oem": (
+        "values",
+        "stderr",
+        "valid",
+        "seconds",
+        "flight",
+        "truth",
+        "qbar",
+        "converged",
+        "iterations",
+    ),
+}
+
+
+def _read_chunk(path: pathlib.Path, method: str) -> dict[str, np.ndarray]:
+    """The arrays of a chunk file; `ValueError` naming the file if it is damaged
+    (never unpickles: a chunk holds plain arrays only)."""
+    try:
+        with open(path, "rb") as f:
+            if f.read(4) != b"PK\x03\x04":
+                # numpy would take it for a pickle and suggest loading it unsafely
+                raise ValueError("not an .npz archive")
+        with np.load(path, allow_pickle=False) as f:
+            arrays = {k: f[k] for k in f.files}
+    except _READ_ERRORS as e:
+        reason = str(e) if "pickle" not in str(e) else "not arrays only"
+        raise ValueError(f"{path}: damaged campaign chunk ({reason})") from None
+    missing = [k for k in _CHUNK_KEYS[method] if k not in arrays]
+    if missing:
+        raise ValueError(
+            f"{path}: damaged campaign chunk (no {', '.join(missing)})"
+        ) from None
+    return arrays
+
+
+def _chunk_problem(
+    path: pathlib.Path, method: str, campaign: Campaign, c: int, windows: int
+) -> str | None:
+    """Why the chunk file `path` cannot be used (`None` if it can)."""
+    try:
+        arrays = _read_chunk(path, method)
+    except ValueError as e:
+        return str(e).split(": ", 1)[1]
+    shape = (campaign.batch, windows, 6)
+    if arrays["values"].shape != shape or arrays["stderr"].shape != shape:
+        return f"values of shape {arrays['values'].shape}, expected {shape}"
+    if not np.array_equal(arrays["flight"], campaign.flight_indices(c)):
+        return f"flights {arrays['flight'].tolist()} are not those of chunk {c}"
+    return None
+
+
+class _Processes:
+    """This process's share of a campaign: its index among the processes, the next
+    chunk to compute (a counter shared through JAX's coordination service when
+    there are several processes) and barriers."""
+
+    # a barrier waits for the slowest process's chunks: up to a week
+    TIMEOUT_MS = 7 * 24 * 3600 * 1000
+
+    def __init__(self):
+        self.count = jax.process_count()
+        self.index = jax.process_index()
+        self._next = 0
+        self._client = None
+        if self.count > 1:
+            from jax._src import distributed
+
+            self._client = distributed.global_state.client
+
+    def next_chunk(self) -> int:
+        if self._client is None:
+            self._next += 1
+            return self._next - 1
+        return self._client.key_value_increment("diffpegasus/campaign/next", 1) - 1
+
+    def barrier(self, name: str) -> None:
+        if self._client is not None:
+            self._client.wait_at_barrier(
+                f"diffpegasus/campaign/{name}", self.TIMEOUT_MS
+            )
+
+
+def _note(message: str) -> None:
+    sys.stderr.write(f"{message}\n")
+    sys.stderr.flush()
+
+
+def _warn(message: str) -> None:
+    _note(f"warning: {message}")
+
+
+def start_distributed(
+    coordinator: str | None, num_processes: int | None, process_id: int | None
+) -> None:
+    """`jax.distributed.initialize` for a campaign run by several processes (call
+    before JAX's first computation); nothing when all three are `None`.
+
+    **Arguments:** `coordinator`, `HOST:PORT` of process 0's coordination service
+    (the same for every process; on `127.0.0.1` or `localhost` it listens there
+    only), or `auto` to take all three from the cluster's environment (SLURM, Open
+    MPI, ...; see `jax.distributed.initialize`); `num_processes`; `process_id` in
+    `0 .. num_processes - 1`.
+    """
+    if coordinator is None and num_processes is None and process_id is None:
+        return
+    if coordinator == "auto":
+        jax.distributed.initialize()
+        return
+    if coordinator is None or num_processes is None or process_id is None:
+        raise ValueError(
+            "several processes need all of --coordinator HOST:PORT, "
+            "--num-processes N and --process-id I (or --coordinator auto)"
+        )
+    host, _, port = coordinator.rpartition(":")
+    if not host or not port.isdigit():
+        raise ValueError(f"--coordinator must be HOST:PORT, got {coordinator!r}")
+    if num_processes < 1 or not 0 <= process_id < num_processes:
+        raise ValueError(
+            f"--process-id must be in 0..{num_processes - 1} with --num-processes "
+            f"{num_processes}, got {process_id}"
+        )
+    local = host in ("127.0.0.1", "localhost")
+    jax.distributed.initialize(
+        coordinator_address=coordinator,
+        num_processes=num_processes,
+        process_id=process_id,
+        coordinator_bind_address=f"127.0.0.1:{port}" if local else None,
+    )
+
+
+def launch_local(argv: list[str], processes: int) -> None:
+    """Run `diffpegasus <argv>` as `processes` coordinated processes on this machine
+    (coordination service on 127.0.0.1, the CPU cores shared out unless `XLA_FLAGS`
+    sets the device count) and wait for all of them; if one fails the others are
+    stopped and `ValueError` says which (a rerun resumes the campaign)."""
+    import socket
+    import subprocess
+
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    env = dict(os.environ)
+    if "xla_force_host_platform_device_count" not in env.get("XLA_FLAGS", ""):
+        per = max(1, (os.cpu_count() or 1) // processes)
+        flag = f"--xla_force_host_platform_device_count={per}"
+        env["XLA_FLAGS"] = f"{env.get('XLA_FLAGS', '')} {flag}".strip()
+    children = [
+        subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "diffpegasus",
+                *argv,
+                f"--coordinator=127.0.0.1:{port}",
+                f"--num-processes={processes}",
+                f"--process-id={i}",
+            ],
+            env=env,
+            stdout=subprocess.DEVNULL,  # process 0's summary is printed by the caller
+        )
+        for i in range(processes)
+    ]
+    failed = None
+    try:
+        while failed is None and any(p.poll() is None for p in children):
+            failed = next(
+                (i for i, p in enumerate(children) if p.poll() not in (None, 0)), None
+            )
+            time.sleep(0.2)
+        if failed is None:
+            failed = next((i for i, p in enumerate(children) if p.returncode), None)
+    finally:
+        for p in children:
+            if p.poll() is None:
+                p.terminate()
+        for p in children:
+            p.wait()
+    if failed is not None:
+        raise ValueError(
+            f"campaign process {failed} of {processes} failed (exit code "
+            f"{children[failed].returncode}, messages above); the others were "
+            "stopped; run the same command again to resume"
+        )
+
+
+def _network(campaign: Campaign, out: pathlib.Path, record):
+    """The campaign's network: read from `network.eqx`, else trained and saved
+    (also when the file is damaged: training is seeded, so it gives the same one)."""
+    net_path = out / "network.eqx"
+    if net_path.exists():
+        try:
+            return load_network(net_path)
+        except Exception as e:  # any failure to read it back: train it again
+            _warn(f"{net_path} is damaged ({type(e).__name__}: {e}); training again")
+    t0 = time.perf_counter()
+    net, _ = train_network(
+        training_logs(campaign.t_final, campaign.sample_rate),
+        jax.random.key(campaign.seed),
+        max_epochs=campaign.nn_epochs,
+    )
+    save_network(net_path, net)
+    record("nn_training", time.perf_counter() - t0)
+    return net
 
 
 def run_campaign(
@@ -239,40 +471,56 @@ def run_campaign(
 ) -> dict:
     """Run (or resume) a campaign into `out` and write its tables and figures.
 
+    Run by several processes after `jax.distributed.initialize()` (all with the same
+    `campaign` and a shared `out`), each computes the chunks it takes on its own
+    devices and process 0 writes the reports.
+
     **Returns:** the summary dict also written as `summary.json`.
     """
     from tqdm.auto import tqdm
 
+    group = _Processes()
     out = pathlib.Path(out)
-    _check_manifest(out, campaign)
+    if group.index == 0:
+        _check_manifest(out, campaign)
+    group.barrier("manifest")
+    if group.index != 0:
+        _check_manifest(out, campaign, create=False)
     keys, perturbations = draws(campaign)
     config = campaign.config
     n_samples = len(config.times)
     layout = WindowLayout.make(n_samples, campaign.sample_rate, campaign.window)
     s_ref, c_ref = config.vehicle.s_ref, config.vehicle.c_ref
+    timings = out / (
+        "timings.jsonl" if group.index == 0 else f"timings-p{group.index}.jsonl"
+    )
 
     def record(stage, seconds):
         # appended as it happens, so the wall times survive interruptions and resumes
-        with open(out / "timings.jsonl", "a") as f:
+        with open(timings, "a") as f:
             f.write(json.dumps({"stage": stage, "seconds": seconds}) + "\n")
 
     net = None
     if "nn" in campaign.methods:
-        net_path = out / "network.eqx"
-        if net_path.exists():
-            net = load_network(net_path)
-        else:
-            t0 = time.perf_counter()
-            net, _ = train_network(
-                training_logs(campaign.t_final, campaign.sample_rate),
-                jax.random.key(campaign.seed),
-                max_epochs=campaign.nn_epochs,
-            )
-            save_network(net_path, net)
-            record("nn_training", time.perf_counter() - t0)
+        if group.index == 0:
+            net = _network(campaign, out, record)
+        group.barrier("network")
+        if group.index != 0:
+            net = load_network(out / "network.eqx")
 
     def chunk_path(method, c):
         return out / "chunks" / method / f"{c:04d}.npz"
+
+    def usable(method, c):
+        path = chunk_path(method, c)
+        if not path.exists():
+            return False
+        problem = _chunk_problem(path, method, campaign, c, layout.count)
+        if problem is None:
+            return True
+        _warn(f"damaged campaign chunk {path} ({problem}); computing it again")
+        path.unlink()
+        return False
 
     def finish(method, c, t0, values, stderr, valid, **arrays):
         seconds = time.perf_counter() - t0
@@ -294,13 +542,13 @@ def run_campaign(
             desc=f"{s:>8s}",
             unit="chunk",
             position=i,
-            disable=not progress,
+            disable=not progress or group.count > 1,
             leave=True,
         )
         for i, s in enumerate(stages)
     }
-    for c in range(campaign.chunks):
-        missing = [m for m in campaign.methods if not chunk_path(m, c).exists()]
+    while (c := group.next_chunk()) < campaign.chunks:
+        missing = [m for m in campaign.methods if not usable(m, c)]
         for m in campaign.methods:
             if m not in missing:
                 bars[m].update()
@@ -322,8 +570,8 @@ def run_campaign(
         common = dict(flight=idx, truth=truth, qbar=qbar)
         lse_values = None
         if "lse" in missing or "oem" in missing:
-            if chunk_path("lse", c).exists():
-                lse_values = np.load(chunk_path("lse", c))["values"]
+            if "lse" not in missing and "lse" in campaign.methods:
+                lse_values = _read_chunk(chunk_path("lse", c), "lse")["values"]
             else:
                 t0 = time.perf_counter()
                 v, sd, ok = jax.block_until_ready(
@@ -355,11 +603,19 @@ def run_campaign(
                 map_over_devices(_oem_chunk, stacked)
             )
             finish("oem", c, t0, v, sd, ok, converged=conv, iterations=its, **common)
+        if group.count > 1:
+            _note(f"process {group.index}: chunk {c} of {campaign.chunks} done")
         del flights, channels
     for b in bars.values():
         b.close()
-    start, _ = layout.times(0.0)
-    return write_reports(campaign, out, np.asarray(start))
+    group.barrier("chunks")
+    if group.index == 0:
+        start, _ = layout.times(0.0)
+        summary = write_reports(campaign, out, np.asarray(start))
+    group.barrier("reports")
+    if group.index != 0:
+        summary = json.loads((out / "summary.json").read_text())
+    return summary
 
 
 def load_results(campaign: Campaign, out: pathlib.Path) -> dict[str, dict]:
@@ -367,7 +623,7 @@ def load_results(campaign: Campaign, out: pathlib.Path) -> dict[str, dict]:
     results = {}
     for m in campaign.methods:
         parts = [
-            dict(np.load(out / "chunks" / m / f"{c:04d}.npz"))
+            _read_chunk(out / "chunks" / m / f"{c:04d}.npz", m)
             for c in range(campaign.chunks)
         ]
         merged = {
@@ -504,10 +760,15 @@ def write_reports(campaign, out, window_start) -> dict:
         }
         summary["oem_converged_flights"] = int(np.sum(r["converged"]))
     stages: dict[str, list[float]] = {}
-    log = out / "timings.jsonl"
-    for line in log.read_text().splitlines() if log.exists() else []:
-        entry = json.loads(line)
-        stages.setdefault(entry["stage"], []).append(entry["seconds"])
+    # timings.jsonl from process 0 (or a single process), timings-p<i>.jsonl from
+    # the others; a line cut short by an interruption is skipped
+    for log in sorted(out.glob("timings*.jsonl")):
+        for line in log.read_text().splitlines():
+            try:
+                entry = json.loads(line)
+                stages.setdefault(entry["stage"], []).append(float(entry["seconds"]))
+            except (ValueError, KeyError, TypeError):
+                continue
     timing = {
         "total_s": {k: float(np.sum(v)) for k, v in stages.items()},
         "chunk_s": stages,
@@ -522,6 +783,7 @@ def write_reports(campaign, out, window_start) -> dict:
             if k != "nn_training" and len(v) > 1
         },
         "devices": len(jax.devices()),
+        "processes": jax.process_count(),
         "thesis_s_per_100_flights": THESIS_SECONDS,
     }
     (out / "times.json").write_text(json.dumps(timing, indent=2))

@@ -2,9 +2,12 @@
 
 On CPU, JAX sees one device unless told otherwise; to use every core, set
 `XLA_FLAGS=--xla_force_host_platform_device_count=N` before JAX is imported (the
-benchmark scripts do). On several GPUs, or several hosts after
-`jax.distributed.initialize()`, `jax.devices()` lists them all and the same code
-shards over them.
+benchmark scripts do). On several GPUs the same code shards over them.
+
+Only this process's devices (`jax.local_devices()`) are used: after
+`jax.distributed.initialize()` every process works on batches of its own (a
+campaign hands each process whole chunks, see `_montecarlo.py`), so a batch never
+needs to cross hosts.
 """
 
 import functools
@@ -15,9 +18,9 @@ from jax.sharding import AxisType, NamedSharding, PartitionSpec
 
 
 def batch_sharding(batch_size: int) -> NamedSharding | None:
-    """A sharding that splits a leading batch axis over all devices, or `None` when
-    there is one device or the batch does not divide evenly."""
-    devices = jax.devices()
+    """A sharding that splits a leading batch axis over this process's devices, or
+    `None` when there is one device or the batch does not divide evenly."""
+    devices = jax.local_devices()
     n = len(devices)
     if n == 1 or batch_size % n:
         return None
