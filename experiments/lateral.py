@@ -188,6 +188,33 @@ def main():
     )
     print(f"det R {lfit.cost:.6e}, {lfit.iterations} iterations")
 
+    # sideslip and bank angle as states of the linear model: no noisy input
+    alpha0, theta0 = float(start.y[7]), float(start.y[7])
+    sl = dp.lateral_model(
+        manoeuvres=2, sideslip="state", flight=(SPEED, alpha0, theta0)
+    )
+    sl_records = []
+    for k, f in enumerate(flights):
+        rec = records[k]
+        out = {n: rec.measured[:, i] for i, n in enumerate(dp.SIXDOF_LATERAL_OUTPUTS)}
+        u = np.column_stack([f["da"], f["dr"]])
+        y = np.column_stack([out[n] for n in (*dp.LATERAL_OUTPUTS, "beta", "phi")])
+        sl_records.append(dp.lateral_record(sl, f["t"], u, y, manoeuvre=k + 1))
+    t0 = time.perf_counter()
+    sfit = dp.fit(sl, sl_records)
+    result["linear_state_fit_s"] = time.perf_counter() - t0
+    result["linear_state"] = dict(
+        rows=table(
+            dp.LATERAL_DERIVATIVES,
+            implied,
+            sfit,
+            "linear model, sideslip and bank angle as states",
+        ),
+        det_R=sfit.cost,
+        iterations=sfit.iterations,
+    )
+    print(f"det R {sfit.cost:.6e}, {sfit.iterations} iterations")
+
     path = shared_data("hfb320/hfb320_1_10.asc")
     if path.exists():
         ch = dp.read_lateral_asc(path)
