@@ -110,6 +110,9 @@ def test_clean_flights_flag_nothing(seed):
     assert bool(base.result.converged)
     assert result["significant"] == [], result["ranking"][:3]
     assert "no candidate effect is significant" in result["message"]
+    # the statistics stay below the penalty: the rule's margin on our own flights
+    physical = [r for r in result["ranking"] if not r["resolution_limit"]]
+    assert max(r["statistic"] for r in physical) < SETTINGS.min_statistic
 
 
 # Effects the default channels reveal, at realistic sizes (SI units). Where the
@@ -204,8 +207,19 @@ def test_cli_diagnose_and_fit_json_on_a_log_without_sidecar(tmp_path):
     out = json.loads(res.stdout.strip().splitlines()[-1])
     assert out["ranking"][0]["effect"] == "sensor_bias:az"
     assert out["significant"][0] == "sensor_bias:az"
-    for key in ("effect", "cost_reduction", "p_value", "estimate", "stderr"):
+    for key in (
+        "effect",
+        "cost_reduction",
+        "statistic",
+        "p_value",
+        "estimate",
+        "stderr",
+        "resolution_limit",
+    ):
         assert key in out["ranking"][0]
+    # the verdict says which number decided (significance) and which is the share
+    assert "statistic" in out["rule"] and "share" in out["rule"]
+    assert out["ranking"][0]["statistic"] > SETTINGS.min_statistic
     assert (tmp_path / "d" / "diagnose.md").exists() and (
         tmp_path / "d" / "diagnose.png"
     ).exists()
@@ -267,7 +281,9 @@ def test_cli_rejects_unknown_effect(tmp_path):
 def test_demo_runs_the_workflow_end_to_end(tmp_path):
     res = CliRunner().invoke(app, ["demo", "--out", str(tmp_path), "--duration", "30"])
     assert res.exit_code == 0, res.output
-    assert "actuator_delay" in res.output and "lower" in res.output
+    # the planted delay is what the diagnosis ranks first and what the demo adds
+    assert "| 1 | actuator_delay |" in (tmp_path / "diagnose.md").read_text()
+    assert "fit --add actuator_delay" in res.output and "lower" in res.output
     for name in (
         "flight.csv",
         "compare.md",

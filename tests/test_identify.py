@@ -475,3 +475,21 @@ def test_hfb320_simulates_and_identifies_a_planted_sensor_bias(tmp_path):
     assert abs(est["sensor_bias:az.bias"] - 0.3) < 3 * sd["sensor_bias:az.bias"]
     for name, truth in IDENTIFIED.items():
         assert abs(est[name] - truth) < 3 * sd[name], name
+
+
+def test_a_users_vehicle_file_from_parts_composes_library_effects():
+    """examples/my_jet.py builds the HFB-320 from the library's parts as a user
+    would: --add composes a library effect with it, with the built-in's result."""
+    _require(hfb320.DEFAULT_DATA)
+    import json
+    import pathlib
+
+    jet = pathlib.Path(__file__).resolve().parents[1] / "examples" / "my_jet.py"
+    res = _cli(["fit", hfb320.DEFAULT_DATA, "--vehicle", jet, "--fix", "CMq=0",
+                "--add", "pitch_damping", "--json"])
+    assert res.exit_code == 0, res.output
+    report = json.loads(res.stdout.strip().splitlines()[-1])
+    # the built-in vehicle's number for the same fit (README): the same parts
+    assert report["cost"] == pytest.approx(3.059681e-24, rel=1e-6)
+    assert report["estimates"]["pitch_damping.Cmq"] < 0
+    assert "alpha_dot_damping.Cmad" not in report["estimates"]  # held candidates

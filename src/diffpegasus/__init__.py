@@ -148,6 +148,17 @@ from ._sixdof import (  # noqa: E402
 )
 from ._vehicle import Vehicle as Vehicle  # noqa: E402
 from ._vehicles import (  # noqa: E402
+    AbstractAerodynamics as AbstractAerodynamics,
+    AbstractAtmosphere as AbstractAtmosphere,
+    AbstractMassProperties as AbstractMassProperties,
+    AbstractPropulsion as AbstractPropulsion,
+    ConstantAtmosphere as ConstantAtmosphere,
+    ConstantMass as ConstantMass,
+    FlightVehicle as FlightVehicle,
+    Geometry as Geometry,
+    LoggedThrust as LoggedThrust,
+    StandardAtmosphere as StandardAtmosphere,
+    vehicle_model as vehicle_model,
     hfb320_model as hfb320_model,
     vehicle_spec as vehicle_spec,
     LATERAL_COLUMNS as LATERAL_COLUMNS,

@@ -1,3 +1,8 @@
+from ._columns import load_columns as load_columns, load_record as load_record
+from ._diagnose import (
+    diagnose_model as diagnose_model,
+    score_candidates as score_candidates,
+)
 from ._engine import Layout as Layout, RESULTS as RESULTS, Solution as Solution
 from ._fit import (
     Fit as Fit,
@@ -7,6 +12,4 @@ from ._fit import (
     SingleShooting as SingleShooting,
 )
 from ._model import Model as Model, Record as Record
-from ._columns import load_columns as load_columns, load_record as load_record
-from ._diagnose import diagnose_model as diagnose_model, score_candidates as score_candidates
 from ._modelfile import load_model_file as load_model_file, ModelSpec as ModelSpec

@@ -33,7 +33,7 @@ def score_candidates(result: Fit, candidates: Sequence[str], level: float = 0.01
             )
     idx = np.array([names.index(c) for c in candidates])
     st = score(
-        model,
+        model.structure(),
         result.layout,
         jnp.asarray(result.z),
         jnp.asarray(result.R),

@@ -13,7 +13,7 @@ The gain `K = P C^T R^-1` comes from the model linearised by JAX at the record's
 initial state and first input (`A = df/dx`, `C = dg/dx`, as FVSysID does), discretised
 exactly at the sample step (`Phi = expm(A dt)`, `Q` by Van Loan) and the discrete
 Riccati equation written with the innovation covariance `R`
-([`solve_filter_riccati`][]). The cost is det(R); as in output error, `R` (diagonal)
+([`solve_filter_riccati`][]). The cost is det(R); as in output error, `R` (full by default)
 is relaxed: estimated in closed form from the innovations, then held while a
 Gauss-Newton (Levenberg-Marquardt) step on `sum nu^T R^-1 nu` moves the model
 parameters and the process-noise intensities `F` together. Each step's Jacobian of
@@ -64,9 +64,10 @@ def _noise_matrix(nx, noise_states, f):
     return m.at[jnp.asarray(noise_states), jnp.arange(len(noise_states))].set(f)
 
 
-def gain(model: Model, prob: FilterProblem, r, theta, f, rdiag):
-    """Steady-state gain `K` `(states, outputs)` of record `r`, the linearised `C`
-    `(outputs, states)` and the covariance `P` `(states, states)`."""
+def gain(model: Model, prob: FilterProblem, r, theta, f, rmat):
+    """Steady-state gain `K` `(states, outputs)` of record `r` for innovation
+    covariance `rmat` `(outputs, outputs)`, the linearised `C` `(outputs, states)`
+    and the a-priori covariance `P` `(states, states)`."""
     lay = prob.layout
     x0 = prob.x0[r]
     t0 = lay.t0[r]
@@ -74,8 +75,8 @@ def gain(model: Model, prob: FilterProblem, r, theta, f, rdiag):
     a = jax.jacfwd(model.f, argnums=1)(t0, x0, u0, theta)
     c = jax.jacfwd(model.g, argnums=1)(t0, x0, u0, theta)
     phi, q = discretise(a, _noise_matrix(x0.shape[0], prob.noise_states, f), lay.dt[r])
-    p = solve_filter_riccati(phi, c, q, jnp.diag(rdiag))
-    k = p @ c.T / rdiag[None, :]
+    p = solve_filter_riccati(phi, c, q, rmat)
+    k = jnp.linalg.solve(rmat, c @ p).T
     return k, c, p
 
 
@@ -107,14 +108,14 @@ def run_filter(model: Model, prob: FilterProblem, r, theta, k):
     return nu, y
 
 
-def innovations(model: Model, prob: FilterProblem, z, rdiag):
+def innovations(model: Model, prob: FilterProblem, z, rmat):
     """Innovations `(records, length, outputs)`, predicted outputs, `diag(K C)`
     `(records, states)`, gains and linearised `C`s at unknowns `z = [theta, f]`."""
     p = len(model.parameters)
     theta, f = z[:p], z[p:]
 
     def one(r):
-        k, c, _ = gain(model, prob, r, theta, f, rdiag)
+        k, c, _ = gain(model, prob, r, theta, f, rmat)
         nu, y = run_filter(model, prob, r, theta, k)
         return nu, y, jnp.diag(k @ c), k, c
 
@@ -124,7 +125,7 @@ def innovations(model: Model, prob: FilterProblem, z, rdiag):
 class FilterSolution(eqx.Module):
     """The raw result of [`solve_filter_error`][].
 
-    **Fields:** `z` `[theta, f]`; `R` `(outputs,)` innovation variances; `cost`
+    **Fields:** `z` `[theta, f]`; `R` `(outputs, outputs)` innovation covariance; `cost`
     det(R); `iterations`; `result`; `covariance` of `z` (inverse Fisher information
     of the innovations, zero for held unknowns); `innovations` and `outputs`
     `(records, length, outputs)`; `kc` `(records, states)` the diagonal of `K C`;
@@ -133,7 +134,7 @@ class FilterSolution(eqx.Module):
     """
 
     z: Float[Array, " unknowns"]
-    R: Float[Array, " outputs"]
+    R: Float[Array, "outputs outputs"]
     cost: Float[Array, ""]
     iterations: Int[Array, ""]
     result: RESULTS
@@ -145,20 +146,27 @@ class FilterSolution(eqx.Module):
     active: Bool[Array, ""]
 
 
-def _linearise(model, prob, z, rdiag):
+def _whiten(rmat):
+    """`W` with `W^T W = R^-1` (the inverse Cholesky factor)."""
+    chol = jnp.linalg.cholesky(rmat)
+    return jax.scipy.linalg.solve_triangular(chol, jnp.eye(rmat.shape[0]), lower=True)
+
+
+def _linearise(model, prob, z, rmat):
     """Normal matrix `(n, n)` and gradient of `sum nu^T R^-1 nu`, with the
     innovations, `diag(K C)` and its Jacobian `(records, states, n)`, and `C`s."""
 
     def fn(v):
-        nu, y, kc, k, c = innovations(model, prob, v, rdiag)
+        nu, y, kc, k, c = innovations(model, prob, v, rmat)
         return (nu, kc), (nu, y, kc, k, c)
 
     (jnu, jkc), aux = jax.jacfwd(fn, has_aux=True)(z)
     nu = aux[0]
-    w = 1.0 / jnp.sqrt(rdiag)
+    w = _whiten(rmat)
     valid = prob.layout.valid[..., None, None]
-    jw = jnp.where(valid, jnu * w[None, None, :, None], 0.0).reshape(-1, z.shape[0])
-    ew = (nu * w[None, None, :]).reshape(-1)
+    jw = jnp.where(valid, jnp.einsum("ij,rtjk->rtik", w, jnu), 0.0)
+    jw = jw.reshape(-1, z.shape[0])
+    ew = jnp.einsum("ij,rtj->rti", w, nu).reshape(-1)
     return jw.T @ jw, jw.T @ ew, jkc, aux
 
 
@@ -183,39 +191,47 @@ def _constrained_step(h, g, free, damping, kc, jkc):
     return step / scale * m, jnp.any(active)
 
 
-@functools.partial(jax.jit, static_argnames=("model", "max_iter"))
+@functools.partial(jax.jit, static_argnames=("model", "max_iter", "full"))
 def solve_filter_error(
-    model: Model, prob: FilterProblem, z0, free, *, rtol, max_iter
+    model: Model, prob: FilterProblem, z0, free, *, rtol, max_iter, full=True
 ) -> FilterSolution:
     """Minimise det(R) of the innovations over the free unknowns `z = [theta, f]`
-    from `z0` (pure and jitted; vmap batches it over problems of one shape)."""
+    from `z0` (pure and jitted; vmap batches it over problems of one shape); `R`
+    full (`full=True`) or diagonal."""
     p = len(model.parameters)
     lay = prob.layout
     nvalid = jnp.sum(lay.valid)
 
-    def cost_at(z, rdiag):
-        nu = innovations(model, prob, z, rdiag)[0]
-        return jnp.sum(nu**2 / rdiag[None, None, :]), nu
+    def weighted(nu, rmat):
+        return jnp.sum(jnp.einsum("ij,rtj->rti", _whiten(rmat), nu) ** 2)
 
-    def relax(z, rdiag, nu, c):
+    def cost_at(z, rmat):
+        nu = innovations(model, prob, z, rmat)[0]
+        return weighted(nu, rmat), nu
+
+    def sample(nu):
+        r = jnp.einsum("rti,rtj->ij", nu, nu) / nvalid
+        return r if full else jnp.diag(jnp.diag(r))
+
+    def relax(z, rmat, nu, c):
         """New R from the innovations and `f` rescaled to keep the gain."""
-        r_new = jnp.sum(nu**2, axis=(0, 1)) / nvalid
-        info_old = jnp.sum(c[0] ** 2 / rdiag[:, None], axis=0)
-        info_new = jnp.sum(c[0] ** 2 / r_new[:, None], axis=0)
+        r_new = sample(nu)
+        info_old = jnp.diag(c[0].T @ jnp.linalg.solve(rmat, c[0]))
+        info_new = jnp.diag(c[0].T @ jnp.linalg.solve(r_new, c[0]))
         ratio = jnp.sqrt(info_old / jnp.where(info_new > 0, info_new, info_old))
         ratio = jnp.where(jnp.isfinite(ratio) & (info_old > 0), ratio, 1.0)
         f = z[p:] * ratio[jnp.asarray(prob.noise_states, int)]
         return r_new, z.at[p:].set(f)
 
     def body(carry):
-        z, rdiag, cost_prev, it, _, damping, _, _ = carry
-        h, g, jkc, (nu, _, kc, _, c) = _linearise(model, prob, z, rdiag)
-        j0 = jnp.sum(nu**2 / rdiag[None, None, :])
+        z, rmat, cost_prev, it, _, damping, _, _ = carry
+        h, g, jkc, (nu, _, kc, _, c) = _linearise(model, prob, z, rmat)
+        j0 = weighted(nu, rmat)
 
         def trial(lam):
             step, act = _constrained_step(h, g, free, lam, kc, jkc)
             new = z + step
-            j1, nu1 = cost_at(new, rdiag)
+            j1, nu1 = cost_at(new, rmat)
             return new, jnp.where(jnp.isfinite(j1), j1, jnp.inf), nu1, act
 
         def increase(carry):
@@ -230,8 +246,8 @@ def solve_filter_error(
         accepted = j1 < j0
         new = jnp.where(accepted, new, z)
         nu_used = jnp.where(accepted, nu1, nu)
-        r_new, new = relax(new, rdiag, nu_used, c)
-        cost = jnp.prod(r_new)
+        r_new, new = relax(new, rmat, nu_used, c)
+        cost = jnp.linalg.det(r_new)
         small = jnp.abs(cost_prev - cost) <= rtol * jnp.abs(cost)
         broken = ~(jnp.all(jnp.isfinite(h)) & jnp.all(jnp.isfinite(g)))
         done = (small & accepted) | ~accepted | broken
@@ -244,13 +260,13 @@ def solve_filter_error(
     e0 = jax.vmap(lambda r: run_filter(model, prob, r, z0[:p], k0)[0])(
         jnp.arange(lay.n_records)
     )
-    r0 = jnp.sum(e0**2, axis=(0, 1)) / nvalid
-    init = (z0, r0, jnp.prod(r0), jnp.array(0), jnp.array(False), jnp.array(0.0))
+    r0 = jnp.diag(jnp.sum(e0**2, axis=(0, 1)) / nvalid)
+    init = (z0, r0, jnp.linalg.det(r0), jnp.array(0), jnp.array(False), jnp.array(0.0))
     init = (*init, ~jnp.all(jnp.isfinite(r0)), jnp.array(False))
-    z, rdiag, cost, iterations, done, _, broken, active = jax.lax.while_loop(
+    z, rmat, cost, iterations, done, _, broken, active = jax.lax.while_loop(
         lambda c_: (c_[3] < max_iter) & ~c_[4] & ~c_[6], body, init
     )
-    h, _, _, (nu, y, kc, k, _) = _linearise(model, prob, z, rdiag)
+    h, _, _, (nu, y, kc, k, _) = _linearise(model, prob, z, rmat)
     m = free.astype(h.dtype)
     hm = h * m[:, None] * m[None, :] + jnp.diag(1.0 - m)
     cov = jnp.linalg.inv(hm) * m[:, None] * m[None, :]
@@ -262,7 +278,7 @@ def solve_filter_error(
     )
     return FilterSolution(
         z=z,
-        R=rdiag,
+        R=rmat,
         cost=cost,
         iterations=iterations,
         result=result,
@@ -287,7 +303,8 @@ class FilterErrorFit(eqx.Module):
       intensities (state units / sqrt(s): `x' = f + F w`, `w` unit white noise) and
       `F_stderr`.
     - `covariance` `(params + noise, params + noise)` of `[params, F]`.
-    - `cost` det(R); `R` `(outputs,)` the innovation variances.
+    - `cost` det(R); `R` `(outputs, outputs)` the innovation covariance (diagonal
+      when fitted with `full_R=False`).
     - `innovations`, `outputs`: per record `(samples, outputs)`, the filter's
       innovations (residuals) and predicted outputs.
     - `gain` per record `(states, outputs)`; `kc` per record `(states,)` the
@@ -391,6 +408,7 @@ def fit_filter_error(
     *,
     process_noise: Sequence[str] | Mapping[str, float],
     start=None,
+    full_R: bool = True,
     rtol: float = 1e-6,
     max_iter: int = 60,
     throw: bool = True,
@@ -409,6 +427,9 @@ def fit_filter_error(
       intensity is estimated.
     - `start`: start values of the model parameters `(params,)` (default
       `model.start`).
+    - `full_R`: estimate the full innovation covariance (default: process noise
+      correlates the innovations of outputs driven by the same state, e.g. alpha
+      and az) or only its diagonal (as output error does).
     - `rtol`: stop when det(R) changes by less than this, relatively.
     - `max_iter`: iteration cap.
     - `throw`: raise a `RuntimeError` with the reason when the fit fails; with
@@ -447,7 +468,13 @@ def fit_filter_error(
     z0 = np.concatenate([theta0, f0])
     free = np.concatenate([model.free, np.ones(len(names), bool)])
     sol = solve_filter_error(
-        model, prob, jnp.asarray(z0), jnp.asarray(free), rtol=rtol, max_iter=max_iter
+        model,
+        prob,
+        jnp.asarray(z0),
+        jnp.asarray(free),
+        rtol=rtol,
+        max_iter=max_iter,
+        full=bool(full_R),
     )
     sol = jax.tree.map(np.asarray, sol)
     p = len(model.parameters)

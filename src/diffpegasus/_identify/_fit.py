@@ -240,7 +240,7 @@ def simulate(model: Model, record: Record, params=None, x0=None) -> np.ndarray:
         model, [record], SingleShooting(), "fixed", (), np.ones(len(model.states))
     )
     xs, _ = jax.jit(segment_solve, static_argnums=0)(
-        model, lay, 0, jnp.asarray(x0), jnp.asarray(params)
+        model.structure(), lay, 0, jnp.asarray(x0), jnp.asarray(params)
     )
     return np.asarray(xs)[: len(record.t)]
 
@@ -265,7 +265,7 @@ def simulate_outputs(
     rec = Record(fine, u, np.zeros((len(fine), len(model.outputs))), x0=x0)
     lay = layout(model, [rec], SingleShooting(), "fixed", (), np.ones(len(x0)))
     ys, _ = jax.jit(segment_outputs, static_argnums=0)(
-        model, lay, 0, jnp.asarray(x0), jnp.asarray(params), jnp.zeros(0)
+        model.structure(), lay, 0, jnp.asarray(x0), jnp.asarray(params), jnp.zeros(0)
     )
     return np.asarray(ys)[: len(fine)][::oversample]
 
@@ -326,7 +326,7 @@ def fit(
     )
     z0 = np.concatenate([nodes0.reshape(-1), start, np.zeros(len(records) * nb)])
     sol = solve(
-        model,
+        model.structure(),
         lay,
         jnp.asarray(z0),
         jnp.asarray(model.free),

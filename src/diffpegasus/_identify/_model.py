@@ -124,6 +124,14 @@ class Model(eqx.Module):
         d = jnp.asarray(self.delays(self.named(theta)), float)
         return jnp.broadcast_to(d, (len(self.inputs),))
 
+    def structure(self) -> "Model":
+        """The model without start values or held parameters: what the compiled
+        programs depend on (the engine takes those as traced arrays), so fits of one
+        model with other starts or other held sets share one compilation."""
+        if not self.fixed and not any(self.start):
+            return self
+        return self.replace(start=tuple(0.0 for _ in self.parameters), fixed=())
+
     def replace(self, **changes) -> "Model":
         """A copy with some fields changed, e.g. `model.replace(fixed=("CMq",))` or
         `model.replace(start=...)`; a dict `start={"CMq": 0.0}` changes those."""

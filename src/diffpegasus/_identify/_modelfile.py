@@ -1,6 +1,8 @@
 """Model-definition files: a user's model in one Python file, no package code.
 
-The file is ordinary Python. It must define `model`, a [`Model`][], and may define
+The file is ordinary Python. It must define `model`, a [`Model`][], or `vehicle`, a
+[`FlightVehicle`][] built from the library's parts (then library effects compose
+with it: `--add`, `diagnose`), and may define
 
 - `columns`: a column map (see [`load_columns`][]) for the logs it is fitted to;
 - `x0`: the initial state of every record (default: the state channels at each
@@ -36,6 +38,7 @@ class ModelSpec:
     biases: tuple[str, ...] = ()
     shooting: SingleShooting | MultipleShooting = SingleShooting()
     candidates: tuple[str, ...] = ()
+    vehicle: object = None
 
 
 def load_model_file(path) -> ModelSpec:
@@ -53,9 +56,16 @@ def load_model_file(path) -> ModelSpec:
         line = f" line {frames[-1].lineno}" if frames else ""
         raise LogError(f"{path}:{line}: {type(e).__name__}: {e}") from None
     model = ns.get("model")
+    if model is None and ns.get("vehicle") is not None:
+        from .._vehicles._parts import FlightVehicle, vehicle_model
+
+        if not isinstance(ns["vehicle"], FlightVehicle):
+            raise LogError(f"{path}: `vehicle` must be a diffpegasus.FlightVehicle")
+        ns["model"] = model = vehicle_model(ns["vehicle"])
     if not isinstance(model, Model):
         raise LogError(
             f"{path}: a model file must define `model = diffpegasus.Model(...)` "
+            f"or `vehicle = diffpegasus.FlightVehicle(...)` "
             f"(found {type(model).__name__})"
         )
     return spec_from_namespace(ns, str(path))
@@ -80,4 +90,5 @@ def spec_from_namespace(ns: dict, name: str) -> ModelSpec:
         biases=tuple(ns.get("biases", ())),
         shooting=shooting,
         candidates=tuple(ns.get("candidates", ())),
+        vehicle=ns.get("vehicle"),
     )

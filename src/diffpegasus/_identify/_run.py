@@ -74,13 +74,18 @@ def fit_report(result: Fit, spec: ModelSpec) -> dict:
         "stderr": {},
         "stderr_crb": {},
         "fixed": [
-            p for p, f in zip(model.parameters, result.free, strict=True) if not f
+            p
+            for p, f in zip(model.parameters, result.free, strict=True)
+            if not f and p not in spec.candidates
         ],
         "high_correlations": [],
         "R": {o: num(v) for o, v in zip(model.outputs, result.R, strict=True)},
     }
+    hidden = set(spec.candidates)
     for row in result.table():
         name = row["parameter"]
+        if name in hidden:
+            continue
         out["estimates"][name] = num(row["estimate"]) if ok else None
         out["stderr"][name] = (
             None if not ok or row["stderr"] is None else num(row["stderr"])
@@ -89,6 +94,7 @@ def fit_report(result: Fit, spec: ModelSpec) -> dict:
             None if not ok or row["stderr_crb"] is None else num(row["stderr_crb"])
         )
     if ok:
+        # (held candidates are exactly 0: their correlations are 0 too)
         out["high_correlations"] = [
             {"a": a, "b": b, "correlation": c} for a, b, c in result.high_correlations()
         ]

@@ -16,13 +16,20 @@ The record shipped in
 [`COLUMNS`][].
 """
 
-import equinox as eqx
-import jax.numpy as jnp
 import numpy as np
 
-from .._effects import make_effect
-from .._flight import elevator_delay, has_delay, pitch_plane
 from .._identify._model import Model
+from ._parts import (
+    AbstractAerodynamics,
+    ConstantAtmosphere,
+    ConstantMass,
+    effect_parameter as effect_parameter,
+    FlightVehicle,
+    Geometry,
+    LoggedThrust,
+    PITCH_PLANE_EFFECTS,
+    vehicle_model,
+)
 
 
 G = 9.80665  # m/s^2
@@ -71,127 +78,52 @@ S_REF = S_OVER_M * MASS  # m^2
 IYY = S_REF * CBAR / SC_OVER_IY  # kg m^2
 SPEED_OF_SOUND = 320.5  # m/s, at the test altitude (only the Mach channel uses it)
 
-# Library effects that compose with this vehicle (`--add`, `diagnose`).
-CANDIDATES = (
-    "pitch_damping",
-    "alpha_dot_damping",
-    "lift_alpha_squared",
-    "drag_alpha_squared",
-    "moment_alpha_squared",
-    "actuator_delay",
-    "sensor_bias:ax",
-    "sensor_bias:az",
-    "sensor_bias:qdot",
-    "sensor_bias:q",
-    "sensor_bias:alpha",
-    "sensor_bias:theta",
-)
+CANDIDATES = PITCH_PLANE_EFFECTS  # the library effects `--add` and `diagnose` use
 
 
-def _aero(c, p):
+class HFB320Aerodynamics(AbstractAerodynamics):
     """The book's aerodynamic model: CL, CD and CM (about the CG)."""
-    v = c.airspeed
-    cd = p["CD0"] + p["CDV"] * v / V0 + p["CDa"] * c.alpha
-    cl = p["CL0"] + p["CLV"] * v / V0 + p["CLa"] * c.alpha
-    cm = (
-        p["CM0"]
-        + p["CMV"] * v / V0
-        + p["CMa"] * c.alpha
-        + p["CMq"] * c.q * CBAR / V0
-        + p["CMde"] * c.de
-    )
-    return cl, cd, cm
 
+    def start(self):
+        return dict(START)
 
-def _effects(p, effects):
-    return tuple(make_effect(name, p[effect_parameter(name)]) for name in effects)
-
-
-def _evaluate(t, x, u, p, effects):
-    """The one flight model with this vehicle's parts, in the book's states: the
-    body-axis accelerations are turned into V and alpha rates (exact)."""
-    v, alpha, theta, q = x
-    uu, ww = v * jnp.cos(alpha), v * jnp.sin(alpha)
-    pp = pitch_plane(
-        t,
-        uu,
-        ww,
-        q,
-        theta,
-        0.0,
-        de=u[0],
-        aero=lambda c: _aero(c, p),
-        effects=_effects(p, effects),
-        s_ref=S_REF,
-        c_ref=CBAR,
-        density=RHO,
-        speed_of_sound=SPEED_OF_SOUND,
-        g=G,
-        thrust=u[1],
-        thrust_angle=SIGMA_T,
-        thrust_moment=THRUST_MOMENT * IYY * u[1],
-        mass=MASS,
-        iyy=IYY,
-        iyy_dot=0.0,
-        xcg=0.0,
-        xcp=0.0,
-    )
-    vdot = (uu * pp.udot + ww * pp.wdot) / v
-    alphadot = (uu * pp.wdot - ww * pp.udot) / v**2
-    return jnp.stack([vdot, alphadot, q, pp.qdot]), pp.channels
-
-
-def effect_parameter(name: str) -> str:
-    """The model parameter of a library effect: `pitch_damping.Cmq`."""
-    return f"{name}.{make_effect(name).parameter}"
-
-
-class _Parts(eqx.Module):
-    """The vehicle's rates and outputs with the library effects `effects` (static,
-    so models with the same effects share compiled programs)."""
-
-    effects: tuple[str, ...] = eqx.field(static=True)
-
-    def rates(self, t, x, u, p):
-        return _evaluate(t, x, u, p, self.effects)[0]
-
-    def observe(self, t, x, u, p):
-        ch = _evaluate(t, x, u, p, self.effects)[1]
-        return jnp.stack(
-            [ch[n] for n in ("V", "alpha", "theta", "q", "qdot", "ax", "az")]
+    def coefficients(self, c, p):
+        v = c.airspeed
+        cd = p["CD0"] + p["CDV"] * v / V0 + p["CDa"] * c.alpha
+        cl = p["CL0"] + p["CLV"] * v / V0 + p["CLa"] * c.alpha
+        cm = (
+            p["CM0"]
+            + p["CMV"] * v / V0
+            + p["CMa"] * c.alpha
+            + p["CMq"] * c.q * CBAR / V0
+            + p["CMde"] * c.de
         )
+        return cl, cd, cm
 
-    def delays(self, p):
-        return jnp.stack([elevator_delay(_effects(p, self.effects)), 0.0])
+
+# The vehicle as a value: its parts.
+HFB320 = FlightVehicle(
+    aerodynamics=HFB320Aerodynamics(),
+    propulsion=LoggedThrust(angle=SIGMA_T, moment_per_newton=THRUST_MOMENT * IYY),
+    mass=ConstantMass(mass=MASS, iyy=IYY),
+    geometry=Geometry(s_ref=S_REF, c_ref=CBAR),
+    atmosphere=ConstantAtmosphere(density=RHO, speed_of_sound=SPEED_OF_SOUND, g=G),
+    name="hfb320",
+)
 
 
 def hfb320_model(
     effects: tuple[str, ...] = (), free: tuple[str, ...] = (), **changes
 ) -> Model:
-    """The HFB-320 longitudinal model with the book's start values.
+    """The HFB-320 longitudinal model with the book's start values
+    ([`vehicle_model`][] of [`HFB320`][]).
 
     **Arguments:** `effects`: library effects composed with the vehicle (canonical
     names, see [`CANDIDATES`][]), each adding its parameter (`name.parameter`,
     start 0) held at zero unless named in `free`; keyword arguments change the
     model's fields (e.g. `fixed=("CMq",)`, `start={"CMq": 0.0}`).
     """
-    effects = tuple(effects)
-    parts = _Parts(effects)
-    extra = {effect_parameter(e): 0.0 for e in effects}
-    held = tuple(k for k in extra if k not in free and k.split(".")[0] not in free)
-    model = Model(
-        states=("V", "alpha", "theta", "q"),
-        inputs=("de", "thrust"),
-        outputs=("V", "alpha", "theta", "q", "qdot", "ax", "az"),
-        parameters={**START, **extra},
-        rates=parts.rates,
-        observe=parts.observe,
-        fixed=held,
-        delays=parts.delays if has_delay(_effects(extra, effects)) else None,
-    )
-    if changes.get("fixed"):
-        changes["fixed"] = tuple(changes["fixed"]) + held
-    return model.replace(**changes) if changes else model
+    return vehicle_model(HFB320, effects=effects, free=free, **changes)
 
 
 # The output-error estimates on the real record (`diffpegasus fit ... --vehicle

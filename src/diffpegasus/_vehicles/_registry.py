@@ -1,5 +1,6 @@
 """The built-in vehicles, by name, and vehicle files."""
 
+import dataclasses
 import pathlib
 
 from .._identify._modelfile import load_model_file, ModelSpec
@@ -33,7 +34,8 @@ def vehicle_spec(
                 f"effects {unknown} do not compose with hfb320; it takes "
                 f"{', '.join(CANDIDATES)}"
             )
-        effects = tuple(dict.fromkeys(add + (CANDIDATES if candidates else ())))
+        # one order for every call, so diagnose and each --add share a program
+        effects = tuple(dict.fromkeys((CANDIDATES if candidates else ()) + add))
         return ModelSpec(
             model=hfb320_model(effects=effects, free=add),
             name="hfb320",
@@ -41,13 +43,28 @@ def vehicle_spec(
             x0=X0,
             candidates=tuple(effect_parameter(e) for e in effects if e not in add),
         )
-    if add:
-        raise LogError(
-            "--add composes library effects with a built-in vehicle; in a model file "
-            "write the term into the model (held terms to test go in `candidates`)"
-        )
     if name_or_file.endswith(".py") or pathlib.Path(name_or_file).is_file():
-        return load_model_file(name_or_file)
+        spec = load_model_file(name_or_file)
+        if spec.vehicle is None:
+            if add:
+                raise LogError(
+                    f"{name_or_file}: --add composes library effects with a vehicle "
+                    "(`vehicle = dp.FlightVehicle(...)` in the file); with a bare "
+                    "`model`, write the term into it (held terms to test go in "
+                    "`candidates`)"
+                )
+            return spec
+        from ._parts import effect_parameter, PITCH_PLANE_EFFECTS, vehicle_model
+
+        effects = tuple(
+            dict.fromkeys((PITCH_PLANE_EFFECTS if candidates else ()) + add)
+        )
+        return dataclasses.replace(
+            spec,
+            model=vehicle_model(spec.vehicle, effects=effects, free=add),
+            candidates=spec.candidates
+            + tuple(effect_parameter(e) for e in effects if e not in add),
+        )
     raise LogError(
         f"unknown vehicle {name_or_file!r}; built in: {', '.join(VEHICLES)} "
         "(or give a model file, FILE.py)"
