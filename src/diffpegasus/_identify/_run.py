@@ -118,6 +118,44 @@ def fit_report(result: Fit, spec: ModelSpec) -> dict:
     return out
 
 
+def channel_report(result: Fit) -> dict:
+    """Per output: RMS of the residual, RMS over the measured range (`nrms`),
+    Theil's inequality coefficient, R^2, and the Ljung-Box p-value of residual
+    whiteness (small: coloured residuals, a missing term or turbulence), over all
+    records."""
+    from .._discrepancy._metrics import ljung_box
+
+    measured = np.concatenate([r.measured for r in result.records])
+    model = np.concatenate(result.outputs)
+    out = {}
+    for j, name in enumerate(result.model.outputs):
+        z, y = measured[:, j], model[:, j]
+        e = z - y
+        rms = float(np.sqrt(np.mean(e**2)))
+        spread = float(np.ptp(z))
+        sst = float(np.sum((z - z.mean()) ** 2))
+        denom = float(np.sqrt(np.mean(z**2)) + np.sqrt(np.mean(y**2)))
+        out[name] = {
+            "rms": rms,
+            "nrms": rms / spread if spread > 0 else None,
+            "tic": rms / denom if denom > 0 else None,
+            "r2": 1.0 - float(np.sum(e**2)) / sst if sst > 0 else None,
+            "ljung_box_p": ljung_box(e)[1],
+        }
+    return out
+
+
+def format_channels(channels: dict) -> str:
+    lines = [f"{'output':>8s} {'rms':>11s} {'nrms':>7s} {'TIC':>7s} {'R^2':>7s} {'white p':>8s}"]
+    for name, m in channels.items():
+        lines.append(
+            f"{name:>8s} {m['rms']:11.4g} {m['nrms'] or float('nan'):7.3f} "
+            f"{m['tic'] or float('nan'):7.3f} {m['r2'] or float('nan'):7.3f} "
+            f"{m['ljung_box_p']:8.2g}"
+        )
+    return "\n".join(lines)
+
+
 def format_table(report: dict) -> str:
     lines = [f"{'parameter':>12s} {'estimate':>14s} {'std. error':>12s} {'rel. %':>8s}"]
     for name, est in report["estimates"].items():
@@ -251,6 +289,8 @@ def run_model_fit(
         spec, files, columns, holds, initial_state, biases, shooting
     )
     report = fit_report(result, spec)
+    if result.converged:
+        report["channels"] = channel_report(result)
     if out is not None:
         report["figures"] = [str(p) for p in plot_fit(result, out)]
     return report
