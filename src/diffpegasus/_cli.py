@@ -1,5 +1,6 @@
 """The `diffpegasus` command line."""
 
+import dataclasses
 import json
 import pathlib
 import sys
@@ -50,6 +51,22 @@ UnitsOption = Annotated[str, typer.Option(help="deg or rad")]
 OutOption = Annotated[pathlib.Path | None, typer.Option(help="Folder for CSV and PNG")]
 JsonOption = Annotated[bool, typer.Option("--json", help="Print one JSON object")]
 ResampleOption = Annotated[bool, typer.Option(help="Resample a non-uniform log")]
+VehicleOption = Annotated[
+    str,
+    typer.Option(help="Built-in vehicle (see `diffpegasus vehicles`) or a FILE.py"),
+]
+ModelOption = Annotated[
+    pathlib.Path | None,
+    typer.Option(help="Model-definition file (Python; see the README)"),
+]
+ColumnsOption = Annotated[
+    pathlib.Path | None,
+    typer.Option(help="Column map (JSON or TOML): channel -> column, unit, scale"),
+]
+FixOption = Annotated[
+    list[str] | None,
+    typer.Option(help="Hold a parameter: NAME=VALUE, or NAME at its start value"),
+]
 
 
 def _simulate_to_log(
@@ -98,7 +115,40 @@ def _simulate_to_log(
             for k in ("lift", "drag", "moment", "mass", "thrust", "cg_shift")
         }
     flight = simulate(config, noise_key, noise=noise)
-    return flight_to_log(flight, metadata)
+    return flight_to_log(flight, metadata, vehicle=config.vehicle)
+
+
+def _simulate_vehicle(name, out, seed, hidden, duration, sample_rate, noise):
+    from ._effects import parse_assignment
+    from ._log import FlightLog, write_log
+
+    if name != "hfb320":
+        _fail(f"simulate knows the vehicles pegasus and hfb320, not {name!r}")
+    from ._vehicles._hfb320 import CANDIDATES, simulate_log
+
+    planted = {}
+    for text in hidden:
+        try:
+            effect = parse_assignment(text)
+        except ValueError as e:
+            _fail(str(e))
+        spec = text.partition("=")[0].strip()
+        if spec not in CANDIDATES:
+            _fail(f"{spec} does not compose with hfb320; it takes {', '.join(CANDIDATES)}")
+        planted[spec] = float(effect.value())
+    rate = 10.0 if sample_rate == 1000.0 else sample_rate
+    channels, meta = simulate_log(
+        duration=30.0 if duration is None else duration,
+        rate=rate,
+        seed=seed,
+        noise=noise,
+        hidden=planted,
+    )
+    try:
+        path = write_log(out, FlightLog(channels=channels, metadata=meta))
+    except OSError as e:
+        _fail(_os_error(e))
+    typer.echo(f"wrote {path} and {path.with_suffix('.json')}")
 
 
 @app.command()
@@ -131,12 +181,19 @@ def simulate(
     sample_rate: Annotated[float, typer.Option(help="Log rate, Hz")] = 1000.0,
     noise: Annotated[bool, typer.Option(help="Add sensor noise")] = True,
     plot: Annotated[bool, typer.Option(help="Write the trajectory PNG")] = True,
+    vehicle: Annotated[
+        str, typer.Option(help="pegasus or hfb320 (see `diffpegasus vehicles`)")
+    ] = "pegasus",
 ):
-    """Simulate a Pegasus first-stage flight and write its flight log."""
+    """Simulate a flight of a built-in vehicle (Pegasus first stage by default)
+    and write its flight log."""
     from ._log import write_log
     from ._plotting import plot_trajectory
 
     _check_out(out, "file")
+    if vehicle != "pegasus":
+        _simulate_vehicle(vehicle, out, seed, hidden or [], duration, sample_rate, noise)
+        return
     try:
         log = _simulate_to_log(
             seed, input, hidden or [], perturb, duration, sample_rate, noise
@@ -298,6 +355,10 @@ def _banner(report: pathlib.Path, message: str) -> None:
 @app.command()
 def compare(
     log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    vehicle: VehicleOption = "pegasus",
+    model: ModelOption = None,
+    columns: ColumnsOption = None,
+    fix: FixOption = None,
     knots: KnotsOption = 6,
     alpha_order: AlphaOrderOption = 3,
     rate: RateOption = 50.0,
@@ -310,6 +371,12 @@ def compare(
 ):
     """Fit the model by output error and show where it fails: per-channel metrics,
     whiteness, misfit by flight regime, fitted derivatives with standard errors."""
+    if model is not None or vehicle != "pegasus":
+        _fit_model(
+            model or vehicle, [log], columns, fix, None, None, None, out, as_json,
+            show_channels=True,
+        )
+        return
     from ._discrepancy import run_compare
 
     settings = _settings(knots, alpha_order, rate, node_interval)
@@ -352,9 +419,39 @@ def _print_compare(result):
         )
 
 
+def _diagnose_model(which, log, columns, fix, add, as_json):
+    from ._identify._run import run_model_diagnose
+    from ._vehicles import vehicle_spec
+
+    try:
+        spec = vehicle_spec(str(which), add=add, candidates=True)
+        report = run_model_diagnose(spec, [log], columns=columns, holds=fix or ())
+    except LogError as e:
+        _fail(str(e))
+    if as_json:
+        _json_out(report)
+    else:
+        for r in report["ranking"]:
+            mark = "*" if r["significant"] else " "
+            typer.echo(
+                f"{mark} {r['effect']:24s} {100 * r['cost_reduction']:6.1f}%  "
+                f"p = {r['p_value']:.2g}  estimate {r['estimate']:.4g} "
+                f"+/- {r['stderr']:.2g}"
+            )
+        typer.echo(report["message"])
+    if not report["fit"]["converged"]:
+        typer.echo(f"error: {log}: {report['message']}", err=True)
+        raise typer.Exit(code=FIT_FAILED)
+
+
+
 @app.command()
 def diagnose(
     log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    vehicle: VehicleOption = "pegasus",
+    model: ModelOption = None,
+    columns: ColumnsOption = None,
+    fix: FixOption = None,
     add: AddOption = None,
     knots: KnotsOption = 6,
     alpha_order: AlphaOrderOption = 3,
@@ -368,6 +465,9 @@ def diagnose(
 ):
     """Rank the library's effects by how much of the misfit each would explain
     (score test with exact Jacobians); say when none is significant."""
+    if model is not None or vehicle != "pegasus":
+        _diagnose_model(model or vehicle, log, columns, fix, tuple(add or ()), as_json)
+        return
     from ._discrepancy import run_diagnose
 
     add = tuple(add or ())
@@ -409,9 +509,92 @@ def diagnose(
         )
 
 
+def _fit_model(
+    which,
+    logs,
+    columns,
+    fix,
+    bias,
+    initial_state,
+    shooting_interval,
+    out,
+    as_json,
+    add=(),
+    show_channels=False,
+):
+    from ._identify import MultipleShooting
+    from ._identify._run import format_channels, format_table, run_model_fit
+    from ._vehicles import vehicle_spec
+
+    if initial_state not in (None, "fixed", "estimated"):
+        _fail(f"--initial-state must be fixed or estimated, got {initial_state!r}")
+    if shooting_interval is not None and not shooting_interval > 0:
+        _fail(f"--shooting-interval must be positive, got {shooting_interval}")
+    _check_out(out, "folder")
+    try:
+        # with --add, compose every candidate (the others held at zero, left out of
+        # the report): the same program as `diagnose` of this vehicle compiled
+        spec = vehicle_spec(str(which), add=add, candidates=bool(add))
+        report = run_model_fit(
+            spec,
+            logs,
+            columns=columns,
+            holds=fix or (),
+            initial_state=initial_state,
+            biases=tuple(bias) if bias else None,
+            shooting=None
+            if shooting_interval is None
+            else MultipleShooting(interval=shooting_interval),
+            out=out,
+        )
+    except LogError as e:
+        _fail(str(e))
+    except OSError as e:
+        _fail(_os_error(e))
+    if as_json:
+        _json_out(report)
+    else:
+        typer.echo(format_table(report))
+        if show_channels and "channels" in report:
+            typer.echo(format_channels(report["channels"]))
+    if not report["converged"]:
+        typer.echo(f"error: {', '.join(map(str, logs))}: {report['message']}", err=True)
+        raise typer.Exit(code=FIT_FAILED)
+
+
+@app.command()
+def vehicles(as_json: JsonOption = False):
+    """List the built-in vehicles (use with --vehicle)."""
+    from ._vehicles import VEHICLES
+
+    if as_json:
+        _json_out(VEHICLES)
+        return
+    for name, text in VEHICLES.items():
+        typer.echo(f"{name:10s} {text}")
+
+
 @app.command()
 def fit(
-    log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    logs: Annotated[
+        list[pathlib.Path],
+        typer.Argument(help="Flight log(s): one manoeuvre per file", metavar="LOG..."),
+    ],
+    vehicle: VehicleOption = "pegasus",
+    model: ModelOption = None,
+    columns: ColumnsOption = None,
+    fix: FixOption = None,
+    bias: Annotated[
+        list[str] | None,
+        typer.Option(help="Estimate a per-record bias on this output (repeatable)"),
+    ] = None,
+    initial_state: Annotated[
+        str | None, typer.Option(help="fixed or estimated (per record)")
+    ] = None,
+    shooting_interval: Annotated[
+        float | None,
+        typer.Option(help="Multiple shooting with a node every this many s"),
+    ] = None,
     add: AddOption = None,
     knots: KnotsOption = 6,
     alpha_order: AlphaOrderOption = 3,
@@ -423,8 +606,24 @@ def fit(
     as_json: JsonOption = False,
     resample: ResampleOption = False,
 ):
-    """Refit with the named effects added; before/after metrics and the effects'
-    fitted values with standard errors."""
+    """Fit a vehicle's or model file's parameters to one or several logs (output
+    error; estimates, standard errors, correlations, cost), or, for Pegasus logs,
+    refit with the named effects added (--add): before/after metrics and the
+    effects' fitted values with standard errors."""
+    if model is not None or vehicle != "pegasus":
+        _fit_model(
+            model or vehicle, logs, columns, fix, bias, initial_state,
+            shooting_interval, out, as_json, tuple(add or ()),
+        )
+        return
+    if columns is not None or fix or bias or initial_state or shooting_interval:
+        _fail(
+            "--columns, --fix, --bias, --initial-state and --shooting-interval go "
+            "with --model FILE or --vehicle NAME"
+        )
+    if len(logs) != 1:
+        _fail("the Pegasus effect refit takes one log")
+    log = logs[0]
     from ._discrepancy import run_fit
 
     add = tuple(add or ())
@@ -465,12 +664,14 @@ def _print_before_after(result):
         f"({1 / result['cost_ratio']:.3g}x lower)"
     )
     typer.echo(
-        f"{'channel':>8s} {'rms before':>11s} {'rms after':>11s} {'TIC before':>11s} {'TIC after':>10s}"
+        f"{'channel':>8s} {'rms before':>11s} {'rms after':>11s} {'TIC before':>11s} "
+        f"{'TIC after':>10s} {'rms/noise before':>17s} {'rms/noise after':>16s}"
     )
     for name in b["channels"]:
+        mb, ma = b["channels"][name], a["channels"][name]
         typer.echo(
-            f"{name:>8s} {b['channels'][name]['rms']:11.4g} {a['channels'][name]['rms']:11.4g} "
-            f"{b['channels'][name]['tic']:11.4f} {a['channels'][name]['tic']:10.4f}"
+            f"{name:>8s} {mb['rms']:11.4g} {ma['rms']:11.4g} {mb['tic']:11.4f} "
+            f"{ma['tic']:10.4f} {mb['misfit_ratio']:17.2f} {ma['misfit_ratio']:16.2f}"
         )
     for name, e in result["effects"].items():
         typer.echo(
@@ -506,6 +707,7 @@ def demo(
     except ValueError as e:
         _fail(str(e))
     path = write_log(out / "flight.csv", log)
+    log = dataclasses.replace(log, path=path)  # reports name the file
     plot_trajectory(log, out / "trajectory.png")
     settings = Settings()
     typer.echo("2. compare: fitting the model without it (compiles on first use)...")
