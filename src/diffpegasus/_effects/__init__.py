@@ -18,9 +18,11 @@ from ._other import (
     ThrustMisalignment as ThrustMisalignment,
     VerticalWind as VerticalWind,
 )
+from ._turbulence import Turbulence as Turbulence
 from ._registry import (
     effect_names as effect_names,
     EFFECTS as EFFECTS,
+    RANDOM_EFFECTS as RANDOM_EFFECTS,
     make_effect as make_effect,
     parse_assignment as parse_assignment,
 )

@@ -18,6 +18,7 @@ from ._other import (
     ThrustMisalignment,
     VerticalWind,
 )
+from ._turbulence import Turbulence
 
 
 EFFECTS: dict[str, type[AbstractEffect]] = {
@@ -38,20 +39,25 @@ EFFECTS: dict[str, type[AbstractEffect]] = {
         VerticalWind,
     )
 }
+# Random effects: plantable by `--hidden` but not deterministic candidates of the
+# diagnosis (a gust realisation is process noise, estimated by the filter-error
+# method, not a term to add to the model).
+RANDOM_EFFECTS: dict[str, type[AbstractEffect]] = {Turbulence.name: Turbulence}
 
 
 def effect_names() -> list[str]:
     """Canonical names (`sensor_bias` takes a channel: `sensor_bias:az`)."""
-    return [n if n != "sensor_bias" else "sensor_bias:<channel>" for n in EFFECTS]
+    names = [n if n != "sensor_bias" else "sensor_bias:<channel>" for n in EFFECTS]
+    return names + list(RANDOM_EFFECTS)
 
 
 def make_effect(spec: str, value: float = 0.0) -> AbstractEffect:
     """The effect `spec` (a canonical name, `sensor_bias:<channel>` for a bias)
     with its main parameter set to `value` (SI units)."""
     name, _, channel = spec.partition(":")
-    if name not in EFFECTS:
+    if name not in EFFECTS and name not in RANDOM_EFFECTS:
         raise ValueError(f"unknown effect {spec!r}; known: {', '.join(effect_names())}")
-    cls = EFFECTS[name]
+    cls = EFFECTS.get(name) or RANDOM_EFFECTS[name]
     if name == "sensor_bias":
         if not channel:
             raise ValueError("sensor_bias needs a channel, e.g. sensor_bias:az")
