@@ -75,6 +75,8 @@ from ._identify import (  # noqa: E402
     score_candidates as score_candidates,
     fit as fit,
     Fit as Fit,
+    FilterErrorFit as FilterErrorFit,
+    fit_filter_error as fit_filter_error,
     Model as Model,
     MultipleShooting as MultipleShooting,
     Record as Record,

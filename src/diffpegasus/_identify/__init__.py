@@ -4,6 +4,10 @@ from ._diagnose import (
     score_candidates as score_candidates,
 )
 from ._engine import Layout as Layout, RESULTS as RESULTS, Solution as Solution
+from ._filter_error import (
+    FilterErrorFit as FilterErrorFit,
+    fit_filter_error as fit_filter_error,
+)
 from ._fit import (
     Fit as Fit,
     fit as fit,
