@@ -25,6 +25,26 @@ def noise_sigma(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(d2**2) / 6.0))
 
 
+def residual_noise_sigma(e: np.ndarray, band: float = 0.5) -> float:
+    """White-noise standard deviation of a residual from its spectrum above the
+    model's bandwidth: the median periodogram ordinate over the top `band` of the
+    frequencies (a white series has a flat spectrum whose ordinates are exponential,
+    median `sigma^2 ln 2`). The residual has the signal removed, and the median is
+    robust to the few broad-band transients a step between samples leaves, so real
+    high-frequency content of the measurement (a pulse's edges in qdot, which second
+    differences of the measurement count as noise) is not counted."""
+    e = np.asarray(e, float)
+    e = e - e.mean()
+    n = len(e)
+    if n < 8:
+        return float(np.std(e))
+    power = np.abs(np.fft.rfft(e)) ** 2 / n
+    upper = power[int(np.ceil((1.0 - band) * (len(power) - 1))) : len(power) - 1]
+    if upper.size == 0:
+        return float(np.std(e))
+    return float(np.sqrt(np.median(upper) / np.log(2.0)))
+
+
 def autocorrelation(e: np.ndarray, lags: int) -> np.ndarray:
     """Sample autocorrelation at lags `1..lags`."""
     e = e - e.mean()
@@ -72,7 +92,10 @@ def cross_correlation(e: np.ndarray, u: np.ndarray, lags: int) -> np.ndarray:
 
 
 def channel_metrics(
-    measured: np.ndarray, model: np.ndarray, inputs: np.ndarray | None = None
+    measured: np.ndarray,
+    model: np.ndarray,
+    inputs: np.ndarray | None = None,
+    noise: float | None = None,
 ) -> dict[str, float]:
     """Metrics of one channel's fit (SI units of the channel).
 
@@ -80,8 +103,9 @@ def channel_metrics(
     residual) and its 95% interval `bias_ci95` (from the long-run variance, so
     coloured residuals do not shrink it); `tic` (Theil's inequality coefficient, 0
     perfect, above about 0.3 poor); `r2`; `noise` (white-noise sigma of the
-    measurement, from second differences) and `misfit_ratio = rms / noise` (about 1:
-    the model explains everything but the noise); `ljung_box`, `ljung_box_p`
+    measurement: the given `noise`, e.g. from the log's sidecar, else
+    [`residual_noise_sigma`][] of the residual) and `misfit_ratio = rms / noise`
+    (about 1: the model explains everything but the noise); `ljung_box`, `ljung_box_p`
     (whiteness over 20 lags; a small p says the residual is not white: structure is
     left); `autocorrelation` (lags 1..20); `xcorr_input_max` (largest residual-input
     cross-correlation over +/-20 lags) with its 95% white-noise bound
@@ -96,7 +120,7 @@ def channel_metrics(
     bias = float(e.mean())
     denom = float(np.sqrt(np.mean(measured**2)) + np.sqrt(np.mean(model**2)))
     q, p = ljung_box(e)
-    sigma = noise_sigma(measured)
+    sigma = residual_noise_sigma(e) if noise is None else float(noise)
     out = {
         "rms": rms,
         "nrms": rms / span if span > 0 else float("nan"),

@@ -69,13 +69,14 @@ def plot_regimes(fit: ModelFit, path: str | os.PathLike) -> None:
     ]
     thrust = log["thrust"][idx]
     on = thrust > 0.01 * np.max(np.abs(thrust))
-    from ._metrics import noise_sigma
+    from ._workflow import channel_noise
 
+    noise = channel_noise(fit)
     fig, axes = plt.subplots(
         len(OUTPUTS), 3, figsize=(12, 1.8 * len(OUTPUTS)), sharex="col"
     )
     for i, name in enumerate(OUTPUTS):
-        sigma = noise_sigma(fit.measured[:, i]) or 1.0
+        sigma = noise[i] or 1.0
         r = fit.residuals[:, i] / sigma
         for j, (xlabel, x) in enumerate(variables):
             ax = axes[i, j]

@@ -34,10 +34,16 @@ def metrics_table(metrics: dict, before: dict | None = None) -> str:
     return "\n".join(lines)
 
 
+def _verdict(r: dict) -> str:
+    if r.get("resolution_limit"):
+        return "no (resolution limit)"
+    return "yes" if r["significant"] else "no"
+
+
 def ranking_table(diagnosis: dict, top: int = 10) -> str:
     lines = [
-        "| rank | effect | predicted cost fall | p-value | estimate | std. error | significant | hard to tell from |",
-        "|---|---|---|---|---|---|---|---|",
+        "| rank | effect | share of misfit (predicted det(R) fall) | score statistic | p-value | estimate | std. error | significant | hard to tell from |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for i, r in enumerate(diagnosis["ranking"][:top], 1):
         close = ", ".join(
@@ -45,8 +51,8 @@ def ranking_table(diagnosis: dict, top: int = 10) -> str:
         )
         lines.append(
             f"| {i} | {r['effect']} | {100 * r['cost_reduction']:.1f}% | "
-            f"{r['p_value']:.2g} | {r['parameter']} = {r['estimate']:.4g} | "
-            f"{r['stderr']:.2g} | {'yes' if r['significant'] else 'no'} | {close} |"
+            f"{r['statistic']:.1f} | {r['p_value']:.2g} | {r['parameter']} = {r['estimate']:.4g} | "
+            f"{r['stderr']:.2g} | {_verdict(r)} | {close} |"
         )
     return "\n".join(lines)
 

@@ -1,0 +1,403 @@
+"""An independent flight generator for the trust tests (issue 15).
+
+It shares no code with diffpegasus: plain numpy and scipy, its own ISA-like
+atmosphere (geometric altitude, four layers), its own inverse-square gravity, its own
+Pegasus-like aerodynamic table (smooth in Mach by PCHIP, non-linear in alpha, an
+alpha-elevator cross term), its own thrust, mass and inertia model, `solve_ivp`
+(DOP853, restarted at every input discontinuity), elevator pulses that are true
+steps at times that fall anywhere between samples, and noise levels lower than the
+package's simulator. Logs are written in the SPEC section 5 format (CSV plus JSON
+sidecar with `S_ref`, `c_ref`, `sample_rate_hz` and the noise sigmas).
+
+Planted effects (SPEC section 6 meaning, implemented here from scratch):
+`actuator_delay` (the surface follows the logged command tau s late),
+`sensor_bias:az` (constant bias on the az channel), `pitch_damping` (Cmq with
+q c / 2V), `moment_offset` (CM0), `thrust_misalignment` (moment = thrust x offset).
+
+The same `seed` gives the same flight (pulse times, drop conditions) at every
+sample rate; the noise depends on the seed and the rate.
+"""
+
+import json
+import pathlib
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.interpolate import PchipInterpolator
+
+
+S_REF = 13.5  # m^2
+C_REF = 2.48  # m
+G0 = 9.80665
+R_EARTH = 6.371e6
+R_GAS = 287.05287
+KAPPA = 1.4
+
+# noise per sample (SI units), the same at every sample rate; lower than the
+# package's default sensors on q and qdot (issue 15)
+NOISE = {
+    "ax": 0.02,
+    "az": 0.02,
+    "q": 2e-4,
+    "qdot": 5e-3,
+    "alpha": 1e-3,
+    "theta": 5e-4,
+    "V": 0.2,
+    "h": 2.0,
+    "mach": 5e-4,
+    "qbar": 20.0,
+    "de": 5e-5,
+}
+
+EFFECTS = (
+    "actuator_delay",
+    "sensor_bias:az",
+    "pitch_damping",
+    "moment_offset",
+    "thrust_misalignment",
+)
+
+# --- atmosphere: layers (base altitude m, lapse K/m), geometric altitude ----------
+_LAYERS = ((0.0, -6.5e-3), (11_000.0, 0.0), (20_000.0, 1.0e-3), (32_000.0, 2.8e-3))
+
+
+def _layer_bases():
+    t, p = 288.15, 101_325.0
+    bases = []
+    for i, (h0, lapse) in enumerate(_LAYERS):
+        bases.append((h0, lapse, t, p))
+        if i + 1 < len(_LAYERS):
+            dh = _LAYERS[i + 1][0] - h0
+            if lapse == 0.0:
+                p = p * np.exp(-G0 * dh / (R_GAS * t))
+            else:
+                t_new = t + lapse * dh
+                p = p * (t_new / t) ** (-G0 / (lapse * R_GAS))
+                t = t_new
+    return bases
+
+
+_BASES = _layer_bases()
+
+
+def atmosphere(h):
+    """Temperature (K), pressure (Pa), density (kg/m^3), speed of sound (m/s)."""
+    h = np.asarray(h, float)
+    temp = np.empty_like(h)
+    pres = np.empty_like(h)
+    for i, (h0, lapse, t0, p0) in enumerate(_BASES):
+        top = _BASES[i + 1][0] if i + 1 < len(_BASES) else np.inf
+        sel = (h >= h0) & (h < top) if i else h < top
+        dh = h[sel] - h0
+        if lapse == 0.0:
+            temp[sel] = t0
+            pres[sel] = p0 * np.exp(-G0 * dh / (R_GAS * t0))
+        else:
+            temp[sel] = t0 + lapse * dh
+            pres[sel] = p0 * (temp[sel] / t0) ** (-G0 / (lapse * R_GAS))
+    return temp, pres, pres / (R_GAS * temp), np.sqrt(KAPPA * R_GAS * temp)
+
+
+def gravity(h):
+    return G0 * (R_EARTH / (R_EARTH + h)) ** 2
+
+
+# --- aerodynamics: a Pegasus-like winged body, per rad ----------------------------
+_MACH = np.array([0.5, 0.7, 0.85, 0.95, 1.05, 1.2, 1.5, 2.0, 2.5, 3.0, 4.0, 6.0])
+_TABLE = {
+    # lift slope, body cross-flow lift (times alpha|alpha|), elevator lift
+    "CLa": [3.0, 3.2, 3.6, 4.0, 4.1, 3.7, 3.1, 2.5, 2.1, 1.8, 1.4, 1.0],
+    "CLaa": [2.0, 2.0, 2.1, 2.2, 2.3, 2.3, 2.2, 2.0, 1.9, 1.8, 1.7, 1.6],
+    "CLde": [0.60, 0.62, 0.66, 0.68, 0.62, 0.52, 0.42, 0.33, 0.27, 0.23, 0.18, 0.13],
+    # drag: CD = (CDa + CDaa alpha) alpha + CDde de (the thesis form, no CD0)
+    "CDa": [0.10, 0.10, 0.12, 0.20, 0.26, 0.22, 0.18, 0.15, 0.13, 0.12, 0.10, 0.08],
+    "CDaa": [1.4, 1.5, 1.6, 1.9, 2.1, 1.9, 1.6, 1.3, 1.1, 1.0, 0.9, 0.8],
+    "CDde": [0.05, 0.05, 0.06, 0.08, 0.09, 0.08, 0.07, 0.06, 0.05, 0.05, 0.04, 0.03],
+    # moment about the reference station (logged as xcp): small, stable
+    "CMa": [
+        -0.12,
+        -0.13,
+        -0.15,
+        -0.18,
+        -0.20,
+        -0.17,
+        -0.14,
+        -0.11,
+        -0.09,
+        -0.08,
+        -0.06,
+        -0.05,
+    ],
+    "CMaa": [
+        -0.3,
+        -0.3,
+        -0.3,
+        -0.35,
+        -0.4,
+        -0.35,
+        -0.3,
+        -0.25,
+        -0.2,
+        -0.2,
+        -0.15,
+        -0.1,
+    ],
+    "CMde": [
+        -1.00,
+        -1.03,
+        -1.10,
+        -1.12,
+        -1.02,
+        -0.86,
+        -0.70,
+        -0.55,
+        -0.45,
+        -0.38,
+        -0.30,
+        -0.22,
+    ],
+}
+_FINE = np.linspace(_MACH[0], _MACH[-1], 5501)
+_SMOOTH = {k: PchipInterpolator(_MACH, np.array(v))(_FINE) for k, v in _TABLE.items()}
+
+
+def _tab(name, mach):
+    return np.interp(mach, _FINE, _SMOOTH[name])
+
+
+def coefficients(alpha, de, mach):
+    """CL, CD and CM (about the reference station) of the clean vehicle."""
+    cross = 1.0 - 0.5 * np.abs(alpha)  # elevator loses authority at high alpha
+    cl = _tab("CLa", mach) * alpha + _tab("CLaa", mach) * alpha * np.abs(alpha)
+    cl = cl + _tab("CLde", mach) * cross * de
+    cd = (_tab("CDa", mach) + _tab("CDaa", mach) * alpha) * alpha
+    cd = cd + _tab("CDde", mach) * de
+    cm = _tab("CMa", mach) * alpha + _tab("CMaa", mach) * alpha * np.abs(alpha)
+    cm = cm + _tab("CMde", mach) * cross * de
+    return cl, cd, cm
+
+
+def reference_station(mach):
+    """Moment reference station (m from the nose, aft positive), moving aft
+    supersonically as the lift moves onto the wing."""
+    return 7.75 + 0.2 * np.tanh((mach - 1.1) / 0.35)
+
+
+# --- motor and mass ---------------------------------------------------------------
+T_IGNITION = 5.0
+T_VAC = 470e3
+ISP = 288.0
+A_EXIT = 1.5
+M_LAUNCH = 18_400.0
+M_PROPELLANT = 12_300.0
+
+
+def motor(t, p_ambient):
+    """Net thrust (N) and mass flow (kg/s, negative): a 0.4 s cosine rise after
+    ignition (the nozzle pressure loss rising with it), then regressive."""
+    s = np.clip((t - T_IGNITION) / 0.4, 0.0, 1.0)
+    rise = 0.5 - 0.5 * np.cos(np.pi * s)
+    vac = T_VAC * (1.0 - 0.002 * np.maximum(t - T_IGNITION, 0.0))
+    return rise * (vac - A_EXIT * p_ambient), -rise * vac / (ISP * G0)
+
+
+def inertia(m):
+    """Iyy (kg m^2) and the CG station (m) of the vehicle of mass `m`."""
+    burnt = (M_LAUNCH - m) / M_PROPELLANT
+    return 1.15e5 + 13.0 * (m - 6_100.0), 7.05 + 0.45 * burnt
+
+
+# --- the flight -------------------------------------------------------------------
+def elevator_schedule(seed: int, duration: float):
+    """Step times and levels (rad) of the logged elevator command: a nominal
+    nose-up deflection with steps to a pull-up trim after ignition, and 0.2-0.35 s
+    pulses of +/- 1.5-2.5 deg at jittered times (not on any sample grid)."""
+    rng = np.random.default_rng(10_000 + seed)
+    times = [0.0]
+    levels = [np.deg2rad(-3.0)]
+    t_trim = 6.0 + rng.uniform(0.0, 0.2)
+    nominal = lambda t: np.deg2rad(-3.0 if t < t_trim else -11.0)  # noqa: E731
+    t = 1.0 + rng.uniform(0.0, 0.3)
+    sign = 1.0
+    while t < duration - 0.6:
+        width = rng.uniform(0.2, 0.35)
+        amp = np.deg2rad(rng.uniform(1.5, 2.5)) * sign
+        times += [t, t + width]
+        levels += [nominal(t) + amp, nominal(t + width)]
+        sign = -sign
+        t += width + rng.uniform(0.45, 0.85)
+    # the trim step of the pull-up, between two pulses
+    order = np.argsort(times, kind="stable")
+    times, levels = np.array(times)[order], np.array(levels)[order]
+    trim = np.searchsorted(times, t_trim)
+    times = np.insert(times, trim, t_trim)
+    levels = np.insert(levels, trim, levels[trim - 1] + np.deg2rad(-8.0))
+    return times, levels
+
+
+def _step_value(t, times, levels):
+    return levels[np.searchsorted(times, t, side="right") - 1]
+
+
+class _Flight:
+    def __init__(self, times, levels, effects):
+        self.times = times
+        self.levels = levels
+        self.tau = effects.get("actuator_delay", 0.0)
+        self.cmq = effects.get("pitch_damping", 0.0)
+        self.cm0 = effects.get("moment_offset", 0.0)
+        self.offset = effects.get("thrust_misalignment", 0.0)
+
+    def surface(self, t):
+        # the surface follows the command tau late
+        return _step_value(t - self.tau, self.times, self.levels)
+
+    def evaluate(self, t, x, de):
+        """Rates and every measured quantity; works on scalars and arrays."""
+        u, w, q, theta, _, h, m = x
+        _, p, rho, a = atmosphere(np.atleast_1d(h))
+        p, rho, a = (
+            p.reshape(np.shape(h)),
+            rho.reshape(np.shape(h)),
+            a.reshape(np.shape(h)),
+        )
+        v = np.sqrt(u**2 + w**2)
+        alpha = np.arctan2(w, u)
+        mach = v / a
+        qbar = 0.5 * rho * v**2
+        thrust, mdot = motor(t, p)
+        iyy, xcg = inertia(m)
+        iyy_dot = 13.0 * mdot
+        cl, cd, cm = coefficients(alpha, de, mach)
+        cm = cm + self.cm0 + self.cmq * q * C_REF / (2.0 * v)
+        lift, drag = qbar * S_REF * cl, qbar * S_REF * cd
+        ca, sa = np.cos(alpha), np.sin(alpha)
+        fx = -drag * ca + lift * sa + thrust
+        fz = -drag * sa - lift * ca
+        xref = reference_station(mach)
+        moment = qbar * S_REF * C_REF * cm + (xref - xcg) * fz + self.offset * thrust
+        g = gravity(h)
+        udot = fx / m - g * np.sin(theta) - q * w
+        wdot = fz / m + g * np.cos(theta) + q * u
+        qdot = (moment - iyy_dot * q) / iyy
+        xdot = u * np.cos(theta) + w * np.sin(theta)
+        hdot = u * np.sin(theta) - w * np.cos(theta)
+        rates = np.array([udot, wdot, qdot, q, xdot, hdot, mdot])
+        out = {
+            "ax": fx / m,
+            "az": fz / m,
+            "q": q,
+            "qdot": qdot,
+            "alpha": alpha,
+            "V": v,
+            "theta": theta,
+            "h": h,
+            "mach": mach,
+            "qbar": qbar,
+            "thrust": thrust,
+            "mass": m,
+            "Iyy": iyy,
+            "Iyy_dot": iyy_dot,
+            "xcg": xcg,
+            "xcp": xref,
+        }
+        return rates, out
+
+    def rhs(self, t, x, de):
+        return self.evaluate(t, x, de)[0]
+
+
+def drop_state(seed: int) -> np.ndarray:
+    """`[u, w, q, theta, x, h, mass]` at drop: 12.2-12.8 km, Mach 0.78-0.82."""
+    rng = np.random.default_rng(20_000 + seed)
+    h = rng.uniform(12_200.0, 12_800.0)
+    mach = rng.uniform(0.78, 0.82)
+    alpha = np.deg2rad(rng.uniform(1.5, 2.5))
+    v = mach * atmosphere(np.array([h]))[3][0]
+    return np.array(
+        [v * np.cos(alpha), v * np.sin(alpha), 0.0, alpha, 0.0, h, M_LAUNCH]
+    )
+
+
+def generate(
+    seed: int = 0,
+    sample_rate: float = 1000.0,
+    duration: float = 30.0,
+    effects: dict[str, float] | None = None,
+    noise: bool = True,
+) -> tuple[dict[str, np.ndarray], dict]:
+    """One flight from drop: `(channels, metadata)` in the SPEC section 5 format.
+
+    **Arguments:** `seed` (flight and noise); `sample_rate` (Hz); `duration` (s);
+    `effects` (name in [`EFFECTS`][] to value, SI units); `noise`.
+    """
+    effects = dict(effects or {})
+    unknown = set(effects) - set(EFFECTS)
+    if unknown:
+        raise ValueError(f"unknown effects {sorted(unknown)}; known {EFFECTS}")
+    times, levels = elevator_schedule(seed, duration)
+    flight = _Flight(times, levels, effects)
+    n = int(round(duration * sample_rate)) + 1
+    t = np.arange(n) / sample_rate
+    # integrate piece by piece between the surface's steps (a true step: the
+    # solver never straddles it)
+    edges = np.unique(np.clip(times + flight.tau, 0.0, duration))
+    edges = np.concatenate([[0.0], edges[(edges > 0) & (edges < duration)], [duration]])
+    x = drop_state(seed)
+    states = np.empty((n, 7))
+    de_surface = np.empty(n)
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        de = _step_value(0.5 * (a + b) - flight.tau, times, levels)
+        sel = (t >= a) & ((t < b) | ((b == duration) & (t <= b)))
+        sol = solve_ivp(
+            flight.rhs,
+            (a, b),
+            x,
+            method="DOP853",
+            rtol=1e-10,
+            atol=1e-9,
+            args=(de,),
+            dense_output=True,
+        )
+        if not sol.success:
+            raise RuntimeError(f"integration failed at t = {a}: {sol.message}")
+        if sel.any():
+            states[sel] = sol.sol(t[sel]).T
+            de_surface[sel] = de
+        x = sol.y[:, -1]
+    _, out = flight.evaluate(t, states.T, de_surface)
+    channels = {"t": t, "de": _step_value(t, times, levels)}
+    channels.update({k: np.asarray(v, float) * np.ones(n) for k, v in out.items()})
+    channels["az"] = channels["az"] + effects.get("sensor_bias:az", 0.0)
+    if noise:
+        rng = np.random.default_rng([seed, int(round(sample_rate))])
+        for name, sigma in NOISE.items():
+            channels[name] = channels[name] + sigma * rng.normal(size=n)
+    metadata = {
+        "S_ref": S_REF,
+        "c_ref": C_REF,
+        "vehicle": "pegasus-like (independent generator)",
+        "sample_rate_hz": float(sample_rate),
+        "seed": seed,
+        "noise_sigmas": dict(NOISE) if noise else {},
+        "hidden_effects": effects,
+        "simulator": "tests/independent_generator.py",
+    }
+    return channels, metadata
+
+
+def write(path, channels: dict[str, np.ndarray], metadata: dict) -> pathlib.Path:
+    """Write CSV plus JSON sidecar (same stem); returns the CSV path."""
+    path = pathlib.Path(path)
+    names = list(channels)
+    data = np.column_stack([channels[c] for c in names])
+    with path.open("w") as f:
+        f.write(",".join(names) + "\n")
+        np.savetxt(f, data, delimiter=",", fmt="%.17g")
+    path.with_suffix(".json").write_text(json.dumps(metadata, indent=2))
+    return path
+
+
+def make_log(path, seed=0, sample_rate=1000.0, duration=30.0, effects=None, noise=True):
+    """Generate and write one flight; returns the CSV path."""
+    return write(path, *generate(seed, sample_rate, duration, effects, noise))

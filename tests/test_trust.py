@@ -1,0 +1,199 @@
+"""Trust on data we did not make (issue 15): the discrepancy workflow on logs of an
+independent generator (`independent_generator.py`: numpy and scipy only, its own
+atmosphere, aerodynamic table, motor, integrator, true-step elevator pulses, lower
+noise, several sample rates).
+
+The flights are 30 s from drop with the Pegasus reference geometry, so the model
+has the shape of `test_discrepancy.py`'s and the compiled fit is shared.
+"""
+
+import ast
+import functools
+import pathlib
+
+import numpy as np
+import pytest
+
+import diffpegasus as dp
+from diffpegasus._discrepancy._fit import block_means, block_weights
+from diffpegasus._discrepancy._metrics import residual_noise_sigma
+from diffpegasus.discrepancy import diagnose, fit, fit_metrics, Settings
+
+from . import independent_generator as gen
+
+
+SETTINGS = Settings()
+HERE = pathlib.Path(__file__).parent
+
+
+@functools.cache
+def log(seed: int, rate: float, effect: tuple = ()) -> dp.FlightLog:
+    """A generator log written to disk and read back through the log reader."""
+    import tempfile
+
+    folder = pathlib.Path(tempfile.mkdtemp(prefix="trust_"))
+    name = "clean" if not effect else effect[0].replace(":", "_")
+    path = gen.make_log(
+        folder / f"{name}_{seed}_{int(rate)}.csv",
+        seed,
+        rate,
+        30.0,
+        dict([effect]) if effect else None,
+    )
+    return dp.read_log(path)
+
+
+@functools.cache
+def baseline(seed: int, rate: float, effect: tuple = ()):
+    base = fit(log(seed, rate, effect), (), SETTINGS)
+    return base, diagnose(base, SETTINGS)
+
+
+def test_generator_shares_no_code_with_the_package():
+    tree = ast.parse((HERE / "independent_generator.py").read_text())
+    modules = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            modules |= {a.name.split(".")[0] for a in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            modules.add((node.module or "").split(".")[0])
+    assert modules <= {"json", "pathlib", "numpy", "scipy"}, modules
+
+
+def test_generator_log_format_and_sample_rates():
+    for rate in (1000.0, 50.0):
+        lg = log(7, rate)
+        assert lg.sample_rate == pytest.approx(rate)
+        assert lg.metadata["noise_sigmas"]["q"] == 2e-4
+        assert lg.s_ref == 13.5 and lg.c_ref == 2.48
+    # the same flight at both rates: the 50 Hz samples are the 1 kHz truth
+    clean_fast = gen.generate(7, 1000.0, noise=False)[0]
+    clean_slow = gen.generate(7, 50.0, noise=False)[0]
+    np.testing.assert_allclose(
+        clean_fast["alpha"][::20], clean_slow["alpha"], atol=1e-9
+    )
+    # elevator pulses are true steps: a jump within one 1 kHz sample
+    assert np.max(np.abs(np.diff(clean_fast["de"]))) > np.deg2rad(1.4)
+
+
+@pytest.mark.parametrize("step", [1, 2, 4, 5, 20])
+def test_block_means_keep_a_step_on_time(step):
+    # a unit step at a time between samples, sampled at 1/step of the model rate and
+    # reduced by block means: the linear interpolant of the means has the step's
+    # timing (its integral) to within half a log sample, zero on average over
+    # where the step falls; picking every n-th sample moves it by up to a model
+    # sample
+    rng = np.random.default_rng(0)
+    errors_mean, errors_pick = [], []
+    n = 400 * step
+    t = np.arange(n)
+    for _ in range(200):
+        s = rng.uniform(100 * step, 300 * step)
+        x = (t >= s).astype(float)
+        means, index = block_means(x, step)
+        # time of the step implied by a piecewise-linear signal: t_end - integral
+        centre = index[-1] - np.trapezoid(means, index)
+        picked = index[-1] - np.trapezoid(x[index], index)
+        errors_mean.append(centre - s)
+        errors_pick.append(picked - s)
+    errors_mean, errors_pick = np.array(errors_mean), np.array(errors_pick)
+    # each log sample stands for its own interval: a step between samples is known
+    # to half a sample
+    assert np.max(np.abs(errors_mean)) <= 0.5 + 1e-9
+    assert abs(np.mean(errors_mean)) < 0.1
+    if step > 2:
+        assert np.max(np.abs(errors_pick)) > 0.3 * step
+    assert block_weights(step).sum() == pytest.approx(step)
+
+
+def test_residual_noise_sigma_ignores_signal():
+    from diffpegasus._discrepancy._metrics import noise_sigma
+
+    rng = np.random.default_rng(1)
+    n = 1500
+    noise = 0.01 * rng.normal(size=n)
+    # a pulse train's edges in the measurement (qdot-like) and a slow structural
+    # misfit the model leaves
+    pulses = 0.1 * ((np.arange(n) // 25) % 2)
+    slow = 0.05 * np.sin(np.linspace(0, 6, n))
+    measured = pulses + slow + noise
+    model = pulses
+    sigma = residual_noise_sigma(measured - model)
+    assert abs(sigma - 0.01) < 0.001, sigma  # the estimate's own scatter ~4%
+    # second differences of the measurement count the edges as noise
+    assert noise_sigma(measured) > 1.5 * 0.01
+
+
+@pytest.mark.parametrize("rate", [1000.0, 50.0])
+@pytest.mark.parametrize("seed", [3, 4])
+def test_clean_generator_flights_flag_nothing(seed, rate):
+    base, result = baseline(seed, rate)
+    assert bool(base.result.converged)
+    assert result["significant"] == [], result["ranking"][:3]
+    assert "no candidate effect is significant" in result["message"]
+    # a delay found here can only be a sub-sample artefact
+    delay = next(r for r in result["ranking"] if r["effect"] == "actuator_delay")
+    assert abs(delay["estimate"]) < 0.5 / rate or delay["p_value"] > 0.01
+
+
+# Planted effects, each at a rate where the issue found a problem; sizes a few
+# times what a clean flight's structural misfit mimics.
+PLANTED = [
+    pytest.param("actuator_delay", 0.04, 1000.0, 0),
+    pytest.param("actuator_delay", 0.04, 50.0, 2, marks=pytest.mark.slow),
+    pytest.param("sensor_bias:az", 0.3, 200.0, 3, marks=pytest.mark.slow),
+    pytest.param("pitch_damping", -3.0, 1000.0, 0, marks=pytest.mark.slow),
+    pytest.param("thrust_misalignment", 0.03, 1000.0, 0, marks=pytest.mark.slow),
+    # the rule's detection limit on this generator: a planted CM0 of 0.01 gives a
+    # score statistic of 61-107 (measured, seeds 2 and 3), below the penalty 150
+    # that clean flights need (their structural misfit reaches 124)
+    pytest.param(
+        "moment_offset",
+        0.01,
+        200.0,
+        3,
+        marks=[
+            pytest.mark.slow,
+            pytest.mark.xfail(strict=True, reason="below the rule's detection limit"),
+        ],
+    ),
+]
+# The generator's gravity (9.80665 m/s^2 at 6371 km) is 0.008 m/s^2 stronger than
+# the model's (G Me / (Re + h)^2, 9.798 m/s^2 at sea level): clean flights show an
+# az bias of -0.010 +/- 0.002 m/s^2, which a planted az bias carries (measured
+# refits 0.2915 +/- 0.0019 at 1 kHz, 0.2901 +/- 0.0017 at 200 Hz for 0.3).
+STRUCTURAL = {
+    "sensor_bias:az": 0.015,
+    # clean flights show a thrust-misalignment-like misfit of +0.003 to +0.0066 m
+    # (the trim step and the transonic table just after ignition); measured refits
+    # of 0.03: 0.0360 +/- 0.0004 (1 kHz), 0.0324 +/- 0.0005 (200 Hz)
+    "thrust_misalignment": 0.008,
+}
+# what the data cannot tell the planted effect from (projected correlation > 0.9)
+TIED = {"pitch_damping": {"alpha_dot_damping"}}
+
+
+@pytest.mark.parametrize("name,value,rate,seed", PLANTED)
+def test_planted_effect_is_first_significant_and_recovered(name, value, rate, seed):
+    base, result = baseline(seed, rate, (name, value))
+    top = result["ranking"][0]
+    assert top["effect"] == name or top["effect"] in TIED.get(name, ()), result[
+        "ranking"
+    ][:3]
+    assert name in result["significant"]
+    after = fit(log(seed, rate, (name, value)), (name,), SETTINGS, start=base)
+    assert after.cost < 0.75 * base.cost
+    est = after.effect_estimates()[name]
+    # where each step falls between samples moves it by up to half a log sample:
+    # about h / sqrt(12 x 60 steps) on average, 0.75 ms at 50 Hz (measured refit
+    # at 50 Hz: 0.03940 +/- 0.00016), which the standard error does not contain
+    sampling = 0.05 / rate if name == "actuator_delay" else 0.0
+    tolerance = 3 * est["stderr"] + STRUCTURAL.get(name, 0.0) + sampling
+    assert abs(est["estimate"] - value) < tolerance, est
+    # the noise sigma is the sidecar's, scaled to a block mean of the log (the
+    # misfit itself stays above the noise: at 1 kHz the generator's noise is so
+    # low that the baseline's structural misfit dominates, q about 19 x noise)
+    w = block_weights(after.step)
+    scale = np.sqrt(np.sum(w**2)) / np.sum(w)
+    channels = fit_metrics(after)["channels"]
+    assert channels["q"]["noise"] == pytest.approx(gen.NOISE["q"] * scale)
