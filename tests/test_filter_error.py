@@ -201,13 +201,15 @@ def test_filter_error_unbiased_where_output_error_is_not(monte_carlo):
 
 def test_without_process_noise_both_methods_agree():
     rec = simulate(11, f=(0.0, 0.0))
-    fem = fit_filter_error(MODEL, rec, process_noise=("alpha", "q"))
+    # full R as in the Monte Carlo: shares its compiled solver (the diagonal-R
+    # variant would compile for another 25 s; measured with it: differences up to
+    # 1.0 standard error, det R 0.3% above output error's)
+    fem = fit_filter_error(MODEL, rec, process_noise=("alpha", "q"), full_R=True)
     oem = fit(MODEL, rec)
     # The gain nearly collapses (the F estimates fit a little of the measurement
     # noise) and the estimates agree within the statistical accuracy (measured
-    # differences 0.1 to 1.0 standard errors) at nearly the same det R (measured
-    # 0.3% apart: the relaxation holds R while F moves, so its fixed point is not
-    # exactly the det R minimum).
+    # differences 0.2 to 1.3 standard errors) at nearly the same det R (measured
+    # 0.3% below output error's).
     assert np.all(np.abs(fem.params - oem.params) < 1.5 * oem.stderr)
     assert np.all(fem.kc < 0.05)
     np.testing.assert_allclose(fem.cost, oem.cost, rtol=0.01)
