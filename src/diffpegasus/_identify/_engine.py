@@ -246,12 +246,19 @@ def _scatter(h, g, cols, jac, res):
     return h, g
 
 
+@functools.partial(jax.jit, static_argnames=("model", "nx", "p"))
+def _segment(model, layout, s, v, nx, p):
+    # jitted so that Python traces the model once per solve: vmap, jvp and the
+    # several call sites below transform the cached jaxpr instead of retracing
+    return layout.segment(model, s, v, nx, p)
+
+
 def residuals_at(model, layout: AbstractLayout, z, nx, p):
     """Output residuals `(S, length, outputs)` (0 at padding), defects `(S - 1,
     states)` (0 where segments do not link) and model outputs, at the unknowns `z`."""
     local = layout.local_columns(nx, p)
     nodes = layout.node_columns(nx, p)
-    ys, ends = jax.vmap(lambda s, cols: layout.segment(model, s, z[cols], nx, p))(
+    ys, ends = jax.vmap(lambda s, cols: _segment(model, layout, s, z[cols], nx, p))(
         jnp.arange(layout.n_segments), local
     )
     e = jnp.where(layout.valid[..., None], layout.measured - ys, 0.0)
@@ -271,7 +278,7 @@ def linearise(model, layout: AbstractLayout, z, nx, p, r):
 
     def block(s, cols):
         def f(v):
-            out = layout.segment(model, s, v, nx, p)
+            out = _segment(model, layout, s, v, nx, p)
             return out, out
 
         return jax.jacfwd(f, has_aux=True)(z[cols])
