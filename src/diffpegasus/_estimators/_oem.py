@@ -15,13 +15,12 @@ through [`fit_global_oem`][].
 
 from collections.abc import Callable
 
-import diffrax
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from ._rk4 import RK4
+from .._identify._engine import rk4_scan
 
 
 class OEMProblem(eqx.Module):
@@ -124,7 +123,8 @@ def _input_at(problem: OEMProblem, t, theta=None):
 
 
 def _window_solve(problem: OEMProblem, x0, theta, t_start, theta_end=None):
-    """States at the window's samples and one step beyond, shape `(L + 1, states)`.
+    """States at the window's samples and one step beyond, shape `(L + 1, states)`:
+    RK4 at the sample step (the engine's `rk4_scan`).
 
     With `theta_end` the parameters vary linearly in time from `theta` at `t_start`
     to `theta_end` one window later."""
@@ -136,21 +136,8 @@ def _window_solve(problem: OEMProblem, x0, theta, t_start, theta_end=None):
         return problem.rates(t, x, _input_at(problem, t, th), th)
 
     ts = t_start + problem.dt * jnp.arange(length + 1)
-    sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(field),
-        RK4(),
-        t0=t_start,
-        t1=ts[-1],
-        dt0=problem.dt,
-        y0=x0,
-        args=(theta, theta_end, t_start),
-        saveat=diffrax.SaveAt(ts=ts),
-        stepsize_controller=diffrax.ConstantStepSize(),
-        adjoint=diffrax.ForwardMode(),
-        max_steps=length + 2,
-        throw=False,
-    )
-    return sol.ys, ts
+    args = (theta, theta_end, t_start)
+    return rk4_scan(lambda t, x: field(t, x, args), x0, ts, problem.dt), ts
 
 
 def _theta_at(args, t, span):

@@ -157,7 +157,7 @@ def read_table(path: str | os.PathLike) -> dict[str, np.ndarray]:
             )
         for name, cell in zip(names, row, strict=True):
             try:
-                if "_" in cell:
+                if "_" in cell or not cell.isascii():
                     raise ValueError
                 out[name].append(float(cell))
             except ValueError:
@@ -210,6 +210,19 @@ def load_record(model: Model, path, columns=None, x0=None, time: str = "t") -> R
     measured = np.column_stack(
         [_channel(table, columns, n, path) for n in model.outputs]
     )
+    # the unit-mistake checks of flight logs, on whatever channels the model has
+    # (a theta in degrees, q in deg/s, qbar against 0.5 rho V^2, ...)
+    from .._checks import check_physics
+
+    channels = {"t": t}
+    for j, n in enumerate(model.inputs):
+        channels[n] = inputs[:, j]
+    for j, n in enumerate(model.outputs):
+        channels[n] = measured[:, j]
+    try:
+        check_physics(channels, {"skip_checks": ["geometry"]}, str(path), str(path))
+    except ValueError as e:
+        raise LogError(str(e)) from None
     if x0 is None:
         guess = []
         for name in model.states:
