@@ -11,7 +11,7 @@ VEHICLES = {
     "pegasus": "Pegasus XL first stage, drop to burnout (3-DOF pitch plane, Orion 50S "
     "motor, thesis aerodynamic database): simulate, estimate, compare, diagnose, fit",
     "hfb320": "HFB-320 business jet, longitudinal (Jategaonkar test case 4: 11 "
-    "aerodynamic derivatives, thrust from the log, real DLR flight record): fit",
+    "aerodynamic derivatives, thrust from the log, real DLR flight record): simulate, fit, compare, diagnose",
 }
 
 
