@@ -23,6 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from ._identify._engine import rk4_scan
 from ._inputs import AbstractInput, NoInput
 
 
@@ -310,16 +311,7 @@ def _simulate(aircraft, start, aileron, rudder, elevator, dt, n):
     def field(t, y):
         return sixdof_rates(y, controls(t), aircraft)
 
-    def step(y, t):
-        k1 = field(t, y)
-        k2 = field(t + dt / 2, y + dt / 2 * k1)
-        k3 = field(t + dt / 2, y + dt / 2 * k2)
-        k4 = field(t + dt, y + dt * k3)
-        y1 = y + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        return y1, y1
-
-    _, ys = jax.lax.scan(step, start.y, ts[:-1])
-    ys = jnp.concatenate([start.y[None], ys])
+    ys = rk4_scan(field, start.y, ts, dt)
     out = jax.vmap(lambda t, y: sixdof_evaluate(y, controls(t), aircraft)[1])(ts, ys)
     return {**out, "t": ts}
 
