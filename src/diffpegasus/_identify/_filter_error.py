@@ -351,23 +351,15 @@ class FilterErrorFit(eqx.Module):
 
     def table(self) -> list[dict]:
         """One row per parameter and per process-noise intensity `F[state]`."""
-        rows = []
+        from .._estimators._oem import parameter_table
+
         names = [*self.model.parameters, *(f"F[{s}]" for s in self.process_noise)]
         est = [*self.params.tolist(), *np.abs(self.F).tolist()]
         sd = [*self.stderr.tolist(), *self.F_stderr.tolist()]
-        held = [*(~self.free).tolist(), *([False] * len(self.F))]
-        for name, e, s, hd in zip(names, est, sd, held, strict=True):
-            rows.append(
-                {
-                    "parameter": name,
-                    "estimate": e,
-                    "stderr": None if hd else s,
-                    "relative_stderr_percent": None
-                    if hd or e == 0
-                    else 100 * s / abs(e),
-                    "fixed": hd,
-                }
-            )
+        free = [*self.free.tolist(), *([True] * len(self.F))]
+        rows = parameter_table(names, est, sd, free)
+        for row, f in zip(rows, free, strict=True):
+            row["fixed"] = not f
         return rows
 
 

@@ -172,24 +172,16 @@ class Fit(eqx.Module):
         return out
 
     def table(self) -> list[dict]:
-        """One row per parameter: estimate, standard errors, relative error (%)."""
-        rows = []
-        for i, name in enumerate(self.model.parameters):
-            est = float(self.params[i])
-            held = not self.free[i]
-            sd = None if held else float(self.stderr_corrected[i])
-            rows.append(
-                {
-                    "parameter": name,
-                    "estimate": est,
-                    "stderr": sd,
-                    "stderr_crb": None if held else float(self.stderr[i]),
-                    "relative_stderr_percent": None
-                    if held or est == 0
-                    else 100 * sd / abs(est),
-                    "fixed": held,
-                }
-            )
+        """One row per parameter: estimate, standard error (coloured-residual
+        corrected) and plain Cramér-Rao bound, relative error (%), 95% interval."""
+        from .._estimators._oem import parameter_table
+
+        rows = parameter_table(
+            self.model.parameters, self.params, self.stderr_corrected, self.free
+        )
+        for row, crb, free in zip(rows, self.stderr, self.free, strict=True):
+            row["stderr_crb"] = float(crb) if free else None
+            row["fixed"] = not free
         return rows
 
 
