@@ -60,7 +60,7 @@ def _optimistix_run(model, first, max_outer=30, rtol=1e-7):
 
     def residual(y, r):
         z = fixed_part.at[idx].set(y)
-        e, d, _ = _engine.residuals(model, lay, *_engine.unpack(lay, z, nx, p))
+        e, d, _ = _engine.residuals_at(model, lay, z, nx, p)
         return jnp.concatenate([(e / jnp.sqrt(r)).reshape(-1), d.reshape(-1)])
 
     solver = optx.LevenbergMarquardt(rtol=1e-8, atol=1e-10)
@@ -73,13 +73,13 @@ def _optimistix_run(model, first, max_outer=30, rtol=1e-7):
                 residual, solver, y, args=r, max_steps=100, throw=False
             )
             z = fixed_part.at[idx].set(sol.value)
-            e, _, _ = _engine.residuals(model, lay, *_engine.unpack(lay, z, nx, p))
+            e, _, _ = _engine.residuals_at(model, lay, z, nx, p)
             r_new = _engine.channel_variance(lay, e)
             cost = jnp.prod(r_new)
             done = jnp.abs(cost - cost_prev) <= rtol * cost
             return sol.value, r_new, cost, it + 1, done, steps + sol.stats["num_steps"]
 
-        e, _, _ = _engine.residuals(model, lay, *_engine.unpack(lay, z0, nx, p))
+        e, _, _ = _engine.residuals_at(model, lay, z0, nx, p)
         r0 = _engine.channel_variance(lay, e)
         init = (y0, r0, jnp.prod(r0), 0, False, 0)
         return jax.lax.while_loop(lambda c: (c[3] < max_outer) & ~c[4], body, init)

@@ -210,30 +210,6 @@ def segment_outputs(model: Model, layout: Layout, s, node, theta, bias):
     return ys, xs[-1]
 
 
-def unpack(layout: Layout, z, nx, p):
-    """`(nodes (S, nx), theta (P,), biases (R, nb))` from the flat unknowns."""
-    ns = layout.n_segments * nx
-    nodes = z[:ns].reshape(layout.n_segments, nx)
-    theta = z[ns : ns + p]
-    biases = z[ns + p :].reshape(layout.n_records, len(layout.bias_channels))
-    return nodes, theta, biases
-
-
-def residuals(model, layout, nodes, theta, biases):
-    """Output residuals `(S, length, outputs)` (0 at padding), defects `(S - 1,
-    states)` (0 between records) and the model outputs."""
-    seg = jnp.arange(layout.n_segments)
-    ys, ends = jax.vmap(
-        lambda s, x0: segment_outputs(
-            model, layout, s, x0, theta, biases[layout.record[s]]
-        )
-    )(seg, nodes)
-    e = jnp.where(layout.valid[..., None], layout.measured - ys, 0.0)
-    d = (ends[:-1] - nodes[1:]) / layout.scale[None, :]
-    d = jnp.where(layout.link[:, None], d, 0.0)
-    return e, d, ys
-
-
 def _columns(layout: Layout, nx, p):
     """Global column of each segment's local unknowns `[node, theta, bias]`."""
     n_seg, nb = layout.n_segments, len(layout.bias_channels)

@@ -185,7 +185,7 @@ class Fit(eqx.Module):
         return rows
 
 
-def _initial_nodes(model, records, lay, start, state_scale_given):
+def _initial_nodes(model, records, lay, start):
     """Node guesses: measured states where the outputs have them, else a forward
     simulation of the start model from the record's initial state."""
     nx = len(model.states)
@@ -312,7 +312,7 @@ def fit(
     start = np.asarray(model.start if start is None else start, float)
     nx, p, nb = len(model.states), len(model.parameters), len(biases)
     probe = layout(model, records, shooting, initial_state, biases, np.ones(nx))
-    nodes0 = _initial_nodes(model, records, probe, start, model.state_scale)
+    nodes0 = _initial_nodes(model, records, probe, start)
     lay = layout(
         model, records, shooting, initial_state, biases, _state_scale(model, nodes0)
     )
