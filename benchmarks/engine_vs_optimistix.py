@@ -20,10 +20,12 @@ import numpy as np
 import optimistix as optx
 
 import diffpegasus as dp
-from diffpegasus._identify import _engine
+from diffpegasus._estimate import _engine
 
 
-DATA = pathlib.Path(__file__).resolve().parents[2] / "shared/data/hfb320/hfb320_1_10.asc"
+DATA = (
+    pathlib.Path(__file__).resolve().parents[2] / "shared/data/hfb320/hfb320_1_10.asc"
+)
 
 
 def _setup(shooting):

@@ -24,7 +24,7 @@ import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
 import diffpegasus as dp  # noqa: E402
-from diffpegasus._estimators._nn import network_inputs  # noqa: E402
+from diffpegasus._estimate._nn import network_inputs  # noqa: E402
 
 
 def main():

@@ -31,8 +31,8 @@ import numpy as np  # noqa: E402
 import scipy.optimize  # noqa: E402
 
 import diffpegasus as dp  # noqa: E402
-from diffpegasus._estimators._oem import _input_at, _window_solve  # noqa: E402
-from diffpegasus._estimators._pegasus_oem import measured_states  # noqa: E402
+from diffpegasus._estimate._oem import _input_at, _window_solve  # noqa: E402
+from diffpegasus._estimate._pegasus_oem import measured_states  # noqa: E402
 
 
 def timed(fn):

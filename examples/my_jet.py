@@ -22,17 +22,30 @@ class Aero(dp.AbstractAerodynamics):
 
     def start(self):
         return {
-            "CD0": 5.7e-3, "CDV": 7.7e-3, "CDa": 0.67,
-            "CL0": -0.32, "CLV": 0.26, "CLa": 5.4,
-            "CM0": 0.05, "CMV": 0.019, "CMa": -0.5, "CMq": -26.0, "CMde": -1.0,
+            "CD0": 5.7e-3,
+            "CDV": 7.7e-3,
+            "CDa": 0.67,
+            "CL0": -0.32,
+            "CLV": 0.26,
+            "CLa": 5.4,
+            "CM0": 0.05,
+            "CMV": 0.019,
+            "CMa": -0.5,
+            "CMq": -26.0,
+            "CMde": -1.0,
         }
 
     def coefficients(self, c, p):
         v = c.airspeed / V0
         cd = p["CD0"] + p["CDV"] * v + p["CDa"] * c.alpha
         cl = p["CL0"] + p["CLV"] * v + p["CLa"] * c.alpha
-        cm = (p["CM0"] + p["CMV"] * v + p["CMa"] * c.alpha
-              + p["CMq"] * c.q * CBAR / V0 + p["CMde"] * c.de)
+        cm = (
+            p["CM0"]
+            + p["CMV"] * v
+            + p["CMa"] * c.alpha
+            + p["CMq"] * c.q * CBAR / V0
+            + p["CMde"] * c.de
+        )
         return cl, cd, cm
 
 
@@ -44,7 +57,15 @@ vehicle = dp.FlightVehicle(
     atmosphere=dp.ConstantAtmosphere(density=0.792),
 )
 columns = {
-    "t": "T", "de": "DELV", "thrust": "THRUST", "V": "TASCG", "alpha": "ALFCG",
-    "theta": "THE", "q": "Q", "qdot": "QDOT", "ax": "AXCG", "az": "AZCG",
+    "t": "T",
+    "de": "DELV",
+    "thrust": "THRUST",
+    "V": "TASCG",
+    "alpha": "ALFCG",
+    "theta": "THE",
+    "q": "Q",
+    "qdot": "QDOT",
+    "ax": "AXCG",
+    "az": "AZCG",
 }
 x0 = (106.023, 0.111685, 0.104887, -0.00332659)

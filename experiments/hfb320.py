@@ -30,7 +30,7 @@ def estimate(path=DEFAULT_DATA, **model_changes) -> dp.Fit:
 
 
 def main():
-    from diffpegasus._identify._run import plot_fit
+    from diffpegasus._cli._runners import plot_fit
 
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--data", type=pathlib.Path, default=DEFAULT_DATA)

@@ -17,10 +17,10 @@ import numpy as np
 import scipy.stats as st
 
 import diffpegasus as dp
-from diffpegasus._identify._filter_error import fit_filter_error
-from diffpegasus._identify._fit import fit
-from diffpegasus._identify._model import Record
-from diffpegasus._vehicles._hfb320 import hfb320_model, START, X0
+from diffpegasus._estimate._filter_error import fit_filter_error
+from diffpegasus._estimate._fit import fit
+from diffpegasus._estimate._model import Record
+from diffpegasus._vehicle._hfb320 import hfb320_model, START, X0
 
 
 DATA = "/work/shared/data/hfb320/hfb320_1_10.asc"
@@ -29,21 +29,41 @@ OUTPUTS = ("V", "alpha", "theta", "q", "qdot", "ax", "az")
 BOOK_FEM = dict(
     zip(
         START,
-        (0.122688, -0.0644969, 0.320055, -0.0929113, 0.148726, 4.32785, 0.111905,
-         0.00395154, -0.967854, -34.7098, -1.52913),
+        (
+            0.122688,
+            -0.0644969,
+            0.320055,
+            -0.0929113,
+            0.148726,
+            4.32785,
+            0.111905,
+            0.00395154,
+            -0.967854,
+            -34.7098,
+            -1.52913,
+        ),
         strict=True,
     )
 )
 BOOK_F = (0.358553, 2.42099e-3, 4.47607e-4, 1.73778e-3)
-BOOK_R = (0.01758668956825, 0.00000099020743, 0.00000019774013, 0.00000033836151,
-          0.00003168412236, 0.00041909760875, 0.02020310372280)
+BOOK_R = (
+    0.01758668956825,
+    0.00000099020743,
+    0.00000019774013,
+    0.00000033836151,
+    0.00003168412236,
+    0.00041909760875,
+    0.02020310372280,
+)
 
 
 def ljung_box(e, lags=20):
     """Ljung-Box Q over `lags` lags of a residual series and its p-value."""
     e = e - e.mean()
     n = len(e)
-    acf = np.array([np.sum(e[k:] * e[: n - k]) for k in range(lags + 1)]) / np.sum(e * e)
+    acf = np.array([np.sum(e[k:] * e[: n - k]) for k in range(lags + 1)]) / np.sum(
+        e * e
+    )
     q = n * (n + 2) * np.sum(acf[1:] ** 2 / (n - np.arange(1, lags + 1)))
     return q, st.chi2.sf(q, lags)
 
@@ -53,7 +73,9 @@ def main():
     rec = Record(
         d["T"],
         np.column_stack([d["DELV"], d["THRUST"]]),
-        np.column_stack([d[c] for c in ("TASCG", "ALFCG", "THE", "Q", "QDOT", "AXCG", "AZCG")]),
+        np.column_stack(
+            [d[c] for c in ("TASCG", "ALFCG", "THE", "Q", "QDOT", "AXCG", "AZCG")]
+        ),
         x0=X0,
         name="hfb320_1_10",
     )
@@ -63,7 +85,10 @@ def main():
     for label, call in (
         ("OEM", lambda: fit(model, rec)),
         ("FEM", lambda: fit_filter_error(model, rec, process_noise=noise)),
-        ("FEM diag R", lambda: fit_filter_error(model, rec, process_noise=noise, full_R=False)),
+        (
+            "FEM diag R",
+            lambda: fit_filter_error(model, rec, process_noise=noise, full_R=False),
+        ),
     ):
         t0 = time.perf_counter()
         fits[label] = call()
@@ -74,12 +99,17 @@ def main():
         print(
             f"{label}: det R {f.cost:.6e}, {f.iterations} iterations, first call "
             f"{t1 - t0:.1f} s, second {t2 - t1:.2f} s"
-            + (f", constraint active {f.constraint_active}, diag(KC) {np.round(f.kc[0], 4)}"
-               if label != "OEM" else "")
+            + (
+                f", constraint active {f.constraint_active}, diag(KC) {np.round(f.kc[0], 4)}"
+                if label != "OEM"
+                else ""
+            )
         )
     oem, fem, femd = fits["OEM"], fits["FEM"], fits["FEM diag R"]
 
-    print("\n| parameter | start (SPEC 7) | OEM | FEM (full R) | FEM (diag R) | FVSysID ml_fem |")
+    print(
+        "\n| parameter | start (SPEC 7) | OEM | FEM (full R) | FEM (diag R) | FVSysID ml_fem |"
+    )
     print("|---|---|---|---|---|---|")
     for i, name in enumerate(model.parameters):
         print(
@@ -93,7 +123,9 @@ def main():
             f"| {femd.F[j]:.4g} ± {femd.F_stderr[j]:.2g} | {BOOK_F[j]:.4g} |"
         )
 
-    print("\n| output | R OEM | R FEM full (diag) | R FEM diag | FVSysID R | LB Q OEM | LB Q FEM full | LB Q FEM diag |")
+    print(
+        "\n| output | R OEM | R FEM full (diag) | R FEM diag | FVSysID R | LB Q OEM | LB Q FEM full | LB Q FEM diag |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     for k, name in enumerate(OUTPUTS):
         q_o, _ = ljung_box(rec.measured[:, k] - oem.outputs[0][:, k])

@@ -24,7 +24,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import diffpegasus as dp  # noqa: E402
-from diffpegasus._short_period import ShortPeriodModel, simulate_short_period  # noqa: E402
+from diffpegasus._vehicle._short_period import ShortPeriodModel, simulate_short_period  # noqa: E402
 
 
 INPUTS = {

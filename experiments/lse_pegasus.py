@@ -28,7 +28,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import diffpegasus as dp  # noqa: E402
-from diffpegasus._plotting import plot_estimates  # noqa: E402
+from diffpegasus._report._plotting import plot_estimates  # noqa: E402
 
 
 THESIS_TABLE_3_2 = {

@@ -20,7 +20,7 @@ import argparse  # noqa: E402
 import json  # noqa: E402
 import pathlib  # noqa: E402
 
-from diffpegasus._montecarlo import Campaign, run_campaign  # noqa: E402
+from diffpegasus._campaign._montecarlo import Campaign, run_campaign  # noqa: E402
 
 
 def main():

@@ -25,8 +25,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import diffpegasus as dp  # noqa: E402
-from diffpegasus._estimators._nn import network_inputs  # noqa: E402
-from diffpegasus._plotting import plot_estimates  # noqa: E402
+from diffpegasus._estimate._nn import network_inputs  # noqa: E402
+from diffpegasus._report._plotting import plot_estimates  # noqa: E402
 
 
 THESIS_TABLE_4_1 = {

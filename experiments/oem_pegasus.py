@@ -25,7 +25,7 @@ import jax
 import numpy as np
 
 import diffpegasus as dp
-from diffpegasus._plotting import plot_estimates
+from diffpegasus._report._plotting import plot_estimates
 
 
 THESIS_TABLE_5_1 = {

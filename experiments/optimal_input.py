@@ -23,9 +23,9 @@ import jax.numpy as jnp
 import numpy as np
 
 import diffpegasus as dp
-from diffpegasus import _design as design_mod
+import diffpegasus._simulate._design as design_mod
 from diffpegasus._cli import _design_report
-from diffpegasus._plotting import plot_design
+from diffpegasus._report._plotting import plot_design
 
 
 def realised_errors(design, excitation, runs, key):

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import diffpegasus as dp
-from diffpegasus._atmosphere import _H_BASE, geopotential_altitude
+from diffpegasus._vehicle._atmosphere import _H_BASE, geopotential_altitude
 
 
 ALTITUDES = np.concatenate([np.linspace(0.0, 81_000.0, 163), [11_019.1, 47_350.0]])

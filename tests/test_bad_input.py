@@ -379,13 +379,15 @@ def test_out_in_a_place_no_one_may_write(tmp_path):
 def test_write_error_after_the_checks_is_one_line(tmp_path, monkeypatch):
     """A write that fails although the path looked fine (a full disk, a race) is
     still one line: here the log writer itself raises."""
-    import diffpegasus._log as log_module
+    import diffpegasus._log._format as log_module
 
     def refuse(*args, **kwargs):
         raise PermissionError(13, "Permission denied", str(tmp_path / "f.csv"))
 
     monkeypatch.setattr(log_module, "write_log", refuse)
-    monkeypatch.setattr("diffpegasus._cli._simulate_to_log", lambda *a, **k: object())
+    monkeypatch.setattr(
+        "diffpegasus._cli._simulate._simulate_to_log", lambda *a, **k: object()
+    )
     _assert_one_error(
         runner.invoke(app, ["simulate", "--out", str(tmp_path / "f.csv")]),
         "f.csv: cannot write (Permission denied)",
@@ -423,7 +425,7 @@ def test_rewriting_keeps_the_file_mode(tmp_path):
 def _failed_oem(converged):
     import jax.numpy as jnp
 
-    from diffpegasus._estimators import Estimates
+    from diffpegasus._estimate import Estimates
 
     n = len(converged)
     ok = jnp.asarray(converged)
@@ -441,7 +443,7 @@ def _failed_oem(converged):
 
 @pytest.mark.parametrize("as_json", [True, False])
 def test_oem_that_did_not_converge_says_so(tmp_path, monkeypatch, as_json):
-    import diffpegasus._estimators as estimators
+    import diffpegasus._estimate as estimators
 
     monkeypatch.setattr(
         estimators, "estimate_oem", lambda log, **k: _failed_oem([False] * 3)
@@ -464,7 +466,7 @@ def test_oem_that_did_not_converge_says_so(tmp_path, monkeypatch, as_json):
 
 
 def test_oem_with_some_failed_windows_nulls_them(tmp_path, monkeypatch):
-    import diffpegasus._estimators as estimators
+    import diffpegasus._estimate as estimators
 
     monkeypatch.setattr(
         estimators, "estimate_oem", lambda log, **k: _failed_oem([True, False, True])
@@ -478,7 +480,7 @@ def test_oem_with_some_failed_windows_nulls_them(tmp_path, monkeypatch):
 
 
 def test_compare_that_did_not_converge_reports_no_derivatives(tmp_path, monkeypatch):
-    import diffpegasus._discrepancy as discrepancy
+    import diffpegasus._diagnose as discrepancy
 
     def failed(log, settings, out):
         (out / "compare.md").write_text("# compare\n| CLa | 4.1 |\n")
@@ -509,7 +511,7 @@ def test_compare_that_did_not_converge_reports_no_derivatives(tmp_path, monkeypa
 def test_careful_reader_streams_in_blocks(tmp_path, monkeypatch):
     """A log with a text column takes the careful reader; with a tiny block size it
     still reads every row in order (the blocks are concatenated, not lost)."""
-    import diffpegasus._log as log_module
+    import diffpegasus._log._format as log_module
 
     monkeypatch.setattr(log_module, "_BLOCK", 7)
     c = plausible_channels(N)
@@ -520,7 +522,7 @@ def test_careful_reader_streams_in_blocks(tmp_path, monkeypatch):
 
 
 def test_oversized_log_is_refused_before_reading(tmp_path, monkeypatch):
-    import diffpegasus._log as log_module
+    import diffpegasus._log._format as log_module
 
     monkeypatch.setattr(log_module, "MAX_LOG_BYTES", 1000)
     path = _write(tmp_path, CLEAN, None)

@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from diffpegasus import _cache
+import diffpegasus._cache as _cache
 
 
 def _env(tmp_path, **extra):

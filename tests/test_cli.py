@@ -97,7 +97,7 @@ def test_installed_script_help():
 def test_input_names_all_build():
     import jax
 
-    from diffpegasus._inputs import excitation, EXCITATION_NAMES
+    from diffpegasus._simulate._inputs import excitation, EXCITATION_NAMES
 
     t = jax.numpy.linspace(0, 20, 2001)
     for name in EXCITATION_NAMES:

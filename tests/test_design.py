@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import diffpegasus as dp
-from diffpegasus import _design as design_mod
+import diffpegasus._simulate._design as design_mod
 
 
 U0 = 50.0

@@ -17,8 +17,8 @@ from typer.testing import CliRunner
 
 import diffpegasus as dp
 from diffpegasus._cli import app
-from diffpegasus._discrepancy._metrics import channel_metrics, ljung_box
-from diffpegasus._discrepancy._model import bspline_basis, OUTPUTS
+from diffpegasus._diagnose._metrics import channel_metrics, ljung_box
+from diffpegasus._diagnose._model import bspline_basis, OUTPUTS
 from diffpegasus.discrepancy import diagnose, fit, Settings
 
 
@@ -54,10 +54,10 @@ def test_bspline_basis_matches_scipy():
 
 
 def test_segment_jacobian_matches_finite_differences():
-    from diffpegasus._discrepancy._fit import equation_error_start, global_problem
-    from diffpegasus._discrepancy._model import measured_states
-    from diffpegasus._estimators._global_oem import _layout, VectorModel
-    from diffpegasus._identify._engine import segment_outputs
+    from diffpegasus._diagnose._fit import equation_error_start, global_problem
+    from diffpegasus._diagnose._model import measured_states
+    from diffpegasus._estimate._engine import segment_outputs
+    from diffpegasus._estimate._global_oem import _layout, VectorModel
 
     log = flight()
     spec = SETTINGS.spec(log)

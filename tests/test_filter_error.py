@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 import scipy.linalg as sl
 
-from diffpegasus._identify._filter_error import (
+from diffpegasus._estimate._filter_error import (
     fit_filter_error,
     innovations,
     problem,
 )
-from diffpegasus._identify._fit import fit
-from diffpegasus._identify._model import Model, Record
-from diffpegasus._identify._riccati import (
+from diffpegasus._estimate._fit import fit
+from diffpegasus._estimate._model import Model, Record
+from diffpegasus._estimate._riccati import (
     discretise,
     solve_dare,
     solve_filter_riccati,
@@ -59,7 +59,14 @@ def _input():
     """A 3-2-1-1 of 0.05 rad with 1 s unit, then a doublet."""
     t = DT * np.arange(N)
     de = np.zeros(N)
-    for start, width, sign in [(1, 3, 1), (4, 2, -1), (6, 1, 1), (7, 1, -1), (12, 1, 1), (13, 1, -1)]:
+    for start, width, sign in [
+        (1, 3, 1),
+        (4, 2, -1),
+        (6, 1, 1),
+        (7, 1, -1),
+        (12, 1, 1),
+        (13, 1, -1),
+    ]:
         de[(t >= start) & (t < start + width)] = 0.05 * sign
     return t, de
 
@@ -102,13 +109,17 @@ def test_dare_matches_scipy():
     s = np.linspace(0.0, 0.1, 4001)
     integrand = np.stack([sl.expm(a * v) @ f @ f.T @ sl.expm(a * v).T for v in s])
     # trapezoid with 4000 panels: error ~1e-8 of the integral
-    np.testing.assert_allclose(q, np.trapezoid(integrand, s, axis=0), rtol=1e-7, atol=1e-10)
+    np.testing.assert_allclose(
+        q, np.trapezoid(integrand, s, axis=0), rtol=1e-7, atol=1e-10
+    )
     rm = np.diag([0.01, 0.04, 0.02])
     p = jax.jit(solve_dare)(phi, jnp.asarray(c), q, jnp.asarray(rm))
     ps = sl.solve_discrete_are(np.asarray(phi).T, c.T, np.asarray(q), rm)
     np.testing.assert_allclose(p, ps, rtol=1e-11, atol=1e-14)
     # The innovation form: given R = C P C^T + Rm it returns scipy's P again.
-    pf = jax.jit(solve_filter_riccati)(phi, jnp.asarray(c), q, jnp.asarray(c @ ps @ c.T + rm))
+    pf = jax.jit(solve_filter_riccati)(
+        phi, jnp.asarray(c), q, jnp.asarray(c @ ps @ c.T + rm)
+    )
     np.testing.assert_allclose(pf, ps, rtol=1e-11, atol=1e-14)
 
 
@@ -120,14 +131,20 @@ def test_riccati_derivative_matches_finite_differences():
 
     @jax.jit
     def fn(s):
-        phi, q = discretise(jnp.asarray(a) * (1 + s), jnp.diag(jnp.array([0.4, 0.2, 0.3])) * (1 + 2 * s), 0.1)
+        phi, q = discretise(
+            jnp.asarray(a) * (1 + s),
+            jnp.diag(jnp.array([0.4, 0.2, 0.3])) * (1 + 2 * s),
+            0.1,
+        )
         return solve_filter_riccati(phi, c * (1 - s), q, r * (1 + s))
 
     _, tangent = jax.jit(lambda s: jax.jvp(fn, (s,), (1.0,)))(0.0)
     h = 1e-5
     fd = (fn(h) - fn(-h)) / (2 * h)
     # central differences at h = 1e-5: truncation ~h^2 = 1e-10 relative
-    np.testing.assert_allclose(tangent, fd, rtol=1e-7, atol=1e-9 * float(jnp.abs(fd).max()))
+    np.testing.assert_allclose(
+        tangent, fd, rtol=1e-7, atol=1e-9 * float(jnp.abs(fd).max())
+    )
 
 
 @pytest.mark.slow  # ~45 s of compilation on a loaded 2-core machine
@@ -163,7 +180,9 @@ def monte_carlo():
         rec = simulate(seed)
         # full R: the gusts correlate the alpha and az innovations, and with a
         # diagonal R F[alpha] came out 25% low (the derivatives were unbiased too)
-        fem.append(fit_filter_error(MODEL, rec, process_noise=("alpha", "q"), full_R=True))
+        fem.append(
+            fit_filter_error(MODEL, rec, process_noise=("alpha", "q"), full_R=True)
+        )
         oem.append(fit(MODEL, rec))
     return fem, oem
 

@@ -12,9 +12,9 @@ import scipy.integrate
 import scipy.optimize
 
 import diffpegasus as dp
-from diffpegasus._estimators._rk4 import RK4
-from diffpegasus._identify import _engine
-from diffpegasus._identify._fit import layout
+from diffpegasus._estimate import _engine
+from diffpegasus._estimate._fit import layout
+from diffpegasus._estimate._rk4 import RK4
 
 from .test_oem import _BOOK, _numpy_cost, _require, hfb320
 
@@ -249,7 +249,7 @@ def test_failed_fit_says_why():
 def test_hfb320_model_reaches_the_book_optimum():
     _require(hfb320.DEFAULT_DATA)
     data = dp.read_asc(hfb320.DEFAULT_DATA)
-    from diffpegasus._vehicles._hfb320 import hfb320_model, X0
+    from diffpegasus._vehicle._hfb320 import hfb320_model, X0
 
     rec = dp.Record(
         data["T"],
@@ -451,7 +451,7 @@ def test_hfb320_simulates_and_identifies_a_planted_sensor_bias(tmp_path):
     the refit recovers it and every derivative within 3 standard errors."""
     import json
 
-    from diffpegasus._vehicles._hfb320 import IDENTIFIED
+    from diffpegasus._vehicle._hfb320 import IDENTIFIED
 
     log = tmp_path / "h.csv"
     res = _cli(
@@ -490,8 +490,19 @@ def test_a_users_vehicle_file_from_parts_composes_library_effects():
     import pathlib
 
     jet = pathlib.Path(__file__).resolve().parents[1] / "examples" / "my_jet.py"
-    res = _cli(["fit", hfb320.DEFAULT_DATA, "--vehicle", jet, "--fix", "CMq=0",
-                "--add", "pitch_damping", "--json"])
+    res = _cli(
+        [
+            "fit",
+            hfb320.DEFAULT_DATA,
+            "--vehicle",
+            jet,
+            "--fix",
+            "CMq=0",
+            "--add",
+            "pitch_damping",
+            "--json",
+        ]
+    )
     assert res.exit_code == 0, res.output
     report = json.loads(res.stdout.strip().splitlines()[-1])
     # the built-in vehicle's number for the same fit (README): the same parts

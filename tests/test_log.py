@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import diffpegasus as dp
-from diffpegasus._log import REQUIRED_CHANNELS
+from diffpegasus._log._format import REQUIRED_CHANNELS
 
 
 def plausible_channels(
@@ -15,7 +15,7 @@ def plausible_channels(
     """Channels of a smooth pitch-plane flight that obey the kinematics, the standard
     atmosphere and plausible coefficients exactly, so only a planted fault fails the
     plausibility checks."""
-    from diffpegasus._checks import G, isa_density_and_sound
+    from diffpegasus._log._checks import G, isa_density_and_sound
 
     t = np.arange(n) / rate
     w1, w2 = 2 * np.pi * 0.5, 2 * np.pi * 0.3

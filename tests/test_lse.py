@@ -11,7 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 import diffpegasus as dp
-from diffpegasus._short_period import ShortPeriodModel
+from diffpegasus._vehicle._short_period import ShortPeriodModel
 
 from .helpers import numpy_channels, short_config
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import diffpegasus as dp
-from diffpegasus import _montecarlo as mc
+import diffpegasus._campaign._montecarlo as mc
 
 
 SMALL = mc.Campaign(

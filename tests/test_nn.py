@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import diffpegasus as dp
-from diffpegasus._estimators._nn import MinMax, network_inputs
+from diffpegasus._estimate._nn import MinMax, network_inputs
 
 from .helpers import short_config
 

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 import diffpegasus as dp
-from diffpegasus._estimators._global_oem import _layout, VectorModel
-from diffpegasus._estimators._windowed_oem import _make_layout, _segment
-from diffpegasus._identify._engine import (
+from diffpegasus._estimate._engine import (
     coloured_information as _coloured_information,
     segment_outputs,
 )
+from diffpegasus._estimate._global_oem import _layout, VectorModel
+from diffpegasus._estimate._windowed_oem import _make_layout, _segment
 
 
 EXPERIMENTS = pathlib.Path(__file__).resolve().parents[1] / "experiments"
@@ -422,7 +422,7 @@ def test_body_and_lift_drag_forms_round_trip():
 def test_window_solve_equals_diffrax_rk4(drifting):
     """The windowed fit's integrator (a lax.scan) against diffrax's solve with the
     same RK4 tableau, parameters varying linearly over the window."""
-    from diffpegasus._estimators._oem import _input_at, _theta_at, _window_solve
+    from diffpegasus._estimate._oem import _input_at, _theta_at, _window_solve
 
     de, clean, _ = drifting
     prob, theta0, _ = _windowed(clean, de)

@@ -15,7 +15,7 @@ def flight():
 
 
 def test_sampled_at_1khz_with_every_channel(flight):
-    from diffpegasus._log import REQUIRED_CHANNELS, TRUTH_CHANNELS
+    from diffpegasus._log._format import REQUIRED_CHANNELS, TRUTH_CHANNELS
 
     assert np.allclose(np.diff(flight["t"]), 1e-3)
     assert flight["t"][-1] == pytest.approx(80.3)

@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from diffpegasus._training import train_levenberg_marquardt
+from diffpegasus._estimate._training import train_levenberg_marquardt
 
 
 def _mlp(key):

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 import diffpegasus as dp
-from diffpegasus._discrepancy._fit import block_means, block_weights
-from diffpegasus._discrepancy._metrics import residual_noise_sigma
+from diffpegasus._diagnose._fit import block_means, block_weights
+from diffpegasus._diagnose._metrics import residual_noise_sigma
 from diffpegasus.discrepancy import diagnose, fit, fit_metrics, Settings
 
 from . import independent_generator as gen
@@ -107,7 +107,7 @@ def test_block_means_keep_a_step_on_time(step):
 
 
 def test_residual_noise_sigma_ignores_signal():
-    from diffpegasus._discrepancy._metrics import noise_sigma
+    from diffpegasus._diagnose._metrics import noise_sigma
 
     rng = np.random.default_rng(1)
     n = 1500

@@ -8,8 +8,13 @@ import scipy.integrate as si
 import scipy.signal as ss
 
 import diffpegasus as dp
-from diffpegasus._effects import VerticalWind
-from diffpegasus._effects._turbulence import dryden_u, dryden_w, scales, Turbulence
+from diffpegasus._vehicle._effects import VerticalWind
+from diffpegasus._vehicle._effects._turbulence import (
+    dryden_u,
+    dryden_w,
+    scales,
+    Turbulence,
+)
 
 
 V, L = 100.0, 300.0
@@ -55,7 +60,9 @@ def test_variance_and_spectrum_match_dryden():
 def test_low_altitude_scaling_and_reproducibility():
     s_u, s_w, l_u, l_w = scales(1.0, 500.0, 100 * 0.3048)  # 100 ft
     k = 0.177 + 0.000823 * 100
-    np.testing.assert_allclose([s_u, l_w, l_u], [1 / k**0.4, 100 * 0.3048, 100 * 0.3048 / k**1.2])
+    np.testing.assert_allclose(
+        [s_u, l_w, l_u], [1 / k**0.4, 100 * 0.3048, 100 * 0.3048 / k**1.2]
+    )
     assert s_w == 1.0
     a = Turbulence(sigma=1.0, seed=3).gusts(jnp.asarray(1.7))
     b = Turbulence(sigma=1.0, seed=3).gusts(jnp.asarray(1.7))
@@ -77,7 +84,10 @@ def test_wind_is_smooth_and_rotates_to_body_axes():
     up = VerticalWind(w_up=1.0).wind(t0, 0.3)
     gust_only = np.array(Turbulence(sigma=0.0).wind(t0, 0.3))
     np.testing.assert_allclose(gust_only, 0.0)
-    ref = (-w_g * np.sin(0.3) + u_g * np.cos(0.3), w_g * np.cos(0.3) + u_g * np.sin(0.3))
+    ref = (
+        -w_g * np.sin(0.3) + u_g * np.cos(0.3),
+        w_g * np.cos(0.3) + u_g * np.sin(0.3),
+    )
     np.testing.assert_allclose(eff.wind(t0, 0.3), ref, rtol=1e-12)
     assert np.sign(up[1]) == -1  # an updraft is negative w: consistent convention
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import diffpegasus as dp
-from diffpegasus._aerodynamics import DERIVATIVE_NAMES
+from diffpegasus._vehicle._pegasus._aerodynamics import DERIVATIVE_NAMES
 
 
 @pytest.fixture(scope="module")

@@ -1,7 +1,7 @@
 """The model-discrepancy workflow (compare, localise, diagnose, add, refit) as a
 library: see the README section "Find what the model is missing"."""
 
-from ._discrepancy import (
+from ._diagnose import (
     channel_metrics as channel_metrics,
     default_candidates as default_candidates,
     derivative_table as derivative_table,

@@ -1,7 +1,7 @@
 """Monte Carlo comparison of LSE, NN+LSE and OEM (see the README, "Monte Carlo
 comparison")."""
 
-from ._montecarlo import (
+from ._campaign._montecarlo import (
     Campaign as Campaign,
     coverage as coverage,
     draws as draws,

@@ -1,0 +1,1 @@
+"""Campaigns: the resumable Monte Carlo comparison, over devices, processes and hosts."""

@@ -1,0 +1,162 @@
+"""What every command shares: the Typer apps, failing with one line, shared options."""
+
+import json
+import pathlib
+from typing import Annotated
+
+import typer
+
+from .._log._format import LogError
+
+
+app = typer.Typer(
+    help="Differentiable flight simulation and aerodynamic identification: Pegasus, "
+    "HFB-320 and your own vehicles.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    add_completion=False,
+)
+estimate_app = typer.Typer(
+    help="Estimate the six derivatives per window from a flight log.",
+    no_args_is_help=True,
+)
+app.add_typer(estimate_app, name="estimate")
+
+
+def _fail(message: str) -> None:
+    typer.echo(f"error: {message}", err=True)
+    raise typer.Exit(code=2)
+
+
+# Exit code of a command whose input was fine but whose fit failed (nothing estimated).
+FIT_FAILED = 3
+
+
+def _check_out(out: pathlib.Path | None, kind: str) -> None:
+    """Refuse an `--out` that cannot be written before any work is done."""
+    from .._log._checks import out_problem
+
+    if out is not None and (problem := out_problem(out, kind)) is not None:
+        _fail(problem)
+
+
+def _os_error(e: OSError) -> str:
+    where = e.filename if e.filename is not None else "output"
+    return f"{where}: cannot write ({e.strerror or e})"
+
+
+def _check_units(units: str) -> None:
+    if units not in ("deg", "rad"):
+        _fail(f"--units must be deg or rad, got {units!r}")
+
+
+# Options shared by the `estimate` commands.
+UnitsOption = Annotated[str, typer.Option(help="deg or rad")]
+OutOption = Annotated[pathlib.Path | None, typer.Option(help="Folder for CSV and PNG")]
+JsonOption = Annotated[bool, typer.Option("--json", help="Print one JSON object")]
+ResampleOption = Annotated[bool, typer.Option(help="Resample a non-uniform log")]
+VehicleOption = Annotated[
+    str,
+    typer.Option(help="Built-in vehicle (see `diffpegasus vehicles`) or a FILE.py"),
+]
+ModelOption = Annotated[
+    pathlib.Path | None,
+    typer.Option(help="Model-definition file (Python; see the README)"),
+]
+ColumnsOption = Annotated[
+    pathlib.Path | None,
+    typer.Option(help="Column map (JSON or TOML): channel -> column, unit, scale"),
+]
+FixOption = Annotated[
+    list[str] | None,
+    typer.Option(help="Hold a parameter: NAME=VALUE, or NAME at its start value"),
+]
+
+
+# Options shared by the discrepancy commands.
+KnotsOption = Annotated[
+    int, typer.Option(help="Mach spline functions per coefficient term")
+]
+AlphaOrderOption = Annotated[
+    int, typer.Option(help="Highest power of alpha in the baseline coefficients")
+]
+RateOption = Annotated[float, typer.Option(help="Model sample rate, Hz")]
+NodeOption = Annotated[float, typer.Option(help="Shooting nodes every S s")]
+AddOption = Annotated[
+    list[str] | None,
+    typer.Option("--add", help="Effect to estimate (repeatable), e.g. pitch_damping"),
+]
+
+
+def _settings(knots, alpha_order, rate, node_interval):
+    from .._diagnose import Settings
+
+    if knots < 4:
+        _fail(f"--knots must be at least 4, got {knots}")
+    if alpha_order < 1:
+        _fail(f"--alpha-order must be at least 1, got {alpha_order}")
+    return Settings(
+        knots=knots, alpha_order=alpha_order, rate=rate, node_interval=node_interval
+    )
+
+
+def _read(log: pathlib.Path, resample: bool):
+    from .._log._format import read_log
+
+    try:
+        return read_log(log, resample=resample)
+    except LogError as e:
+        _fail(str(e))
+
+
+def _check_addable(names, settings):
+    from .._diagnose._workflow import check_addable
+
+    try:
+        check_addable(names, settings)
+    except ValueError as e:
+        _fail(str(e))
+
+
+def _finite(x):
+    """JSON has no NaN or infinity: such values (e.g. a noise ratio on a noise-free
+    log) become null."""
+    import math
+
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_finite(v) for v in x]
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
+def _json_out(result):
+    typer.echo(json.dumps(_finite(result), allow_nan=False, default=float))
+
+
+def _global_fit_failed(result: dict, what: str) -> str | None:
+    """The words for a global output-error fit that did not converge, or `None`;
+    sets `result["message"]`."""
+    its = result.get("iterations")
+    after = f" after {its} iterations" if its is not None else ""
+    if result.get("converged", True):
+        result["message"] = f"{what} converged{after}"
+        return None
+    result["message"] = (
+        f"{what} did not converge{after}, so it estimated nothing: no derivatives "
+        "are reported (the log may not excite the vehicle, or the model cannot "
+        "follow it; check the log with `diffpegasus check` and the residual plots)"
+    )
+    return result["message"]
+
+
+def _banner(report: pathlib.Path, message: str) -> None:
+    """Head a written report with the failure, so no one reads its numbers as
+    estimates."""
+    try:
+        if report.exists():
+            report.write_text(f"> **{message}**\n\n{report.read_text()}")
+    except OSError as e:
+        _fail(_os_error(e))

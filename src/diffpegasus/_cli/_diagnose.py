@@ -1,0 +1,197 @@
+"""`compare` and `diagnose`: where a fit fails and which missing term explains it."""
+
+import pathlib
+from typing import Annotated
+
+import typer
+
+from .._log._format import LogError
+from ._common import (
+    _banner,
+    _check_addable,
+    _check_out,
+    _fail,
+    _global_fit_failed,
+    _json_out,
+    _os_error,
+    _read,
+    _settings,
+    AddOption,
+    AlphaOrderOption,
+    app,
+    ColumnsOption,
+    FIT_FAILED,
+    FixOption,
+    JsonOption,
+    KnotsOption,
+    ModelOption,
+    NodeOption,
+    RateOption,
+    ResampleOption,
+    VehicleOption,
+)
+from ._fit import _fit_model
+
+
+@app.command()
+def compare(
+    log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    vehicle: VehicleOption = "pegasus",
+    model: ModelOption = None,
+    columns: ColumnsOption = None,
+    fix: FixOption = None,
+    knots: KnotsOption = 6,
+    alpha_order: AlphaOrderOption = 3,
+    rate: RateOption = 50.0,
+    node_interval: NodeOption = 1.0,
+    out: Annotated[
+        pathlib.Path | None, typer.Option(help="Folder for the report")
+    ] = None,
+    as_json: JsonOption = False,
+    resample: ResampleOption = False,
+):
+    """Fit the model by output error and show where it fails: per-channel metrics,
+    whiteness, misfit by flight regime, fitted derivatives with standard errors."""
+    if model is not None or vehicle != "pegasus":
+        _fit_model(
+            model or vehicle,
+            [log],
+            columns,
+            fix,
+            None,
+            None,
+            None,
+            out,
+            as_json,
+            show_channels=True,
+        )
+        return
+    from .._diagnose import run_compare
+
+    settings = _settings(knots, alpha_order, rate, node_interval)
+    _check_out(out, "folder")
+    flight = _read(log, resample)
+    try:
+        result, _ = run_compare(flight, settings, out)
+    except ValueError as e:
+        _fail(str(e))
+    except OSError as e:
+        _fail(_os_error(e))
+    failed = _global_fit_failed(result, "the output-error fit of the model")
+    if failed:
+        result["derivatives"] = None
+        if out is not None:
+            _banner(out / "compare.md", failed)
+    if as_json:
+        _json_out(result)
+    else:
+        _print_compare(result)
+    if failed:
+        typer.echo(f"error: {log}: {failed}", err=True)
+        raise typer.Exit(code=FIT_FAILED)
+
+
+def _print_compare(result):
+    typer.echo(f"output-error cost det(R) = {result['cost']:.4g}")
+    typer.echo(
+        f"{'channel':>8s} {'rms':>10s} {'TIC':>7s} {'R^2':>8s} {'rms/noise':>9s} {'white p':>8s}"
+    )
+    for name, m in result["channels"].items():
+        typer.echo(
+            f"{name:>8s} {m['rms']:10.3g} {m['tic']:7.3f} {m['r2']:8.4f} "
+            f"{m['misfit_ratio']:9.2f} {m['ljung_box_p']:8.2g}"
+        )
+    for w in result["localise"]["worst"][:3]:
+        typer.echo(
+            f"worst: {w['channel']} {w['misfit_ratio']:.1f} x noise for {w['variable']} "
+            f"in [{w['low']:.3g}, {w['high']:.3g}]"
+        )
+
+
+def _diagnose_model(which, log, columns, fix, add, as_json):
+    from .._vehicle import vehicle_spec
+    from ._runners import run_model_diagnose
+
+    try:
+        spec = vehicle_spec(str(which), add=add, candidates=True)
+        report = run_model_diagnose(spec, [log], columns=columns, holds=fix or ())
+    except LogError as e:
+        _fail(str(e))
+    if as_json:
+        _json_out(report)
+    else:
+        for r in report["ranking"]:
+            mark = "*" if r["significant"] else " "
+            typer.echo(
+                f"{mark} {r['effect']:24s} {100 * r['cost_reduction']:6.1f}%  "
+                f"p = {r['p_value']:.2g}  estimate {r['estimate']:.4g} "
+                f"+/- {r['stderr']:.2g}"
+            )
+        typer.echo(report["message"])
+    if not report["fit"]["converged"]:
+        typer.echo(f"error: {log}: {report['message']}", err=True)
+        raise typer.Exit(code=FIT_FAILED)
+
+
+@app.command()
+def diagnose(
+    log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    vehicle: VehicleOption = "pegasus",
+    model: ModelOption = None,
+    columns: ColumnsOption = None,
+    fix: FixOption = None,
+    add: AddOption = None,
+    knots: KnotsOption = 6,
+    alpha_order: AlphaOrderOption = 3,
+    rate: RateOption = 50.0,
+    node_interval: NodeOption = 1.0,
+    out: Annotated[
+        pathlib.Path | None, typer.Option(help="Folder for the report")
+    ] = None,
+    as_json: JsonOption = False,
+    resample: ResampleOption = False,
+):
+    """Rank the library's effects by how much of the misfit each would explain
+    (score test with exact Jacobians); say when none is significant."""
+    if model is not None or vehicle != "pegasus":
+        _diagnose_model(model or vehicle, log, columns, fix, tuple(add or ()), as_json)
+        return
+    from .._diagnose import run_diagnose
+
+    add = tuple(add or ())
+    settings = _settings(knots, alpha_order, rate, node_interval)
+    _check_addable(add, settings)
+    _check_out(out, "folder")
+    flight = _read(log, resample)
+    try:
+        result, base = run_diagnose(flight, settings, out, add)
+    except ValueError as e:
+        _fail(str(e))
+    except OSError as e:
+        _fail(_os_error(e))
+    if not bool(base.result.converged):
+        failed = (
+            f"the output-error fit of the model did not converge after "
+            f"{int(base.result.iterations)} iterations, so the ranking of effects "
+            "measures nothing: none is reported"
+        )
+        result.update(message=failed, ranking=[], significant=[])
+        if out is not None:
+            _banner(out / "diagnose.md", failed)
+        if as_json:
+            _json_out(result)
+        typer.echo(f"error: {log}: {failed}", err=True)
+        raise typer.Exit(code=FIT_FAILED)
+    if as_json:
+        _json_out(result)
+        return
+    typer.echo(result["message"])
+    typer.echo(
+        f"{'effect':>24s} {'cost fall':>9s} {'p-value':>9s} {'estimate':>12s} {'std err':>9s}"
+    )
+    for r in result["ranking"][:8]:
+        mark = " *" if r["significant"] else ""
+        typer.echo(
+            f"{r['effect']:>24s} {100 * r['cost_reduction']:8.1f}% {r['p_value']:9.2g} "
+            f"{r['estimate']:12.4g} {r['stderr']:9.2g}{mark}"
+        )

@@ -1,0 +1,270 @@
+"""`vehicles`, `fit` and `demo`: fit a vehicle or model file, refit with effects added."""
+
+import dataclasses
+import pathlib
+from typing import Annotated
+
+import typer
+
+from .._log._format import LogError
+from ._common import (
+    _banner,
+    _check_addable,
+    _check_out,
+    _fail,
+    _global_fit_failed,
+    _json_out,
+    _os_error,
+    _read,
+    _settings,
+    AddOption,
+    AlphaOrderOption,
+    app,
+    ColumnsOption,
+    FIT_FAILED,
+    FixOption,
+    JsonOption,
+    KnotsOption,
+    ModelOption,
+    NodeOption,
+    RateOption,
+    ResampleOption,
+    VehicleOption,
+)
+from ._simulate import _simulate_to_log
+
+
+def _fit_model(
+    which,
+    logs,
+    columns,
+    fix,
+    bias,
+    initial_state,
+    shooting_interval,
+    out,
+    as_json,
+    add=(),
+    show_channels=False,
+):
+    from .._estimate import MultipleShooting
+    from .._vehicle import vehicle_spec
+    from ._runners import format_channels, format_table, run_model_fit
+
+    if initial_state not in (None, "fixed", "estimated"):
+        _fail(f"--initial-state must be fixed or estimated, got {initial_state!r}")
+    if shooting_interval is not None and not shooting_interval > 0:
+        _fail(f"--shooting-interval must be positive, got {shooting_interval}")
+    _check_out(out, "folder")
+    try:
+        # with --add, compose every candidate (the others held at zero, left out of
+        # the report): the same program as `diagnose` of this vehicle compiled
+        spec = vehicle_spec(str(which), add=add, candidates=bool(add))
+        report = run_model_fit(
+            spec,
+            logs,
+            columns=columns,
+            holds=fix or (),
+            initial_state=initial_state,
+            biases=tuple(bias) if bias else None,
+            shooting=None
+            if shooting_interval is None
+            else MultipleShooting(interval=shooting_interval),
+            out=out,
+        )
+    except LogError as e:
+        _fail(str(e))
+    except OSError as e:
+        _fail(_os_error(e))
+    if as_json:
+        _json_out(report)
+    else:
+        typer.echo(format_table(report))
+        if show_channels and "channels" in report:
+            typer.echo(format_channels(report["channels"]))
+    if not report["converged"]:
+        typer.echo(f"error: {', '.join(map(str, logs))}: {report['message']}", err=True)
+        raise typer.Exit(code=FIT_FAILED)
+
+
+@app.command()
+def vehicles(as_json: JsonOption = False):
+    """List the built-in vehicles (use with --vehicle)."""
+    from .._vehicle import VEHICLES
+
+    if as_json:
+        _json_out(VEHICLES)
+        return
+    for name, text in VEHICLES.items():
+        typer.echo(f"{name:10s} {text}")
+
+
+@app.command()
+def fit(
+    logs: Annotated[
+        list[pathlib.Path],
+        typer.Argument(help="Flight log(s): one manoeuvre per file", metavar="LOG..."),
+    ],
+    vehicle: VehicleOption = "pegasus",
+    model: ModelOption = None,
+    columns: ColumnsOption = None,
+    fix: FixOption = None,
+    bias: Annotated[
+        list[str] | None,
+        typer.Option(help="Estimate a per-record bias on this output (repeatable)"),
+    ] = None,
+    initial_state: Annotated[
+        str | None, typer.Option(help="fixed or estimated (per record)")
+    ] = None,
+    shooting_interval: Annotated[
+        float | None,
+        typer.Option(help="Multiple shooting with a node every this many s"),
+    ] = None,
+    add: AddOption = None,
+    knots: KnotsOption = 6,
+    alpha_order: AlphaOrderOption = 3,
+    rate: RateOption = 50.0,
+    node_interval: NodeOption = 1.0,
+    out: Annotated[
+        pathlib.Path | None, typer.Option(help="Folder for the report")
+    ] = None,
+    as_json: JsonOption = False,
+    resample: ResampleOption = False,
+):
+    """Fit a vehicle's or model file's parameters to one or several logs (output
+    error; estimates, standard errors, correlations, cost), or, for Pegasus logs,
+    refit with the named effects added (--add): before/after metrics and the
+    effects' fitted values with standard errors."""
+    if model is not None or vehicle != "pegasus":
+        _fit_model(
+            model or vehicle,
+            logs,
+            columns,
+            fix,
+            bias,
+            initial_state,
+            shooting_interval,
+            out,
+            as_json,
+            tuple(add or ()),
+        )
+        return
+    if columns is not None or fix or bias or initial_state or shooting_interval:
+        _fail(
+            "--columns, --fix, --bias, --initial-state and --shooting-interval go "
+            "with --model FILE or --vehicle NAME"
+        )
+    if len(logs) != 1:
+        _fail("the Pegasus effect refit takes one log")
+    log = logs[0]
+    from .._diagnose import run_fit
+
+    add = tuple(add or ())
+    if not add:
+        _fail("name at least one effect with --add NAME (see `diffpegasus effects`)")
+    settings = _settings(knots, alpha_order, rate, node_interval)
+    _check_addable(add, settings)
+    _check_out(out, "folder")
+    flight = _read(log, resample)
+    try:
+        result = run_fit(flight, add, settings, out)
+    except ValueError as e:
+        _fail(str(e))
+    except OSError as e:
+        _fail(_os_error(e))
+    failed = _global_fit_failed(
+        result["after"], "the output-error fit with the added effects"
+    )
+    result["message"] = result["after"]["message"]
+    if failed:
+        result["effects"] = {name: None for name in result["effects"]}
+        if out is not None:
+            _banner(out / "fit.md", failed)
+        if as_json:
+            _json_out(result)
+        typer.echo(f"error: {log}: {failed}", err=True)
+        raise typer.Exit(code=FIT_FAILED)
+    if as_json:
+        _json_out(result)
+        return
+    _print_before_after(result)
+
+
+def _print_before_after(result):
+    b, a = result["before"], result["after"]
+    typer.echo(
+        f"output-error cost det(R): before {b['cost']:.4g}, after {a['cost']:.4g} "
+        f"({1 / result['cost_ratio']:.3g}x lower)"
+    )
+    typer.echo(
+        f"{'channel':>8s} {'rms before':>11s} {'rms after':>11s} {'TIC before':>11s} "
+        f"{'TIC after':>10s} {'rms/noise before':>17s} {'rms/noise after':>16s}"
+    )
+    for name in b["channels"]:
+        mb, ma = b["channels"][name], a["channels"][name]
+        typer.echo(
+            f"{name:>8s} {mb['rms']:11.4g} {ma['rms']:11.4g} {mb['tic']:11.4f} "
+            f"{ma['tic']:10.4f} {mb['misfit_ratio']:17.2f} {ma['misfit_ratio']:16.2f}"
+        )
+    for name, e in result["effects"].items():
+        typer.echo(
+            f"{name}: {e['parameter']} = {e['estimate']:.5g} +/- {e['stderr']:.2g}"
+        )
+
+
+@app.command()
+def demo(
+    out: Annotated[pathlib.Path, typer.Option(help="Folder for the results")] = (
+        pathlib.Path("demo")
+    ),
+    hidden: Annotated[
+        str, typer.Option(help="The effect hidden in the simulated flight, NAME=VALUE")
+    ] = "actuator_delay=0.02",
+    seed: Annotated[int, typer.Option(help="Seed of the simulated flight")] = 1,
+    duration: Annotated[
+        float | None, typer.Option(help="Flight length, s (default: to burnout)")
+    ] = None,
+):
+    """The discrepancy workflow end to end: simulate a flight with a hidden effect,
+    show the model failing, diagnose, add the top effect, refit, report."""
+    from .._diagnose import run_compare, run_diagnose, run_fit, Settings
+    from .._log._format import write_log
+    from .._report._plotting import plot_trajectory
+
+    out.mkdir(parents=True, exist_ok=True)
+    typer.echo(
+        f"1. simulating a Pegasus flight (drop to burnout) with a hidden effect ({hidden})..."
+    )
+    try:
+        log = _simulate_to_log(seed, "pulse", [hidden], False, duration, 100.0, True)
+    except ValueError as e:
+        _fail(str(e))
+    path = write_log(out / "flight.csv", log)
+    log = dataclasses.replace(log, path=path)  # reports name the file
+    plot_trajectory(log, out / "trajectory.png")
+    settings = Settings()
+    typer.echo("2. compare: fitting the model without it (compiles on first use)...")
+    metrics, base = run_compare(log, settings, out)
+    for name, m in metrics["channels"].items():
+        if m["misfit_ratio"] > 1.5:
+            typer.echo(
+                f"   {name}: residual rms {m['misfit_ratio']:.1f} x noise, not white (p {m['ljung_box_p']:.1g})"
+            )
+    typer.echo("3. diagnose: which library effect explains the misfit?")
+    diag, _ = run_diagnose(log, settings, out, (), base)
+    typer.echo(f"   {diag['message']}")
+    for r in diag["ranking"][:3]:
+        typer.echo(
+            f"   {r['effect']:>24s} predicted cost fall {100 * r['cost_reduction']:5.1f}%  p {r['p_value']:.2g}"
+        )
+    if not diag["significant"]:
+        typer.echo("nothing to add; done")
+        return
+    top = diag["significant"][0]
+    typer.echo(f"4. fit --add {top}: refitting...")
+    result = run_fit(log, (top,), settings, out, base)
+    _print_before_after(result)
+    typer.echo(
+        f"wrote {path}, trajectory.png and the reports compare.md, diagnose.md, "
+        f"fit.md (with their PNGs) in {out}"
+    )

@@ -1,0 +1,94 @@
+"""Model-definition files: a user's model in one Python file, no package code.
+
+The file is ordinary Python. It must define `model`, a [`Model`][], or `vehicle`, a
+[`FlightVehicle`][] built from the library's parts (then library effects compose
+with it: `--add`, `diagnose`), and may define
+
+- `columns`: a column map (see [`load_columns`][]) for the logs it is fitted to;
+- `x0`: the initial state of every record (default: the state channels at each
+  record's first sample);
+- `initial_state`: `"fixed"` (default) or `"estimated"`;
+- `biases`: outputs with a per-record bias, e.g. `("ax", "az")`;
+- `shooting`: a shooting strategy, e.g. `dp.MultipleShooting(interval=2.0)`;
+- `candidates`: held parameters (start 0) that `diagnose` score-tests, e.g. a
+  pitch-damping term the model may be missing.
+
+The built-in vehicles other than Pegasus are such files' contents, too.
+"""
+
+import dataclasses
+import pathlib
+import runpy
+import traceback
+
+from .._log._format import LogError
+from ._fit import MultipleShooting, SingleShooting
+from ._model import Model
+
+
+@dataclasses.dataclass(frozen=True)
+class ModelSpec:
+    """A model with what its file says about the data (see the module docstring)."""
+
+    model: Model
+    name: str
+    columns: dict | None = None
+    x0: tuple[float, ...] | None = None
+    initial_state: str = "fixed"
+    biases: tuple[str, ...] = ()
+    shooting: SingleShooting | MultipleShooting = SingleShooting()
+    candidates: tuple[str, ...] = ()
+    vehicle: object = None
+
+
+def load_model_file(path) -> ModelSpec:
+    """Run a model-definition file and collect what it defines. An error inside the
+    file becomes one `LogError` line naming the file and line."""
+    path = pathlib.Path(path)
+    if not path.is_file():
+        raise LogError(f"{path}: no such model file")
+    try:
+        ns = runpy.run_path(str(path), run_name="diffpegasus_model")
+    except Exception as e:  # the user's code: report where it failed, in one line
+        frames = [
+            f for f in traceback.extract_tb(e.__traceback__) if f.filename == str(path)
+        ]
+        line = f" line {frames[-1].lineno}" if frames else ""
+        raise LogError(f"{path}:{line}: {type(e).__name__}: {e}") from None
+    model = ns.get("model")
+    if model is None and ns.get("vehicle") is not None:
+        from .._vehicle._parts import FlightVehicle, vehicle_model
+
+        if not isinstance(ns["vehicle"], FlightVehicle):
+            raise LogError(f"{path}: `vehicle` must be a diffpegasus.FlightVehicle")
+        ns["model"] = model = vehicle_model(ns["vehicle"])
+    if not isinstance(model, Model):
+        raise LogError(
+            f"{path}: a model file must define `model = diffpegasus.Model(...)` "
+            f"or `vehicle = diffpegasus.FlightVehicle(...)` "
+            f"(found {type(model).__name__})"
+        )
+    return spec_from_namespace(ns, str(path))
+
+
+def spec_from_namespace(ns: dict, name: str) -> ModelSpec:
+    x0 = ns.get("x0")
+    shooting = ns.get("shooting", SingleShooting())
+    if not isinstance(shooting, SingleShooting | MultipleShooting):
+        raise LogError(
+            f"{name}: `shooting` must be dp.SingleShooting() or dp.MultipleShooting(...)"
+        )
+    initial_state = ns.get("initial_state", "fixed")
+    if initial_state not in ("fixed", "estimated"):
+        raise LogError(f"{name}: initial_state must be 'fixed' or 'estimated'")
+    return ModelSpec(
+        model=ns["model"],
+        name=name,
+        columns=ns.get("columns"),
+        x0=None if x0 is None else tuple(float(v) for v in x0),
+        initial_state=initial_state,
+        biases=tuple(ns.get("biases", ())),
+        shooting=shooting,
+        candidates=tuple(ns.get("candidates", ())),
+        vehicle=ns.get("vehicle"),
+    )

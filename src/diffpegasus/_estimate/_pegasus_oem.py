@@ -1,0 +1,418 @@
+"""The Pegasus output-error model and estimator (thesis chapter 5).
+
+States `[u, w, q, theta]`; known inputs from the log (elevator, net thrust, mass,
+Iyy, Iyy_dot, CG and cp stations, altitude for density and gravity); per-window
+parameters the body-axis derivatives `[CXa, CXde, CZa, CZde, CMa, CMde]` (the thesis
+found them better conditioned than the lift/drag ones); outputs `[ax, az, q, qdot,
+alpha, V]`. The same building blocks as the simulator (`pitch_plane_rates`,
+`moment_about_cg`, `isa`, `gravity`) give the dynamics.
+"""
+
+import dataclasses
+import functools
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Bool, Float
+
+from .._log._format import FlightLog
+from .._vehicle._atmosphere import isa
+from .._vehicle._flight import moment_about_cg, pitch_plane_rates
+from .._vehicle._gravity import gravity
+from .._vehicle._pegasus._aerodynamics import body_axis, load_database
+from ._global_oem import fit_global_oem
+from ._lse import estimate_lse, window_truth
+from ._oem import _window_solve, node_times, OEMProblem
+from ._result import Estimates
+from ._windowed_oem import fit_windowed_oem, WindowedFit
+from ._windows import WindowLayout
+
+
+INPUTS = ("de", "thrust", "mass", "Iyy", "Iyy_dot", "xcg", "xcp", "h")
+OUTPUTS = ("ax", "az", "q", "qdot", "alpha", "V")
+BODY_NAMES = ("CXa", "CXde", "CZa", "CZde", "CMa", "CMde")
+STATE_SCALE = np.array([10.0, 1.0, 0.01, 0.01])
+
+
+def _loads(x, u, p, s_ref, c_ref, wind_axes):
+    uu, ww, q, theta = x
+    de, thrust, mass, iyy, iyy_dot, xcg, xcp, h = u
+    alpha = jnp.arctan2(ww, uu)
+    v = jnp.sqrt(uu**2 + ww**2)
+    qbar = 0.5 * isa(h).density * v**2
+    if wind_axes:
+        cla, clde, cda, cdde, cma, cmde = p
+        cx, cz = body_axis(cla * alpha + clde * de, cda * alpha + cdde * de, alpha)
+    else:
+        cxa, cxde, cza, czde, cma, cmde = p
+        cx, cz = cxa * alpha + cxde * de, cza * alpha + czde * de
+    fx_aero = qbar * s_ref * cx
+    fz_aero = qbar * s_ref * cz
+    moment = moment_about_cg(
+        qbar, s_ref, c_ref, cma * alpha + cmde * de, fz_aero, xcg, xcp
+    )
+    return fx_aero + thrust, fz_aero, moment, alpha, v
+
+
+@functools.cache
+def make_model(s_ref: float, c_ref: float, wind_axes: bool = False):
+    """`(rates, outputs)` of the Pegasus OEM model for the given reference geometry;
+    parameters `[CXa, CXde, CZa, CZde, CMa, CMde]`, or with `wind_axes`
+    `[CLa, CLde, CDa, CDde, CMa, CMde]`. Cached, so that problems built from different
+    logs share the same functions and hence the compiled fits."""
+
+    def rates(t, x, u, p):
+        fx, fz, moment, _, _ = _loads(x, u, p, s_ref, c_ref, wind_axes)
+        udot, wdot, qdot = pitch_plane_rates(
+            x[0], x[1], x[2], x[3], fx, fz, moment, u[2], u[3], u[4], gravity(u[7])
+        )
+        return jnp.stack([udot, wdot, qdot, x[2]])
+
+    def outputs(t, x, u, p):
+        fx, fz, moment, alpha, v = _loads(x, u, p, s_ref, c_ref, wind_axes)
+        qdot = (moment - u[4] * x[2]) / u[3]
+        return jnp.stack([fx / u[2], fz / u[2], x[2], qdot, alpha, v])
+
+    return rates, outputs
+
+
+def to_lift_drag(body, alpha):
+    """Body-axis derivatives `(..., 6)` to `[CLa, CLde, CDa, CDde, CMa, CMde]` at the
+    window-mean alpha (thesis eqs 5.41-5.44)."""
+    sa, ca = jnp.sin(alpha), jnp.cos(alpha)
+    cxa, cxde, cza, czde, cma, cmde = jnp.moveaxis(body, -1, 0)
+    return jnp.stack(
+        [
+            cxa * sa - cza * ca,
+            cxde * sa - czde * ca,
+            -cxa * ca - cza * sa,
+            -cxde * ca - czde * sa,
+            cma,
+            cmde,
+        ],
+        axis=-1,
+    )
+
+
+def to_body(lift_drag, alpha):
+    """The inverse of [`to_lift_drag`][]."""
+    sa, ca = jnp.sin(alpha), jnp.cos(alpha)
+    cla, clde, cda, cdde, cma, cmde = jnp.moveaxis(lift_drag, -1, 0)
+    return jnp.stack(
+        [
+            cla * sa - cda * ca,
+            clde * sa - cdde * ca,
+            -cla * ca - cda * sa,
+            -clde * ca - cdde * sa,
+            cma,
+            cmde,
+        ],
+        axis=-1,
+    )
+
+
+def measured_states(log: FlightLog) -> np.ndarray:
+    """`[u, w, q, theta]` at every sample, from the measured V, alpha, q, theta."""
+    v, alpha = log["V"], log["alpha"]
+    return np.column_stack(
+        [v * np.cos(alpha), v * np.sin(alpha), log["q"], log["theta"]]
+    )
+
+
+def pegasus_problem(
+    log: FlightLog,
+    *,
+    window=0.5,
+    node_interval=2.0,
+    decimate=5,
+    single=False,
+    wind_axes=False,
+) -> tuple[OEMProblem, np.ndarray]:
+    """The OEM problem for a log, at `1/decimate` of its rate; returns it with the
+    decimated sample indices."""
+    used = WindowLayout.make(len(log), log.sample_rate, window).used
+    idx = np.arange(0, used, decimate)
+    rate = log.sample_rate / decimate
+    rates, outputs = make_model(log.s_ref, log.c_ref, wind_axes)
+    w = int(round(window * rate))
+    problem = OEMProblem(
+        rates=rates,
+        outputs=outputs,
+        t0=float(log.t[0]),
+        dt=float(decimate / log.sample_rate),
+        inputs=jnp.asarray(np.column_stack([log[c][idx] for c in INPUTS])),
+        measured=jnp.asarray(
+            np.column_stack([_block_mean(log[c], idx, decimate) for c in OUTPUTS])
+        ),
+        free=(True,) * 6,
+        window=w,
+        node_interval=w if single else int(round(node_interval * rate)),
+        state_scale=jnp.asarray(STATE_SCALE),
+        continuity_tol=1e-4,
+    )
+    return problem, idx
+
+
+def _block_mean(x: np.ndarray, idx: np.ndarray, n: int) -> np.ndarray:
+    """Mean of the `n` samples centred on each of `idx` (edges clamped): decimation
+    that keeps the noise averaging of the dropped samples instead of discarding it."""
+    offsets = np.arange(n) - (n - 1) // 2
+    return x[np.clip(idx[:, None] + offsets[None, :], 0, len(x) - 1)].mean(axis=1)
+
+
+def starting_values(
+    log: FlightLog, layout: WindowLayout, start: str, key=None, lse=None
+):
+    """Per-window starting derivatives (lift/drag form, 1/rad): `lse` (equation-error
+    estimates of the same windows; the database where LSE has none), `database` (the
+    a-priori tables at the window-mean alpha and Mach) or `truth10` (the truth x
+    U(0.9, 1.1), the thesis's shortcut). `lse`: the LSE estimates `(windows, 6)` if
+    already computed."""
+    alpha = np.asarray(layout.window_mean(jnp.asarray(log["alpha"])))
+    mach = np.asarray(layout.window_mean(jnp.asarray(log["mach"])))
+    db = load_database()
+    prior = np.asarray(
+        jax.vmap(lambda a, m: db.derivatives(a, m).as_array())(alpha, mach)
+    )
+    if start == "database":
+        return prior
+    if start == "lse":
+        if lse is None:
+            lse = estimate_lse(log, window=layout.per_window / layout.rate).values
+        est = np.asarray(lse)
+        return np.where(np.isfinite(est), est, prior)
+    if start == "truth10":
+        truth = window_truth(
+            {k: jnp.asarray(v) for k, v in log.channels.items()}, layout
+        )
+        if truth is None:
+            raise ValueError("start 'truth10' needs a log with true_* columns")
+        key = jax.random.key(0) if key is None else key
+        return np.asarray(truth) * np.asarray(
+            jax.random.uniform(key, truth.shape, minval=0.9, maxval=1.1)
+        )
+    raise ValueError(f"start must be lse, database or truth10, got {start!r}")
+
+
+class OEMSetup(eqx.Module):
+    """One flight's multiple-shooting OEM problem, ready to fit (stack several to
+    fit a batch with `jax.vmap`): the problem, starting parameters `(windows, 6)`,
+    starting nodes `(segments, 4)`, the window-mean alpha `(windows,)` (rad) for
+    the axis conversion and which windows are fitted `(windows,)`."""
+
+    problem: OEMProblem
+    theta0: Float[Array, "windows 6"]
+    nodes0: Float[Array, "segments 4"]
+    alpha: Float[Array, " windows"]
+    active: Bool[Array, " windows"]
+
+
+def oem_setup(
+    log: FlightLog,
+    *,
+    window: float = 0.5,
+    node_interval: float = 2.0,
+    decimate: int = 5,
+    start: str = "lse",
+    axes: str = "body",
+    single: bool = False,
+    min_qbar: float = 2000.0,
+    lse=None,
+) -> tuple[OEMSetup, np.ndarray]:
+    """The OEM problem of a log with its starting values (see [`estimate_oem`][]);
+    returns it with the measured states `[u, w, q, theta]` at the decimated samples."""
+    if axes not in ("body", "wind"):
+        raise ValueError(f"axes must be body or wind, got {axes!r}")
+    layout = WindowLayout.make(len(log), log.sample_rate, window)
+    problem, idx = pegasus_problem(
+        log,
+        window=window,
+        node_interval=node_interval,
+        decimate=decimate,
+        single=single,
+        wind_axes=axes == "wind",
+    )
+    if problem.n_windows != layout.count:
+        raise ValueError(
+            "window layout mismatch after decimation; use a window that is "
+            "a whole number of decimated samples"
+        )
+    alpha_w = jnp.asarray(layout.window_mean(jnp.asarray(log["alpha"])))
+    theta0 = jnp.asarray(starting_values(log, layout, start, lse=lse))
+    if axes == "body":
+        theta0 = to_body(theta0, alpha_w)
+    states = measured_states(log)[idx]
+    nodes0 = jnp.asarray(states[node_times(problem)])
+    active = layout.window_mean(jnp.asarray(log["qbar"])) >= min_qbar
+    return OEMSetup(problem, theta0, nodes0, alpha_w, active), states
+
+
+def windowed_lift_drag(fit: WindowedFit, alpha: Float[Array, " windows"], axes: str):
+    """A multiple-shooting fit as lift/drag derivatives per window: `(values, stderr
+    (coloured-residual corrected), valid, flags)`; NaN where the fit failed. Pure, so
+    `jax.vmap` applies it to a batch of fits."""
+    n_win = fit.params.shape[0]
+    off = fit.correlation * (1.0 - jnp.eye(fit.correlation.shape[-1]))[None]
+    flags = {
+        "converged": jnp.full(n_win, fit.converged),
+        "iterations": jnp.full(n_win, fit.iterations),
+        "max_defect": jnp.full(n_win, fit.defect),
+        "se_inflation": jnp.mean(fit.stderr_corrected / fit.stderr, axis=1),
+        "max_correlation": jnp.max(jnp.abs(off), axis=(1, 2)),
+    }
+    ok = fit.converged & fit.active
+    sd_c = fit.stderr_corrected
+    cov = sd_c[:, :, None] * fit.correlation * sd_c[:, None, :]
+    values, sd = _to_lift_drag_with_errors(fit.params, cov, alpha, axes)
+    return (
+        jnp.where(ok[:, None], values, jnp.nan),
+        jnp.where(ok[:, None], sd, jnp.nan),
+        ok,
+        flags,
+    )
+
+
+def _to_lift_drag_with_errors(body, body_cov, alpha, axes):
+    """Values and standard errors in lift/drag form from body-axis values and their
+    per-window covariance `(windows, 6, 6)` (CLa and CDa both mix CXa and CZa, so
+    the correlation matters)."""
+    if axes == "wind":
+        return body, jnp.sqrt(jnp.clip(jnp.diagonal(body_cov, axis1=1, axis2=2), 0.0))
+    values = to_lift_drag(body, alpha)
+    jac = jax.vmap(jax.jacfwd(to_lift_drag), in_axes=(0, 0))(body, alpha)
+    cov = jnp.einsum("wij,wjk,wlk->wil", jac, body_cov, jac)
+    return values, jnp.sqrt(jnp.clip(jnp.diagonal(cov, axis1=1, axis2=2), 0.0))
+
+
+def estimate_oem(
+    log: FlightLog,
+    *,
+    window: float = 0.5,
+    node_interval: float = 2.0,
+    shooting: str = "multiple",
+    decimate: int = 5,
+    start: str = "lse",
+    axes: str = "body",
+    parameters: str = "linear",
+    min_qbar: float = 2000.0,
+    rtol: float = 1e-5,
+    max_iter: int = 30,
+) -> Estimates:
+    """Output-error estimates of the six derivatives per window.
+
+    **Arguments:**
+
+    - `log`: a validated flight log.
+    - `window`: parameter window, s (0.5). `node_interval`: shooting nodes, s (2).
+    - `shooting`: `multiple` (all windows and nodes in one structured
+      Levenberg-Marquardt, continuity enforced) or `single` (the thesis's sequential
+      windows: each window starts from the previous window's simulated end state,
+      only the first from the measurements).
+    - `decimate`: fit every n-th sample (default 5: 200 Hz from a 1 kHz log), each
+      measurement the mean of the n samples around it.
+    - `start`: starting values, `lse`, `database` or `truth10`.
+    - `axes`: estimate body-axis (`body`, the thesis's choice) or lift/drag (`wind`)
+      derivatives; results are reported in lift/drag form either way.
+    - `parameters` (multiple shooting): `linear` (derivatives continuous and linear
+      in time between window boundaries; a window's estimate is their mean over the
+      window) or `constant` per window (the thesis's model).
+    - `min_qbar` (multiple shooting): windows whose mean measured dynamic pressure is
+      below this (Pa) are not fitted and get no estimate (high in the climb the
+      aerodynamic forces vanish into the noise and nothing can be identified).
+
+    **Returns:** [`Estimates`][] in lift/drag form (1/rad) with standard errors
+    (multiple shooting: Cramér-Rao corrected for coloured residuals; single:
+    Cramér-Rao); flags `converged`, `iterations`, `max_defect`, `se_inflation` (mean
+    coloured-residual factor of the window's standard errors), `max_correlation`
+    (largest |correlation| between the window's body-axis parameters).
+    """
+    if parameters not in ("linear", "constant"):
+        raise ValueError(f"parameters must be linear or constant, got {parameters!r}")
+    if shooting not in ("single", "multiple"):
+        raise ValueError(f"shooting must be single or multiple, got {shooting!r}")
+    layout = WindowLayout.make(len(log), log.sample_rate, window)
+    setup, states = oem_setup(
+        log,
+        window=window,
+        node_interval=node_interval,
+        decimate=decimate,
+        start=start,
+        axes=axes,
+        single=shooting == "single",
+        min_qbar=min_qbar,
+    )
+    if shooting == "multiple":
+        fit = fit_windowed_oem(
+            setup.problem,
+            setup.theta0,
+            setup.nodes0,
+            linear=parameters == "linear",
+            active=setup.active,
+            rtol=rtol,
+            max_iter=max_iter,
+        )
+        values, sd, ok, flags = windowed_lift_drag(fit, setup.alpha, axes)
+    else:
+        body, body_sd, ok, its = _sequential_single(
+            setup.problem, setup.theta0, states[0], rtol
+        )
+        flags = {"converged": ok, "iterations": its}
+        cov = jax.vmap(jnp.diag)(body_sd**2)  # the sequential fits give no correlation
+        values, sd = _to_lift_drag_with_errors(body, cov, setup.alpha, axes)
+        values = jnp.where(ok[:, None], values, jnp.nan)
+        sd = jnp.where(ok[:, None], sd, jnp.nan)
+    start_t, end_t = layout.times(float(log.t[0]))
+    return Estimates(
+        method="oem",
+        window_start=jnp.asarray(start_t),
+        window_end=jnp.asarray(end_t),
+        values=values,
+        stderr=sd,
+        valid=ok,
+        flags=flags,
+        truth=window_truth(
+            {k: jnp.asarray(v) for k, v in log.channels.items()}, layout
+        ),
+    )
+
+
+def _sequential_single(problem, theta0, x0, rtol):
+    """The thesis's single shooting: window by window (the engine, one segment), each
+    window starting from the previous window's simulated end state."""
+    n, length = problem.n_windows, problem.window_samples
+    inputs = _pad(problem.inputs, n * length + 1)
+    measured = _pad(problem.measured, n * length)
+    # one window as a single-shooting problem of its own (start state held)
+    single = dataclasses.replace(
+        problem,
+        inputs=inputs[: length + 1],
+        measured=measured[:length],
+        window=None,
+        node_interval=None,
+        free_initial_state=False,
+    )
+
+    def one(x_start, w):
+        sub = eqx.tree_at(
+            lambda p: (p.inputs, p.measured, p.t0),
+            single,
+            (
+                jax.lax.dynamic_slice_in_dim(inputs, w * length, length + 1),
+                jax.lax.dynamic_slice_in_dim(measured, w * length, length),
+                problem.t0 + w * length * problem.dt,
+            ),
+        )
+        res = fit_global_oem(sub, theta0[w], x_start[None], rtol=rtol, max_iter=30)
+        xs, _ = _window_solve(problem, x_start, res.params, sub.t0)
+        ok = res.converged & jnp.all(jnp.isfinite(xs[-1]))
+        x_next = jnp.where(ok, xs[-1], x_start)
+        return x_next, (res.params, res.stderr, ok, res.iterations)
+
+    _, (params, sd, ok, its) = jax.lax.scan(one, jnp.asarray(x0, float), jnp.arange(n))
+    return params, sd, ok, its
+
+
+def _pad(x, n):
+    return jnp.concatenate([x, jnp.repeat(x[-1:], max(n - x.shape[0], 0), axis=0)])[:n]

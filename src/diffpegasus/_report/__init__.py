@@ -1,0 +1,1 @@
+"""Reports a person opens: figures and markdown tables."""
