@@ -376,6 +376,105 @@ def test_model_file_and_column_map_fit_two_files_like_the_library(two, tmp_path)
     assert set(report["biases"]) == {"m0.csv", "m1.csv"}
 
 
+def test_headerless_numbered_columns_and_a_read_function_fit_like_the_library(
+    two, tmp_path
+):
+    """FVSysID's own data files are bare numeric tables (no header, no time column,
+    degrees, one channel a difference of two columns): both the numbered column map
+    (`column: 7`, `t: {step: ...}`) and a model file's `read(path)` reach the
+    library's optimum on the same numbers."""
+    import json
+
+    files = []
+    for i, rec in enumerate(two):
+        # columns: 1 junk, 2 az, 3 w, 4 q (deg/s), 5 de_left (deg), 6 de_right (deg)
+        de = np.degrees(rec.inputs[:, 0])
+        rows = np.column_stack(
+            [
+                np.full(len(rec.t), 7.0),
+                rec.measured[:, 0],
+                rec.measured[:, 1],
+                np.degrees(rec.measured[:, 2]),
+                de + 1.0,
+                de - 1.0,
+            ]
+        )
+        path = tmp_path / f"bare{i}.asc"
+        np.savetxt(path, rows, fmt="%.17g")
+        files.append(path)
+    dt = float(two[0].t[1] - two[0].t[0])
+    recs = [
+        dp.Record(r.t - r.t[0], r.inputs, r.measured, x0=r.measured[0, 1:], name=r.name)
+        for r in two
+    ]
+    lib = dp.fit(MODEL, recs, biases=("az",))
+
+    # the elevator as the mean of two surfaces is beyond a column map: read()
+    reader = f"""
+import numpy as np
+def read(path):
+    c = np.loadtxt(path)
+    return {{"t": {dt!r} * np.arange(len(c)), "az": c[:, 1], "w": c[:, 2],
+            "q": np.radians(c[:, 3]), "de": np.radians(0.5 * (c[:, 4] + c[:, 5]))}}
+"""
+    (tmp_path / "model.py").write_text(MODEL_FILE + reader)
+    res = _cli(["fit", *files, "--model", tmp_path / "model.py", "--json"])
+    assert res.exit_code == 0, res.output
+    report = json.loads(res.stdout.strip().splitlines()[-1])
+    assert report["cost"] == pytest.approx(lib.cost, rel=1e-8)
+
+    # numbered columns (from 1, as the book counts) and time from the step, on
+    # copies whose column 5 holds the elevator itself
+    bare = []
+    for i, f in enumerate(files):
+        c = np.loadtxt(f)
+        c[:, 4] -= 1.0
+        path = tmp_path / f"bare_de{i}.txt"
+        np.savetxt(path, c, fmt="%.17g")
+        bare.append(path)
+    cmap = {
+        "t": {"step": dt},
+        "az": {"column": 2},
+        "w": {"column": 3},
+        "q": {"column": 4, "unit": "deg/s"},
+        "de": {"column": 5, "unit": "deg"},
+    }
+    (tmp_path / "map.json").write_text(json.dumps(cmap))
+    (tmp_path / "plain.py").write_text(MODEL_FILE)
+    res = _cli(
+        [
+            "fit",
+            *bare,
+            "--model",
+            tmp_path / "plain.py",
+            "--columns",
+            tmp_path / "map.json",
+            "--json",
+        ]
+    )
+    assert res.exit_code == 0, res.output
+    report = json.loads(res.stdout.strip().splitlines()[-1])
+    assert report["cost"] == pytest.approx(lib.cost, rel=1e-8)
+    for name, value in zip(MODEL.parameters, lib.params, strict=True):
+        assert report["estimates"][name] == pytest.approx(value, rel=1e-6)
+
+    # a column beyond the file's width is named with what the file has
+    cmap["w"] = {"column": 9}
+    (tmp_path / "map.json").write_text(json.dumps(cmap))
+    res = _cli(
+        [
+            "fit",
+            bare[0],
+            "--model",
+            tmp_path / "plain.py",
+            "--columns",
+            tmp_path / "map.json",
+        ]
+    )
+    assert res.exit_code == 2
+    assert "no column '9' for channel 'w' (columns: numbered 1 to 6" in res.output
+
+
 def test_cli_holds_a_parameter_and_names_bad_input(tmp_path):
     _require(hfb320.DEFAULT_DATA)
     import json

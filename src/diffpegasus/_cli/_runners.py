@@ -48,10 +48,14 @@ def parse_holds(holds: list[str], spec: ModelSpec) -> ModelSpec:
 
 
 def load_records(spec: ModelSpec, files, columns=None):
-    """One record per file, through the model's column map updated by `columns`."""
+    """One record per file, through the model's column map updated by `columns`
+    (or the model file's `read` function when it has one and no `columns` given)."""
     cmap = dict(load_columns(spec.columns)) if spec.columns else {}
     cmap.update(load_columns(columns))
-    return [load_record(spec.model, f, cmap, x0=spec.x0) for f in files]
+    reader = spec.read if columns is None else None
+    return [
+        load_record(spec.model, f, cmap, x0=spec.x0, reader=reader) for f in files
+    ]
 
 
 def fit_report(result: Fit, spec: ModelSpec) -> dict:

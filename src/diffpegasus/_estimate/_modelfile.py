@@ -5,6 +5,9 @@ The file is ordinary Python. It must define `model`, a [`Model`][], or `vehicle`
 with it: `--add`, `diagnose`), and may define
 
 - `columns`: a column map (see [`load_columns`][]) for the logs it is fitted to;
+- `read(path)`: instead of `columns`, a function returning the channels of one data
+  file as a dict of 1-D arrays by channel name, SI units (for channels that are
+  combinations of columns, e.g. an aileron angle from the left and right surfaces);
 - `x0`: the initial state of every record (default: the state channels at each
   record's first sample);
 - `initial_state`: `"fixed"` (default) or `"estimated"`;
@@ -33,6 +36,7 @@ class ModelSpec:
     model: Model
     name: str
     columns: dict | None = None
+    read: object = None
     x0: tuple[float, ...] | None = None
     initial_state: str = "fixed"
     biases: tuple[str, ...] = ()
@@ -71,6 +75,12 @@ def load_model_file(path) -> ModelSpec:
     return spec_from_namespace(ns, str(path))
 
 
+def _reader(read, name):
+    if read is not None and not callable(read):
+        raise LogError(f"{name}: `read` must be a function read(path) -> dict")
+    return read
+
+
 def spec_from_namespace(ns: dict, name: str) -> ModelSpec:
     x0 = ns.get("x0")
     shooting = ns.get("shooting", SingleShooting())
@@ -85,6 +95,7 @@ def spec_from_namespace(ns: dict, name: str) -> ModelSpec:
         model=ns["model"],
         name=name,
         columns=ns.get("columns"),
+        read=_reader(ns.get("read"), name),
         x0=None if x0 is None else tuple(float(v) for v in x0),
         initial_state=initial_state,
         biases=tuple(ns.get("biases", ())),

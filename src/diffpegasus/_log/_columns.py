@@ -10,10 +10,16 @@ in which unit, and with what extra scale factor. It is a dict (or a JSON / TOML 
 
 Units understood: see [`UNITS`][]; a value is multiplied by the unit's factor to SI,
 then by `scale`. A channel missing from the map, or whose mapped column the file does
-not have, is looked up by its own name (in SI units). Files:
-CSV with a header row (`.csv`, or anything with commas in its header) and the column
-text files of FVSysID (`.asc`: free-text lines, a row of names starting with `T`, a
-row of units, then numbers).
+not have, is looked up by its own name (in SI units).
+
+Files: CSV with a header row (`.csv`, or anything with commas in its header); the
+column text files of FVSysID (`.asc`: free-text lines, a row of names starting with
+`T`, a row of units, then numbers); and plain numeric tables with no header at all
+(whitespace or commas), whose columns are numbered from 1 as FVSysID's MATLAB scripts
+and the textbook count them: `{"p": {"column": 7, "unit": "deg/s"}}`. A file with no
+time column gets its time from the sample step: `{"t": {"step": 0.04}}` (s, the
+first sample at 0). Channels no map can express (a sum or difference of columns)
+come from a model file's `read(path)` function instead (see [`load_record`][]).
 """
 
 import json
@@ -76,16 +82,38 @@ class Column:
                 f"{where}: channel {channel!r} must map to a column name or a table "
                 f"with 'column', 'unit', 'scale', got {spec!r}"
             )
-        unknown = set(spec) - {"column", "unit", "scale"}
+        unknown = set(spec) - {"column", "unit", "scale", "step"}
         if unknown:
             raise LogError(
                 f"{where}: channel {channel!r} has unknown keys {sorted(unknown)} "
-                "(allowed: column, unit, scale)"
+                "(allowed: column, unit, scale, step)"
             )
         self.channel = channel
-        self.column = spec.get("column", channel)
-        if not isinstance(self.column, str):
-            raise LogError(f"{where}: channel {channel!r}: column must be a name")
+        self.step = spec.get("step")
+        if self.step is not None and (
+            isinstance(self.step, bool)
+            or not isinstance(self.step, int | float)
+            or not math.isfinite(self.step)
+            or self.step <= 0
+        ):
+            raise LogError(
+                f"{where}: channel {channel!r}: step must be a positive number of "
+                f"seconds, got {self.step!r}"
+            )
+        column = spec.get("column", channel)
+        if isinstance(column, int) and not isinstance(column, bool):
+            if column < 1:
+                raise LogError(
+                    f"{where}: channel {channel!r}: column numbers count from 1, "
+                    f"got {column}"
+                )
+            column = str(column)
+        if not isinstance(column, str):
+            raise LogError(
+                f"{where}: channel {channel!r}: column must be a name or a number "
+                f"(from 1), got {column!r}"
+            )
+        self.column = column
         unit = spec.get("unit", "")
         if not isinstance(unit, str) or unit.lower() not in UNITS:
             raise LogError(
@@ -127,16 +155,52 @@ def load_columns(source) -> dict[str, Column]:
     return {ch: Column(ch, spec, where) for ch, spec in source.items()}
 
 
+def _numeric_rows(path: pathlib.Path, head: str):
+    """The table of a file with no header (every non-blank line numbers), by column
+    number from 1; `None` if the first non-blank line is not all numbers."""
+    from ._format import _NUMBER
+
+    cells = head.replace(",", " ").split()
+    if not cells or not all(_NUMBER.fullmatch(c) for c in cells):
+        return None
+    data, width = [], len(cells)
+    with open(path, encoding="utf-8-sig") as f:
+        for j, line in enumerate(f, start=1):
+            row = line.replace(",", " ").split()
+            if not row:
+                continue
+            if len(row) != width:
+                raise LogError(
+                    f"{path}: line {j} has {len(row)} values, the first line {width}"
+                )
+            for k, cell in enumerate(row, start=1):
+                if not _NUMBER.fullmatch(cell):
+                    raise LogError(
+                        f"{path}: line {j}, column {k}: {cell!r} is not a number"
+                    )
+            data.append([float(c) for c in row])
+    arr = np.asarray(data, float)
+    return {str(k + 1): arr[:, k] for k in range(width)}
+
+
 def read_table(path: str | os.PathLike) -> dict[str, np.ndarray]:
-    """Every numeric column of a CSV or `.asc` file by its header name."""
+    """Every numeric column of a file: by header name for CSV and `.asc` files, by
+    number (`"1"`, `"2"`, ...) for plain numeric tables with no header."""
     from ._asc import read_asc
 
     path = pathlib.Path(path)
     try:
         with open(path, encoding="utf-8-sig") as f:
-            head = f.readline()
+            head = ""
+            for head in f:
+                if head.strip():
+                    break
     except OSError as e:
         raise LogError(f"{path}: cannot read the file ({e.strerror})") from None
+    except UnicodeDecodeError:
+        raise LogError(f"{path}: not a UTF-8 text file") from None
+    if (table := _numeric_rows(path, head)) is not None:
+        return table
     if path.suffix.lower() == ".asc" or "," not in head:
         return read_asc(path)
     import csv
@@ -172,13 +236,16 @@ def read_table(path: str | os.PathLike) -> dict[str, np.ndarray]:
 
 def _channel(table, columns, name, path):
     col = columns.get(name) or Column(name, name, "column map")
+    if col.step is not None:
+        n = len(next(iter(table.values())))
+        return col.step * np.arange(n)
     if col.column not in table and name in table:
         # a log in our own layout (e.g. simulated) read through a vehicle's map
         col = Column(name, name, "column map")
     if col.column not in table:
         raise LogError(
             f"{path}: no column {col.column!r} for channel {name!r} (columns: "
-            f"{', '.join(table)}); map it with --columns"
+            f"{_listing(table)}); map it with --columns"
         )
     values = table[col.column] * col.factor
     bad = ~np.isfinite(values)
@@ -191,10 +258,50 @@ def _channel(table, columns, name, path):
     return values
 
 
-def load_record(model: Model, path, columns=None, x0=None, time: str = "t") -> Record:
+def _listing(table) -> str:
+    names = list(table)
+    if names and all(n.isdigit() for n in names):
+        return f"numbered 1 to {len(names)}, the file has no header"
+    return ", ".join(names)
+
+
+def _read_with(reader, path: pathlib.Path) -> dict[str, np.ndarray]:
+    """Channels from a user's `read(path)`: a dict of equal-length 1-D arrays, SI."""
+    try:
+        out = reader(str(path))
+    except LogError:
+        raise
+    except Exception as e:  # the user's code: one line, naming the file
+        raise LogError(f"{path}: read() failed: {type(e).__name__}: {e}") from None
+    if not isinstance(out, dict) or not out:
+        raise LogError(
+            f"{path}: read() must return a dict of channel name -> 1-D array, got "
+            f"{type(out).__name__}"
+        )
+    table, n = {}, None
+    for k, v in out.items():
+        try:
+            a = np.asarray(v, float)
+        except (TypeError, ValueError):
+            raise LogError(f"{path}: read() channel {k!r} is not numeric") from None
+        if a.ndim != 1 or (n is not None and len(a) != n):
+            raise LogError(
+                f"{path}: read() channel {k!r} has shape {a.shape}; every channel "
+                f"must be 1-D of one length ({n})"
+            )
+        n = len(a)
+        table[str(k)] = a
+    return table
+
+
+def load_record(
+    model: Model, path, columns=None, x0=None, time: str = "t", reader=None
+) -> Record:
     """A [`Record`][] of `model` from a file: its time, inputs and outputs by the
     column map `columns`; the initial state `x0` (default: the state channels at the
-    first sample where the file has them)."""
+    first sample where the file has them). `reader(path) -> {channel: array}` (SI
+    units, by channel name) replaces the file reading and the column map, for files
+    whose channels are combinations of columns."""
     path = pathlib.Path(path)
     columns = (
         load_columns(columns)
@@ -204,7 +311,10 @@ def load_record(model: Model, path, columns=None, x0=None, time: str = "t") -> R
             for k, v in columns.items()
         }
     )
-    table = read_table(path)
+    if reader is not None:
+        table, columns = _read_with(reader, path), {}
+    else:
+        table = read_table(path)
     t = _channel(table, columns, time, path)
     inputs = np.column_stack([_channel(table, columns, n, path) for n in model.inputs])
     measured = np.column_stack(
