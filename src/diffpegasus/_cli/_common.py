@@ -1,6 +1,7 @@
 """What every command shares: the Typer apps, failing with one line, shared options."""
 
 import json
+import os
 import pathlib
 from typing import Annotated
 
@@ -34,8 +35,6 @@ FIT_FAILED = 3
 
 def _check_out(out: pathlib.Path | None, kind: str) -> None:
     """Refuse an `--out` that cannot be written before any work is done."""
-    from .._log._checks import out_problem
-
     if out is not None and (problem := out_problem(out, kind)) is not None:
         _fail(problem)
 
@@ -160,3 +159,36 @@ def _banner(report: pathlib.Path, message: str) -> None:
             report.write_text(f"> **{message}**\n\n{report.read_text()}")
     except OSError as e:
         _fail(_os_error(e))
+
+
+def out_problem(path: pathlib.Path, kind: str) -> str | None:
+    """Why `path` cannot be written as a `kind` (`"file"` or `"folder"`), or `None`.
+
+    Walks up to the first existing ancestor: it must be a folder we may write in,
+    and the path itself, if it exists, must be of the right kind.
+    """
+    path = pathlib.Path(path)
+    if path.exists():
+        if kind == "folder" and not path.is_dir():
+            return f"--out {path} is an existing file, not a folder"
+        if kind == "file" and path.is_dir():
+            return (
+                f"--out {path} is a folder; give a file name such as "
+                f"{path / 'flight.csv'}"
+            )
+        target = path if kind == "folder" else path.parent
+        if not os.access(target, os.W_OK | os.X_OK):
+            return f"--out {path}: no permission to write in {target}"
+        if os.statvfs(target).f_flag & os.ST_RDONLY:
+            return f"--out {path}: {target} is on a read-only file system"
+        return None
+    parent = path.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        return f"--out {path}: {parent} is a file, so nothing can be created under it"
+    if not os.access(parent, os.W_OK | os.X_OK):
+        return f"--out {path}: no permission to create anything in {parent}"
+    if os.statvfs(parent).f_flag & os.ST_RDONLY:
+        return f"--out {path}: {parent} is on a read-only file system"
+    return None

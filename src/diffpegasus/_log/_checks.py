@@ -1,5 +1,4 @@
-"""Plausibility checks on what users hand us: sidecar metadata, the physics of a log,
-and the places the commands write to.
+"""Plausibility checks on the physics of a log.
 
 A unit mistake rarely makes a log unreadable; it makes every estimate wrong by a
 constant factor. The checks here compare channels that physics ties together (pitch
@@ -11,8 +10,6 @@ name; a sidecar `"skip_checks": [name, ...]` turns it off for data known to be r
 """
 
 import math
-import os
-import pathlib
 from typing import Any
 
 import numpy as np
@@ -54,79 +51,6 @@ def num(x: Any) -> str:
 
 def _g(x: float) -> str:
     return f"{float(x):.4g}"
-
-
-# ---------------------------------------------------------------------------
-# Sidecar
-
-
-def _is_real(v) -> bool:
-    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-
-
-def _positive(v) -> bool:
-    return _is_real(v) and v > 0
-
-
-def _str(v) -> bool:
-    return isinstance(v, str)
-
-
-def _int(v) -> bool:
-    return isinstance(v, int) and not isinstance(v, bool)
-
-
-def _real_map(v) -> bool:
-    return isinstance(v, dict) and all(_is_real(x) for x in v.values())
-
-
-def _sigma_map(v) -> bool:
-    return isinstance(v, dict) and all(_is_real(x) and x >= 0 for x in v.values())
-
-
-def _checks_list(v) -> bool:
-    return isinstance(v, list) and all(x in CHECKS for x in v)
-
-
-# key: (test, what it must be)
-_SIDECAR_KEYS = {
-    "S_ref": (_positive, "a positive number of m^2"),
-    "c_ref": (_positive, "a positive number of m"),
-    "sample_rate_hz": (_positive, "a positive number of Hz"),
-    "vehicle": (_str, "a string"),
-    "input": (_str, "a string"),
-    "simulator": (_str, "a string"),
-    "seed": (_int, "an integer"),
-    "noise_sigmas": (_sigma_map, "an object of channel: non-negative number"),
-    "hidden_effects": (_real_map, "an object of effect: number"),
-    "perturbation": (_real_map, "an object of name: number"),
-    "skip_checks": (_checks_list, f"a list of check names from {', '.join(CHECKS)}"),
-}
-
-
-def check_sidecar(meta: dict[str, Any], where: str) -> None:
-    """Raise `ValueError` naming the first sidecar key of the wrong type or range.
-
-    Keys not listed in SPEC section 5 are kept as they are (the writer's business).
-    """
-    for key, (ok, what) in _SIDECAR_KEYS.items():
-        if key in meta and not ok(meta[key]):
-            raise ValueError(
-                f"{where}: {key} must be {what}, got {json_repr(meta[key])}"
-            )
-
-
-def json_repr(v) -> str:
-    import json
-
-    try:
-        return json.dumps(v)
-    except (TypeError, ValueError):
-        return repr(v)
-
-
-# ---------------------------------------------------------------------------
-# Physics
 
 
 def isa_density_and_sound(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -455,40 +379,3 @@ def check_physics(
         _check_air_data(channels, name)
     if "coefficients" not in skip:
         _check_coefficients(channels, metadata, name)
-
-
-# ---------------------------------------------------------------------------
-# Where the commands write
-
-
-def out_problem(path: pathlib.Path, kind: str) -> str | None:
-    """Why `path` cannot be written as a `kind` (`"file"` or `"folder"`), or `None`.
-
-    Walks up to the first existing ancestor: it must be a folder we may write in,
-    and the path itself, if it exists, must be of the right kind.
-    """
-    path = pathlib.Path(path)
-    if path.exists():
-        if kind == "folder" and not path.is_dir():
-            return f"--out {path} is an existing file, not a folder"
-        if kind == "file" and path.is_dir():
-            return (
-                f"--out {path} is a folder; give a file name such as "
-                f"{path / 'flight.csv'}"
-            )
-        target = path if kind == "folder" else path.parent
-        if not os.access(target, os.W_OK | os.X_OK):
-            return f"--out {path}: no permission to write in {target}"
-        if os.statvfs(target).f_flag & os.ST_RDONLY:
-            return f"--out {path}: {target} is on a read-only file system"
-        return None
-    parent = path.parent
-    while not parent.exists() and parent != parent.parent:
-        parent = parent.parent
-    if not parent.is_dir():
-        return f"--out {path}: {parent} is a file, so nothing can be created under it"
-    if not os.access(parent, os.W_OK | os.X_OK):
-        return f"--out {path}: no permission to create anything in {parent}"
-    if os.statvfs(parent).f_flag & os.ST_RDONLY:
-        return f"--out {path}: {parent} is on a read-only file system"
-    return None

@@ -21,7 +21,8 @@ from typing import Any
 import numpy as np
 
 from .._vehicle._pegasus._aerodynamics import DERIVATIVE_NAMES
-from ._checks import check_physics, check_sidecar, num, PlausibilityError
+from ._checks import check_physics, num, PlausibilityError
+from ._sidecar import check_sidecar
 
 
 REQUIRED_CHANNELS = (
