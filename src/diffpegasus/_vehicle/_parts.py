@@ -18,8 +18,10 @@ the parts read from the log (e.g. `thrust`).
 """
 
 import abc
+from collections.abc import Callable
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 from equinox import AbstractVar
 
@@ -45,9 +47,10 @@ class AbstractAerodynamics(eqx.Module):
 
 
 class AbstractPropulsion(eqx.Module):
-    """`thrust(t, u, inputs) -> (thrust N, inclination rad, moment about CG N m)`
-    where `u` holds the known inputs named in `inputs`; `reads` names the log
-    channels it needs as known inputs."""
+    """`thrust(t, u) -> (thrust N, inclination rad, moment about CG N m)` where `u`
+    is a dict of the known inputs named in `reads` (the log channels it needs) and
+    `"ambient_pressure"` (Pa, from the vehicle's atmosphere), for motors whose
+    thrust depends on it."""
 
     reads: AbstractVar[tuple[str, ...]]
 
@@ -64,12 +67,18 @@ class AbstractMassProperties(eqx.Module):
 
 class AbstractAtmosphere(eqx.Module):
     """`at(h) -> (density kg/m^3, speed of sound m/s, gravity m/s^2)`;
-    `altitude`: whether it depends on `h` (then `h` is a state)."""
+    `altitude`: whether it depends on `h` (then `h` is a state); `pressure(h)`, the
+    ambient pressure (Pa), NaN unless the atmosphere knows it (only a motor that
+    needs it asks)."""
 
     altitude: AbstractVar[bool]
 
     @abc.abstractmethod
     def at(self, h): ...
+
+    def pressure(self, h):
+        del h
+        return jnp.nan
 
 
 class LoggedThrust(AbstractPropulsion):
@@ -109,11 +118,16 @@ class ConstantAtmosphere(AbstractAtmosphere):
     density: float
     speed_of_sound: float = 340.29
     g: float = 9.80665
+    ambient_pressure: float = float("nan")
     altitude: bool = False
 
     def at(self, h):
         del h
         return self.density, self.speed_of_sound, self.g
+
+    def pressure(self, h):
+        del h
+        return self.ambient_pressure
 
 
 class StandardAtmosphere(AbstractAtmosphere):
@@ -125,15 +139,19 @@ class StandardAtmosphere(AbstractAtmosphere):
         atm = isa(h)
         return atm.density, atm.speed_of_sound, gravity(h)
 
+    def pressure(self, h):
+        return isa(h).pressure
+
 
 class Geometry(eqx.Module):
     """Reference area `s_ref` (m^2), reference length `c_ref` (m) and the station
-    (m from the nose, positive aft) where the aerodynamic force acts (the CM
-    reference)."""
+    `xcp` (m from the nose, positive aft) where the aerodynamic force acts (the CM
+    reference): a number, or a function of Mach for a centre of pressure that
+    travels."""
 
     s_ref: float
     c_ref: float
-    xcp: float = 0.0
+    xcp: float | Callable = 0.0
 
 
 class FlightVehicle(eqx.Module):
@@ -164,6 +182,7 @@ class FlightVehicle(eqx.Module):
             zip(self.inputs, [u[i] for i in range(len(self.inputs))], strict=True)
         )
         density, sound, g = self.atmosphere.at(h)
+        known["ambient_pressure"] = self.atmosphere.pressure(h)
         thrust, angle, moment = self.propulsion.thrust(t, known)
         props = self.mass.at(t)
         uu, ww = v * jnp.cos(alpha), v * jnp.sin(alpha)
@@ -222,12 +241,43 @@ def effect_parameter(name: str) -> str:
     return f"{name}.{make_effect(name).parameter}"
 
 
+class _Frozen:
+    """A vehicle as a static (hashable) value: equal when its structure and every
+    leaf are equal, so jit shares programs between equal vehicles even when their
+    parts hold arrays (a database's tables)."""
+
+    __slots__ = ("value", "_key")
+
+    def __init__(self, value):
+        import numpy as np
+
+        leaves, treedef = jax.tree.flatten(value)
+        arrays = tuple(
+            (np.shape(x), str(np.result_type(x)), np.asarray(x).tobytes())
+            if eqx.is_array_like(x)
+            else x
+            for x in leaves
+        )
+        self.value = value
+        self._key = (treedef, arrays)
+
+    def __hash__(self):
+        return hash(self._key)
+
+    def __eq__(self, other):
+        return isinstance(other, _Frozen) and self._key == other._key
+
+
 class _VehicleFunctions(eqx.Module):
     """The vehicle's rates and outputs with the library effects `effects`."""
 
-    vehicle: FlightVehicle = eqx.field(static=True)
+    frozen: _Frozen = eqx.field(static=True)
     outputs: tuple[str, ...] = eqx.field(static=True)
     effects: tuple[str, ...] = eqx.field(static=True)
+
+    @property
+    def vehicle(self) -> FlightVehicle:
+        return self.frozen.value
 
     def _effects(self, p):
         return tuple(make_effect(n, p[effect_parameter(n)]) for n in self.effects)
@@ -261,7 +311,7 @@ def vehicle_model(
     unless named in `free`. Keyword arguments change the model's fields (e.g.
     `fixed=("CMq",)`, `start={"CMq": 0.0}`)."""
     effects = tuple(effects)
-    functions = _VehicleFunctions(vehicle, tuple(outputs), effects)
+    functions = _VehicleFunctions(_Frozen(vehicle), tuple(outputs), effects)
     extra = {effect_parameter(e): 0.0 for e in effects}
     held = tuple(k for k in extra if k not in free and k.split(".")[0] not in free)
     probe = tuple(make_effect(e) for e in effects)
