@@ -137,3 +137,28 @@ def test_cli_json_follows_spec(tmp_path):
     assert {"rank_deficient", "rank_A", "rank_ATA"} <= set(d["flags"])
     assert (tmp_path / "out" / "lse_estimates.csv").exists()
     assert (tmp_path / "out" / "lse_estimates.png").exists()
+
+    # --vehicle gives the reference geometry: the same log estimated as the user's
+    # jet (examples/my_jet.py) scales CL and CD by S_ref and CM by S_ref c_ref
+    jet = pathlib.Path(__file__).parents[1] / "examples" / "my_jet.py"
+    other = CliRunner().invoke(
+        app, ["estimate", "lse", str(path), "--json", "--vehicle", str(jet)]
+    )
+    assert other.exit_code == 0, other.output
+    assert "replace the log's 13.5 m^2, 2.48 m" in other.stderr
+    e = json.loads(other.stdout.strip().splitlines()[-1])["estimates"]
+    s_jet = 4.028e-3 * 7472.0
+    for name, ratio in (
+        ("CLa", 13.5 / s_jet),
+        ("CDde", 13.5 / s_jet),
+        ("CMa", 13.5 * 2.48 / (s_jet * 1.215)),
+    ):
+        for ours, base in zip(e[name], d["estimates"][name], strict=True):
+            if base is not None:
+                assert ours == pytest.approx(base * ratio, rel=1e-9)
+    bare = pathlib.Path(__file__).parents[1] / "examples" / "unstable_aircraft.py"
+    refused = CliRunner().invoke(
+        app, ["estimate", "lse", str(path), "--vehicle", str(bare)]
+    )
+    assert refused.exit_code == 2
+    assert "a bare `model` has no geometry" in refused.output

@@ -58,6 +58,14 @@ VehicleOption = Annotated[
     str,
     typer.Option(help="Built-in vehicle (see `diffpegasus vehicles`) or a FILE.py"),
 ]
+EstimateVehicleOption = Annotated[
+    str,
+    typer.Option(
+        "--vehicle",
+        help="Vehicle whose reference area and length scale the coefficients "
+        "(built-in name or a FILE.py defining `vehicle`); default: the log's sidecar",
+    ),
+]
 ModelOption = Annotated[
     pathlib.Path | None,
     typer.Option(help="Model-definition file (Python; see the README)"),
@@ -192,3 +200,50 @@ def out_problem(path: pathlib.Path, kind: str) -> str | None:
     if os.statvfs(parent).f_flag & os.ST_RDONLY:
         return f"--out {path}: {parent} is on a read-only file system"
     return None
+
+
+def vehicle_geometry(name_or_file: str) -> tuple[float, float] | None:
+    """Reference area (m^2) and length (m) of a vehicle: `None` for Pegasus (the
+    log's own sidecar, else Pegasus's values, as always)."""
+    if name_or_file == "pegasus":
+        return None
+    if name_or_file == "hfb320":
+        from .._vehicle._hfb320 import HFB320
+
+        vehicle = HFB320
+    else:
+        from .._vehicle._registry import vehicle_spec
+
+        try:
+            vehicle = vehicle_spec(name_or_file).vehicle
+        except LogError as e:
+            _fail(str(e))
+        if vehicle is None:
+            _fail(
+                f"--vehicle {name_or_file}: estimate needs the vehicle's reference "
+                "area and length, i.e. a file defining `vehicle = dp.FlightVehicle"
+                "(...)`; a bare `model` has no geometry"
+            )
+    return float(vehicle.geometry.s_ref), float(vehicle.geometry.c_ref)
+
+
+def with_vehicle(flight, name_or_file: str):
+    """`flight` with the reference geometry of `--vehicle`, saying so on stderr when
+    it differs from the log's sidecar."""
+    import dataclasses
+
+    geometry = vehicle_geometry(name_or_file)
+    if geometry is None:
+        return flight
+    s_ref, c_ref = geometry
+    if "S_ref" in flight.metadata and (
+        abs(flight.s_ref - s_ref) > 1e-9 * s_ref
+        or abs(flight.c_ref - c_ref) > 1e-9 * c_ref
+    ):
+        typer.echo(
+            f"note: --vehicle {name_or_file}: S_ref {s_ref:g} m^2, c_ref {c_ref:g} m "
+            f"replace the log's {flight.s_ref:g} m^2, {flight.c_ref:g} m",
+            err=True,
+        )
+    meta = {**flight.metadata, "S_ref": s_ref, "c_ref": c_ref}
+    return dataclasses.replace(flight, metadata=meta)

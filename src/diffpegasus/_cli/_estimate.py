@@ -14,11 +14,13 @@ from ._common import (
     _finite,
     _os_error,
     estimate_app,
+    EstimateVehicleOption,
     FIT_FAILED,
     JsonOption,
     OutOption,
     ResampleOption,
     UnitsOption,
+    with_vehicle,
 )
 
 
@@ -111,6 +113,7 @@ def _print_estimates(est, d: dict, units: str, failed: bool) -> None:
 @estimate_app.command("lse")
 def estimate_lse_command(
     log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    vehicle: EstimateVehicleOption = "pegasus",
     window: Annotated[float, typer.Option(help="Window length, s")] = 0.5,
     intercept: Annotated[
         bool, typer.Option(help="Also estimate CL0, CD0, CM0 per window")
@@ -128,7 +131,7 @@ def estimate_lse_command(
     _check_units(units)
     _check_out(out, "folder")
     try:
-        flight = read_log(log, resample=resample)
+        flight = with_vehicle(read_log(log, resample=resample), vehicle)
         est = estimate_lse(flight, window=window, intercept=intercept, tol=tol)
     except (LogError, ValueError) as e:
         _fail(str(e))
@@ -138,6 +141,7 @@ def estimate_lse_command(
 @estimate_app.command("oem")
 def estimate_oem_command(
     log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    vehicle: EstimateVehicleOption = "pegasus",
     shooting: Annotated[str, typer.Option(help="single or multiple")] = "multiple",
     window: Annotated[float, typer.Option(help="Parameter window, s")] = 0.5,
     node_interval: Annotated[
@@ -179,7 +183,7 @@ def estimate_oem_command(
     if shooting not in ("single", "multiple"):
         _fail(f"--shooting must be single or multiple, got {shooting!r}")
     try:
-        flight = read_log(log, resample=resample)
+        flight = with_vehicle(read_log(log, resample=resample), vehicle)
         typer.echo("fitting (compiles on first use)...", err=True)
         est = estimate_oem(
             flight,
@@ -221,6 +225,7 @@ def _default_training_logs():
 @estimate_app.command("nn")
 def estimate_nn_command(
     log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    vehicle: EstimateVehicleOption = "pegasus",
     model: Annotated[
         pathlib.Path | None,
         typer.Option(
@@ -246,7 +251,7 @@ def estimate_nn_command(
     _check_units(units)
     _check_out(out, "folder")
     try:
-        flight = read_log(log, resample=resample)
+        flight = with_vehicle(read_log(log, resample=resample), vehicle)
         if model is None:
             typer.echo(
                 "no --model given: training a network on three simulated flights "
