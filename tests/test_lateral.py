@@ -4,6 +4,7 @@ scipy implementation of the same likelihood, and the equivalence of the book's
 lumped biases with per-record initial states and output biases."""
 
 import functools
+import json
 
 import numpy as np
 import pytest
@@ -151,7 +152,8 @@ def _np_outputs(theta, names, data):
     by = np.stack([p["by_" + n] for n in dp.LATERAL_OUTPUTS], -1)
     outs = []
     for k, (t, u, _) in enumerate(data):
-        bx = np.stack([p[f"bx_p_{k + 1}"], p[f"bx_r_{k + 1}"]], -1)
+        tag = "" if len(data) == 1 else f"_{k + 1}"
+        bx = np.stack([p["bx_p" + tag], p["bx_r" + tag]], -1)
 
         def f(x, uu, bx=bx):
             return np.einsum("bij,bj->bi", a, x) + np.einsum("bij,j->bi", b, uu) + bx
@@ -225,6 +227,22 @@ def test_two_manoeuvres_reach_the_independent_optimum():
     ours = _np_outputs(np.asarray(fit.params), model.parameters, _data())
     for y, ys in zip(fit.outputs, ours, strict=True):
         np.testing.assert_allclose(y, ys[0], atol=1e-10)
+
+
+def test_one_manoeuvre_reaches_the_independent_optimum():
+    """The book's test case 1: 22 parameters (15 derivatives, 2 state and 5 output
+    biases) on one manoeuvre, from the book's start values."""
+    data = _data()[:1]
+    model = dp.lateral_model()
+    assert len(model.parameters) == 22
+    fit = dp.fit(model, _records(model, data), rtol=1e-10)
+    assert fit.converged
+    theta, cost = _independent_fit(model.parameters, model.start, data)
+    # measured: det R to 4e-16 relative, the parameters to 2e-7 of their standard
+    # errors (6e-8 relative); the bounds leave room for both stopping rules
+    assert fit.cost == pytest.approx(cost, rel=1e-6)
+    gap = np.abs(np.asarray(fit.params) - theta)
+    assert np.all(gap <= 1e-4 * np.maximum(np.abs(theta), fit.stderr)), gap
 
 
 def test_planted_derivatives_recovered_within_standard_errors():
@@ -309,3 +327,153 @@ def test_record_helper_checks_manoeuvre_numbers():
     assert rec.inputs.shape == (len(t), 5)
     np.testing.assert_array_equal(rec.inputs[:, 3:], [[0.0, 1.0]] * len(t))
     np.testing.assert_array_equal(rec.x0, [0.0, 0.0])
+
+
+# --- the discrepancy workflow on lateral channels -----------------------------------
+
+
+@functools.cache
+def _sixdof_records():
+    """One 20 s manoeuvre of the 6-DOF business jet (aileron 3-2-1-1, rudder
+    doublet) at 25 Hz with white noise on the seven outputs; the aircraft."""
+    aircraft = dp.business_jet()
+    start = dp.trim(aircraft, 104.67)
+    f = dp.simulate_sixdof(
+        aircraft,
+        start,
+        aileron=dp.three_two_one_one(3.0, 0.5, start=1.0, rise=0.08),
+        rudder=dp.doublet(3.0, 1.2, start=9.0, rise=0.08),
+        t_final=20.0,
+        dt=DT,
+    )
+    noise = np.array([1e-3, 2e-3, 1e-3, 2e-3, 0.05, 0.01, 0.005])
+    clean = np.column_stack([f[n] for n in dp.SIXDOF_LATERAL_OUTPUTS])
+    noisy = clean + np.random.default_rng(3).normal(size=clean.shape) * noise
+    inputs = np.column_stack([f[n] for n in dp.SIXDOF_LATERAL_INPUTS])
+    x0 = [f[n][0] for n in dp.SIXDOF_LATERAL_STATES]
+    return aircraft, f["t"], inputs, noisy, x0
+
+
+def _diagnose_sixdof(start_changes, planted=None):
+    aircraft, t, inputs, measured, x0 = _sixdof_records()
+    truth = {
+        n: float(getattr(aircraft.lateral, n)) for n in dp.LATERAL_DERIVATIVE_NAMES
+    }
+    measured = measured.copy()
+    for channel, value in (planted or {}).items():
+        measured[:, dp.SIXDOF_LATERAL_OUTPUTS.index(channel)] += value
+    model = dp.sixdof_lateral_model(
+        mass=aircraft.mass,
+        inertia=aircraft.inertia,
+        s_ref=aircraft.s_ref,
+        b_ref=aircraft.b_ref,
+        rho=aircraft.rho,
+        start=truth | start_changes,
+        effects=dp.SIXDOF_LATERAL_EFFECTS,
+    )
+    candidates = [p for p in model.parameters if p.startswith("sensor_bias:")]
+    candidates += list(start_changes)
+    return dp.diagnose_model(model, dp.Record(t, inputs, measured, x0=x0), candidates)
+
+
+def test_missing_yaw_damping_is_ranked_first():
+    """Cn_r held at zero (yaw damping missing) among the lateral candidates
+    (sideslip offset, ay, p, r biases): the score test ranks Cn_r first, and its
+    one-step estimate is near the truth."""
+    fit, ranking = _diagnose_sixdof({"Cn_r": 0.0})
+    assert fit.converged
+    top = ranking[0]
+    assert top["parameter"] == "Cn_r" and top["significant"]
+    # measured: 99.9% of det R, the next (sensor_bias:r) 11%, not significant; the
+    # one Gauss-Newton step from Cn_r = 0 gives -0.169 +/- 0.005 (1.8 standard
+    # errors from -0.16: a step, not a refit)
+    assert top["cost_reduction"] > 0.9
+    assert ranking[1]["cost_reduction"] < 0.5
+    assert abs(top["estimate"] - (-0.16)) < 4 * top["stderr"]
+
+
+@pytest.mark.slow
+def test_sideslip_offset_is_ranked_first():
+    fit, ranking = _diagnose_sixdof({}, planted={"beta": 0.005})
+    assert fit.converged
+    top = ranking[0]
+    assert top["parameter"] == "sensor_bias:beta.bias" and top["significant"]
+    # measured: 96% of det R, estimate 0.00504 +/- 0.00023; the others below 0.1%
+    assert top["estimate"] == pytest.approx(0.005, abs=3 * top["stderr"])
+    assert not any(r["significant"] for r in ranking[1:])
+
+
+# --- the lateral vehicle on the command line ----------------------------------------
+
+
+def test_cli_fits_two_simulated_lateral_manoeuvres(tmp_path):
+    """`simulate --vehicle hfb320-lateral` twice (aileron first, rudder first), then
+    `fit A B --vehicle hfb320-lateral --json`: the book's model with per-manoeuvre
+    state biases, the same optimum as the library call on the same data."""
+    from typer.testing import CliRunner
+
+    from diffpegasus._cli import app
+
+    runner = CliRunner()
+    logs = []
+    for k, first in enumerate(("aileron", "rudder")):
+        path = tmp_path / f"m{k + 1}.csv"
+        args = ["simulate", "--vehicle", "hfb320-lateral", "--input", first]
+        args += ["--seed", str(k + 1), "--duration", "20", "--out", str(path)]
+        result = runner.invoke(app, args)
+        assert result.exit_code == 0, result.output
+        logs.append(path)
+    result = runner.invoke(
+        app, ["fit", *map(str, logs), "--vehicle", "hfb320-lateral", "--json"]
+    )
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)
+    assert report["converged"]
+    assert {"bx_p_1", "bx_r_2", "by_ay"} <= set(report["estimates"])
+    assert len(report["estimates"]) == 24
+
+    model = dp.lateral_model(manoeuvres=2)
+    records = []
+    for k, path in enumerate(logs):
+        # not a Pegasus flight log (dp.read_log wants its channels): plain CSV
+        log = np.genfromtxt(path, delimiter=",", names=True)
+        u = np.column_stack([log[n] for n in dp.LATERAL_INPUTS])
+        y = np.column_stack([log[n] for n in dp.LATERAL_OUTPUTS])
+        records.append(dp.lateral_record(model, log["t"], u, y, manoeuvre=k + 1))
+    fit = dp.fit(model, records)
+    assert report["cost"] == pytest.approx(fit.cost, rel=1e-9)
+    for name, value in fit.estimates().items():
+        assert report["estimates"][name] == pytest.approx(value, rel=1e-6, abs=1e-9)
+    # against the derivatives the simulated aircraft implies (the sidecar's
+    # truth_linear): measured within 2.5 standard errors on 40 s of data; the
+    # noisy sideslip input biases output error a little (README), so 4 here
+    truth = json.loads(logs[0].with_suffix(".json").read_text())["truth_linear"]
+    for name in ("Lp", "Lda", "Lbeta", "Nr", "Ndr", "Nbeta"):
+        z = (report["estimates"][name] - truth[name]) / report["stderr"][name]
+        assert abs(z) < 4, (name, z)
+
+
+@pytest.mark.slow
+def test_cli_lateral_vehicle_on_the_hfb320_record():
+    """The real record's lateral channels through the shipped column map: the
+    book's 22-parameter model converges (there is little lateral motion in this
+    longitudinal manoeuvre, so many parameters correlate; README)."""
+    from typer.testing import CliRunner
+
+    from diffpegasus._cli import app
+
+    from .test_oem import _require, hfb320
+
+    _require(hfb320.DEFAULT_DATA)
+    runner = CliRunner()
+    result = runner.invoke(app, ["vehicles", "--json"])
+    assert "hfb320-lateral" in json.loads(result.stdout)
+    result = runner.invoke(
+        app, ["fit", str(hfb320.DEFAULT_DATA), "--vehicle", "hfb320-lateral", "--json"]
+    )
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)
+    assert report["converged"] and len(report["estimates"]) == 22
+    # measured det R 5.417e-23 (experiments/lateral.py reports the same fit)
+    assert report["cost"] == pytest.approx(5.417e-23, rel=1e-3)
+    assert len(report["high_correlations"]) > 5

@@ -23,6 +23,8 @@ from ._diagnose import (  # noqa: E402
 )
 from ._estimate import (  # noqa: E402  # noqa: E402
     CoefficientNetwork as CoefficientNetwork,
+    equation_error as equation_error,
+    EquationErrorFit as EquationErrorFit,
     estimate_lse as estimate_lse,
     estimate_nn as estimate_nn,
     estimate_oem as estimate_oem,
@@ -127,6 +129,7 @@ from ._vehicle import (  # noqa: E402
     LATERAL_START as LATERAL_START,
     LoggedThrust as LoggedThrust,
     read_lateral_asc as read_lateral_asc,
+    SIXDOF_LATERAL_EFFECTS as SIXDOF_LATERAL_EFFECTS,
     SIXDOF_LATERAL_INPUTS as SIXDOF_LATERAL_INPUTS,
     sixdof_lateral_model as sixdof_lateral_model,
     SIXDOF_LATERAL_OUTPUTS as SIXDOF_LATERAL_OUTPUTS,

@@ -59,7 +59,9 @@ def _fit_model(
     try:
         # with --add, compose every candidate (the others held at zero, left out of
         # the report): the same program as `diagnose` of this vehicle compiled
-        spec = vehicle_spec(str(which), add=add, candidates=bool(add))
+        spec = vehicle_spec(
+            str(which), add=add, candidates=bool(add), manoeuvres=len(logs)
+        )
         report = run_model_fit(
             spec,
             logs,
@@ -96,7 +98,7 @@ def vehicles(as_json: JsonOption = False):
         _json_out(VEHICLES)
         return
     for name, text in VEHICLES.items():
-        typer.echo(f"{name:10s} {text}")
+        typer.echo(f"{name:15s} {text}")
 
 
 @app.command()

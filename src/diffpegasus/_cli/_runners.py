@@ -9,6 +9,7 @@ import numpy as np
 
 from .._diagnose._candidates import score_candidates
 from .._estimate._fit import Fit, fit
+from .._estimate._model import Record
 from .._estimate._modelfile import ModelSpec
 from .._log._columns import load_columns, load_record
 from .._log._format import LogError
@@ -53,9 +54,31 @@ def load_records(spec: ModelSpec, files, columns=None):
     cmap = dict(load_columns(spec.columns)) if spec.columns else {}
     cmap.update(load_columns(columns))
     reader = spec.read if columns is None else None
-    return [
-        load_record(spec.model, f, cmap, x0=spec.x0, reader=reader) for f in files
-    ]
+    model = spec.model
+    # inputs `manoeuvre_k` select per-manoeuvre parameters (e.g. the state biases
+    # of `dp.lateral_model(manoeuvres=n)`): 1 on the k-th file, 0 on the others
+    selectors = [n for n in model.inputs if n.startswith("manoeuvre_")]
+    if not selectors:
+        return [load_record(model, f, cmap, x0=spec.x0, reader=reader) for f in files]
+    if len(selectors) != len(files):
+        raise LogError(
+            f"{spec.name} selects {len(selectors)} manoeuvres (inputs "
+            f"{', '.join(selectors)}), but {len(files)} files were given"
+        )
+    base = model.replace(inputs=tuple(n for n in model.inputs if n not in selectors))
+    records = []
+    for k, f in enumerate(files):
+        rec = load_record(base, f, cmap, x0=spec.x0, reader=reader)
+        inputs = np.column_stack(
+            [
+                rec.inputs[:, base.inputs.index(n)]
+                if n in base.inputs
+                else np.full(len(rec.t), float(n == selectors[k]))
+                for n in model.inputs
+            ]
+        )
+        records.append(Record(rec.t, inputs, rec.measured, x0=rec.x0, name=rec.name))
+    return records
 
 
 def fit_report(result: Fit, spec: ModelSpec) -> dict:

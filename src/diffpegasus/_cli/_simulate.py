@@ -64,12 +64,56 @@ def _simulate_to_log(
     return flight_to_log(flight, metadata, vehicle=config.vehicle)
 
 
-def _simulate_vehicle(name, out, seed, hidden, duration, sample_rate, noise):
+def _simulate_lateral(out, seed, hidden, duration, sample_rate, noise, input_name):
+    from .._log._format import FlightLog, write_log
+    from .._vehicle._lateral import simulate_lateral_log
+
+    planted = {}
+    for text in hidden:
+        spec, sep, value = text.partition("=")
+        try:
+            planted[spec.strip()] = float(value)
+        except ValueError:
+            _fail(f"--hidden {text}: expected sensor_bias:CHANNEL=VALUE")
+    first = {"pulse": "aileron", "aileron": "aileron", "rudder": "rudder"}.get(
+        input_name
+    )
+    if first is None:
+        _fail(
+            f"--input {input_name}: a lateral manoeuvre starts with aileron (an "
+            "aileron 3-2-1-1, then a rudder doublet) or rudder (the other way round)"
+        )
+    try:
+        channels, meta = simulate_lateral_log(
+            duration=25.0 if duration is None else duration,
+            rate=25.0 if sample_rate == 1000.0 else sample_rate,
+            seed=seed,
+            noise=noise,
+            first=first,
+            hidden=planted,
+        )
+        path = write_log(out, FlightLog(channels=channels, metadata=meta))
+    except ValueError as e:
+        _fail(str(e))
+    except OSError as e:
+        _fail(_os_error(e))
+    typer.echo(f"wrote {path} and {path.with_suffix('.json')}")
+
+
+def _simulate_vehicle(
+    name, out, seed, hidden, duration, sample_rate, noise, input_name
+):
     from .._log._format import FlightLog, write_log
     from .._vehicle._effects import parse_assignment
 
+    if name == "hfb320-lateral":
+        _simulate_lateral(out, seed, hidden, duration, sample_rate, noise, input_name)
+        return
     if name != "hfb320":
-        _fail(f"simulate knows the vehicles pegasus and hfb320, not {name!r}")
+        _fail(
+            f"simulate knows the vehicles pegasus, hfb320 and hfb320-lateral, not "
+            f"{name!r}"
+        )
     from .._vehicle._hfb320 import CANDIDATES, simulate_log
 
     planted = {}
@@ -110,7 +154,8 @@ def simulate(
         typer.Option(
             "--input",
             help="Excitation on top of the nominal pull-up: pulse, sine, ramp, step, "
-            "doublet, 3211, multisine, none",
+            "doublet, 3211, multisine, none (hfb320-lateral: aileron or rudder, the "
+            "surface with the 3-2-1-1)",
         ),
     ] = "pulse",
     hidden: Annotated[
@@ -130,7 +175,10 @@ def simulate(
     noise: Annotated[bool, typer.Option(help="Add sensor noise")] = True,
     plot: Annotated[bool, typer.Option(help="Write the trajectory PNG")] = True,
     vehicle: Annotated[
-        str, typer.Option(help="pegasus or hfb320 (see `diffpegasus vehicles`)")
+        str,
+        typer.Option(
+            help="pegasus, hfb320 or hfb320-lateral (see `diffpegasus vehicles`)"
+        ),
     ] = "pegasus",
 ):
     """Simulate a flight of a built-in vehicle (Pegasus first stage by default)
@@ -141,7 +189,7 @@ def simulate(
     _check_out(out, "file")
     if vehicle != "pegasus":
         _simulate_vehicle(
-            vehicle, out, seed, hidden or [], duration, sample_rate, noise
+            vehicle, out, seed, hidden or [], duration, sample_rate, noise, input
         )
         return
     try:

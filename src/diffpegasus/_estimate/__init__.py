@@ -6,6 +6,10 @@ from ._coefficients import (
     reconstruct_coefficients as reconstruct_coefficients,
 )
 from ._engine import Layout as Layout, RESULTS as RESULTS, Solution as Solution
+from ._equation_error import (
+    equation_error as equation_error,
+    EquationErrorFit as EquationErrorFit,
+)
 from ._filter_error import (
     FilterErrorFit as FilterErrorFit,
     fit_filter_error as fit_filter_error,

@@ -8,6 +8,7 @@ from ._lateral import (
     lateral_record as lateral_record,
     LATERAL_START as LATERAL_START,
     read_lateral_asc as read_lateral_asc,
+    SIXDOF_LATERAL_EFFECTS as SIXDOF_LATERAL_EFFECTS,
     SIXDOF_LATERAL_INPUTS as SIXDOF_LATERAL_INPUTS,
     sixdof_lateral_model as sixdof_lateral_model,
     SIXDOF_LATERAL_OUTPUTS as SIXDOF_LATERAL_OUTPUTS,
