@@ -1,10 +1,13 @@
 """The persistent compilation cache: where it lives, how it is switched off, and that
 a program compiled by one process is read back by the next."""
 
+import json
 import os
+import pickle
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 import diffpegasus._cache as _cache
@@ -93,3 +96,81 @@ def test_second_process_reads_the_compiled_program(tmp_path):
     assert "cache miss for 'jit_f'" in runs[0].stderr.lower()
     assert any(p.name.startswith("jit_f-") for p in folder.iterdir())
     assert "cache hit for 'jit_f'" in runs[1].stderr.lower()
+
+
+EXPORTED = """
+import json, sys
+import jax, jax.numpy as jnp, numpy as np
+from jax._src import monitoring
+import diffpegasus._cache as cache
+from diffpegasus._estimate._engine import lm_step
+traced = []
+monitoring.register_event_time_span_listener(
+    lambda event, start, end, **kw: traced.append(kw.get("fun_name"))
+    if event.endswith("jaxpr_trace_duration") else None
+)
+cache.enable_cache()
+# the key holds a digest of the package's source; fixed here so that an edit of the
+# working tree between the two processes does not make them differ
+cache._SOURCE_DIGEST = "test"
+rng = np.random.default_rng(0)
+a = rng.normal(size=(6, 6))
+args = {"h": a @ a.T + np.eye(6), "g": rng.normal(size=6),
+        "free": np.array([1, 1, 0, 1, 1, 1], bool), "damping": np.asarray(0.1)}
+via = cache.kept_call(lm_step, {}, args)
+direct = jax.jit(lm_step)(**{k: jnp.asarray(v) for k, v in args.items()})
+print(json.dumps({"via": np.asarray(via).tolist(), "direct": np.asarray(direct).tolist(),
+                  "traced_flat": traced.count("flat")}))
+"""
+
+
+def test_kept_program_is_loaded_by_a_second_process(tmp_path):
+    """`kept_call` traces a package function once per machine: the second
+    process reads the kept program (no tracing of it) and gets the same numbers."""
+    env = _env(tmp_path)
+    outs = []
+    for _ in range(2):
+        r = subprocess.run(
+            [sys.executable, "-c", EXPORTED], env=env, capture_output=True, text=True
+        )
+        assert r.returncode == 0, r.stderr
+        outs.append(json.loads(r.stdout.strip().splitlines()[-1]))
+    folder = tmp_path / "xdg" / "diffpegasus" / "jax" / "programs"
+    assert len(list(folder.glob("*.bin"))) == 1
+    assert outs[0]["traced_flat"] == 1 and outs[1]["traced_flat"] == 0
+    assert outs[0]["via"] == outs[1]["via"]
+    for o in outs:
+        assert np.allclose(o["via"], o["direct"], rtol=1e-13, atol=0)
+
+
+def test_kept_call_falls_back_to_a_direct_call(tmp_path, monkeypatch):
+    """Traced arguments, untrusted static arguments and functions outside the
+    package are called directly, with the same result, and nothing is kept."""
+    import jax
+    import jax.numpy as jnp
+
+    from diffpegasus._estimate._engine import lm_step
+
+    monkeypatch.setattr(_cache, "_ACTIVE", tmp_path)
+    monkeypatch.setattr(_cache, "_MEMO", {})
+    h, g = jnp.eye(3) * 2.0, jnp.arange(3.0)
+    free, damping = jnp.ones(3, bool), jnp.asarray(0.0)
+    expected = lm_step(h, g, free, damping)
+    inside = jax.jit(
+        lambda h: _cache.kept_call(
+            lm_step, {}, {"h": h, "g": g, "free": free, "damping": damping}
+        )
+    )(h)
+    assert jnp.allclose(inside, expected)
+
+    def mine(h, g, free, damping, scale):
+        return lm_step(h, g, free, damping) * scale(1.0)
+
+    out = _cache.kept_call(
+        mine, {"scale": lambda x: x}, {"h": h, "g": g, "free": free, "damping": damping}
+    )
+    assert jnp.allclose(out, expected)
+    assert not (tmp_path / "programs").exists()
+    # a static argument naming code outside the package cannot be keyed
+    with pytest.raises(pickle.PicklingError):
+        _cache._call_key(lm_step, {"scale": mine}, {"h": h})

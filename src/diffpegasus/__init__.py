@@ -53,7 +53,6 @@ from ._estimate import (  # noqa: E402  # noqa: E402
     reconstruct_coefficients as reconstruct_coefficients,
     Record as Record,
     RESULTS as RESULTS,
-    RK4 as RK4,
     save_network as save_network,
     score_test as score_test,
     ScoreTest as ScoreTest,
@@ -195,3 +194,12 @@ from ._vehicle._sixdof import (  # noqa: E402
 
 
 __version__ = "0.1.0"
+
+
+def __getattr__(name):
+    # imported on first use (see _estimate/__init__.py): diffrax takes 0.4 s to import
+    if name == "RK4":
+        from ._estimate._rk4 import RK4
+
+        return RK4
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

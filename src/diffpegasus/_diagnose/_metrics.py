@@ -6,7 +6,6 @@ for any model and log, not only the global Pegasus model.
 
 import math
 
-import jax.scipy.special as jsp
 import numpy as np
 
 
@@ -15,7 +14,11 @@ WHITENESS_LAGS = 20
 
 def chi2_sf(x: float, dof: float) -> float:
     """Survival function of the chi-square distribution."""
-    return float(jsp.gammaincc(dof / 2.0, max(float(x), 0.0) / 2.0))
+    # scipy on the host (imported here: it takes a while): jax's would compile a
+    # program for one number
+    import scipy.special
+
+    return float(scipy.special.gammaincc(dof / 2.0, max(float(x), 0.0) / 2.0))
 
 
 def noise_sigma(x: np.ndarray) -> float:

@@ -5,7 +5,6 @@ import pathlib
 import sys
 
 from .._log._format import FlightLog
-from .._report._discrepancy_plots import plot_fits, plot_ranking, plot_regimes
 from .._report._markdown import (
     derivative_markdown,
     metrics_table,
@@ -69,6 +68,8 @@ def run_compare(
     result = {**metrics, "localise": loc, "derivatives": derivs}
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
+        from .._report._discrepancy_plots import plot_fits, plot_regimes
+
         plot_fits(
             [("baseline", base)],
             out / "compare.png",
@@ -118,6 +119,8 @@ def run_diagnose(
     result["model_effects"] = list(add)
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
+        from .._report._discrepancy_plots import plot_ranking
+
         plot_ranking(result, out / "diagnose.png")
         write_report(
             out / "diagnose.md",
@@ -157,6 +160,8 @@ def run_fit(
     }
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
+        from .._report._discrepancy_plots import plot_fits
+
         plot_fits(
             [("before", before), ("after", after)],
             out / "fit.png",

@@ -59,9 +59,18 @@ from ._pegasus_oem import (
     windowed_lift_drag as windowed_lift_drag,
 )
 from ._result import Estimates as Estimates
-from ._rk4 import RK4 as RK4
 from ._windowed_oem import (
     fit_windowed_oem as fit_windowed_oem,
     WindowedFit as WindowedFit,
 )
 from ._windows import WindowLayout as WindowLayout
+
+
+def __getattr__(name):
+    # RK4 is a diffrax solver: importing diffrax (with optimistix and lineax) takes
+    # 0.4 s, which commands that never use it should not pay
+    if name == "RK4":
+        from ._rk4 import RK4
+
+        return RK4
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

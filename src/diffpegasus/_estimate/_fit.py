@@ -8,6 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._cache import kept_call
 from ._engine import Layout, RESULTS, solve
 from ._model import Model, Record
 
@@ -79,18 +80,21 @@ def layout(
     node_free = np.ones((n_seg, nx), bool)
     if initial_state == "fixed":
         node_free[starts] = False
+    # device_put, not jnp.asarray: in JAX 0.10 the latter compiles a small program
+    # per shape (0.05-0.1 s each, a second per command in all)
+    put = jax.device_put
     return Layout(
-        inputs=jnp.asarray(inputs),
-        t0=jnp.asarray([rec.t[0] for rec in records]),
-        dt=jnp.asarray(dts),
-        n=jnp.asarray(lengths),
-        record=jnp.asarray(record),
-        first=jnp.asarray(first),
-        measured=jnp.asarray(measured),
-        valid=jnp.asarray(valid),
-        link=jnp.asarray(~starts[1:]),
-        scale=jnp.asarray(state_scale * tol),
-        node_free=jnp.asarray(node_free),
+        inputs=put(inputs),
+        t0=put(np.array([rec.t[0] for rec in records], float)),
+        dt=put(dts),
+        n=put(lengths),
+        record=put(record),
+        first=put(first),
+        measured=put(measured),
+        valid=put(valid),
+        link=put(~starts[1:]),
+        scale=put(np.asarray(state_scale * tol, float)),
+        node_free=put(node_free),
         length=length,
         bias_channels=tuple(model.outputs.index(b) for b in biases),
     )
@@ -317,15 +321,16 @@ def fit(
         model, records, shooting, initial_state, biases, _state_scale(model, nodes0)
     )
     z0 = np.concatenate([nodes0.reshape(-1), start, np.zeros(len(records) * nb)])
-    sol = solve(
-        model.structure(),
-        lay,
-        jnp.asarray(z0),
-        jnp.asarray(model.free),
-        nx=nx,
-        p=p,
-        rtol=rtol,
-        max_iter=max_iter,
+    # through the cache's kept programs: a later process skips tracing
+    sol = kept_call(
+        solve,
+        {"model": model.structure(), "nx": nx, "p": p, "max_iter": max_iter},
+        {
+            "layout": lay,
+            "z0": np.asarray(z0, float),
+            "free_params": np.asarray(model.free),
+            "rtol": np.asarray(rtol, float),
+        },
     )
     sol = jax.tree.map(np.asarray, sol)
     ns = lay.n_segments * nx

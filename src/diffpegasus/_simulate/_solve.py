@@ -4,7 +4,6 @@
 batch of configurations simulates in one call with `simulate_batch` (`jax.vmap`).
 """
 
-import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -132,6 +131,8 @@ def simulate(
     times = config.times
     ts = jnp.asarray(times)
     model = config.model
+    import diffrax  # here, not at the top: commands that never simulate skip it
+
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(_vector_field),
         diffrax.Tsit5(),

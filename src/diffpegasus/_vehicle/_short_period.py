@@ -13,7 +13,6 @@ fixed altitude and a Mach number constant or varying linearly in time; CZ_x and 
 the cp-to-CG transfer, so they change with Mach as the vehicle's would.
 """
 
-import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -96,6 +95,8 @@ def simulate_short_period(
     de0 = elevator(0.0)
     alpha0 = -mde / ma * de0
     q0 = -(za * alpha0 + zde * de0) / u
+    import diffrax  # here, not at the top: commands that never simulate skip it
+
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(_rates),
         diffrax.Tsit5(),
