@@ -186,7 +186,10 @@ def lateral_model(
       state biases, selected by the inputs `manoeuvre_k`.
     - `state_biases`: estimate `bx_p, bx_r` (per manoeuvre); with them records must
       start from `x0 = 0` (with `sideslip="state"`, from the initial sideslip and
-      bank angle and zero rates: [`lateral_record`][] does both).
+      bank angle and zero rates: [`lateral_record`][] does both), held: estimating
+      the initial states as well is not identifiable (a common offset of them moves
+      into the biases); `state_biases=False` with `fit(...,
+      initial_state="estimated")` estimates them instead.
     - `output_biases`: estimate `by_pdot, by_rdot, by_ay, by_p, by_r` (and `by_beta,
       by_phi` with `sideslip="state"`), shared by all manoeuvres.
     - `sideslip`: `"input"` (measured sideslip drives the model, as in the book) or
@@ -205,7 +208,7 @@ def lateral_model(
     **Returns:** a [`Model`][] with states `p, r`, inputs `da, dr, beta` and outputs
     `pdot, rdot, ay, p, r`; with `sideslip="state"`, states `beta, p, r, phi`, inputs
     `da, dr` and outputs `pdot, rdot, ay, p, r, beta, phi`; then the selector inputs
-    `manoeuvre_1..n` if `manoeuvres > 1`.
+    `manoeuvre_1..n` if `manoeuvres > 1` with state biases.
     """
     if manoeuvres < 1:
         raise ValueError(f"manoeuvres must be at least 1, got {manoeuvres}")
@@ -241,7 +244,8 @@ def lateral_model(
             raise ValueError(f"{k!r} is not a parameter of this model: {list(values)}")
         values[k] = float(v)
     inputs = LATERAL_INPUTS if flight is None else LATERAL_INPUTS[:2]
-    if manoeuvres > 1:
+    if manoeuvres > 1 and state_biases:
+        # (without state biases nothing is per manoeuvre: no selectors)
         inputs = inputs + tuple(f"manoeuvre_{k}" for k in range(1, manoeuvres + 1))
     setup = (manoeuvres, state_biases, output_biases, flight)
 
