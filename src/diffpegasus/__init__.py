@@ -167,6 +167,12 @@ from ._vehicle._pegasus._dynamics import (  # noqa: E402
     evaluate as evaluate,
     FlightModel as FlightModel,
 )
+from ._vehicle._pegasus._lateral import (  # noqa: E402
+    fin_lift_slope as fin_lift_slope,
+    pegasus_aircraft as pegasus_aircraft,
+    pegasus_lateral as pegasus_lateral,
+    pegasus_speed as pegasus_speed,
+)
 from ._vehicle._pegasus._mass import (  # noqa: E402
     MassModel as MassModel,
     MassProperties as MassProperties,
