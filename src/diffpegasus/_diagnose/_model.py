@@ -208,6 +208,37 @@ def _evaluate(spec: ModelSpec, t, x, u, theta):
     return rates, jnp.stack([pp.channels[c] for c in OUTPUTS])
 
 
+class _Rates(eqx.Module):
+    """The global model's state rates `(t, x, u, theta) -> x'`: a value (equal for
+    equal specs, picklable), so that compiled and kept programs are shared."""
+
+    spec: ModelSpec = eqx.field(static=True)
+
+    def __call__(self, t, x, u, theta):
+        return _evaluate(self.spec, t, x, u, theta)[0]
+
+
+class _Outputs(eqx.Module):
+    """The global model's outputs `(t, x, u, theta) -> y` (see [`_Rates`][])."""
+
+    spec: ModelSpec = eqx.field(static=True)
+
+    def __call__(self, t, x, u, theta):
+        return _evaluate(self.spec, t, x, u, theta)[1]
+
+
+class _InputDelay(eqx.Module):
+    """The known inputs' delays `theta -> (inputs,)`: the elevator's (see
+    [`_Rates`][])."""
+
+    spec: ModelSpec = eqx.field(static=True)
+
+    def __call__(self, theta):
+        tau = elevator_delay(_effects(self.spec, theta))
+        n_inputs = len(KNOWN) + self.spec.knots
+        return jnp.zeros(n_inputs).at[0].set(tau)
+
+
 @functools.cache
 def make_model(spec: ModelSpec):
     """`(rates, outputs, input_delay)` of the global model, cached per structure so
@@ -219,20 +250,8 @@ def make_model(spec: ModelSpec):
                 f"{name}: channel {eff.channel!r} is not a model output "
                 f"({', '.join(OUTPUTS)})"
             )
-
-    def rates(t, x, u, theta):
-        return _evaluate(spec, t, x, u, theta)[0]
-
-    def outputs(t, x, u, theta):
-        return _evaluate(spec, t, x, u, theta)[1]
-
-    def input_delay(theta):
-        tau = elevator_delay(_effects(spec, theta))
-        n_inputs = len(KNOWN) + spec.knots
-        return jnp.zeros(n_inputs).at[0].set(tau)
-
     delays = has_delay(tuple(make_effect(n) for n in spec.effects))
-    return rates, outputs, (input_delay if delays else None)
+    return _Rates(spec), _Outputs(spec), (_InputDelay(spec) if delays else None)
 
 
 def measured_states(log: FlightLog | dict, index: np.ndarray) -> Float[Array, "n 5"]:

@@ -18,6 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
+from .._cache import kept_call
 from ._engine import Layout, RESULTS, solve
 from ._oem import OEMProblem, theil_inequality
 from ._score import score, ScoreTest
@@ -129,6 +130,14 @@ def _fit(problem, theta0, nodes0, free, rtol, max_iter):
     )
 
 
+def _as_array(x, dtype):
+    """A traced value as a jax array, a concrete one as numpy (`jnp.asarray` of a
+    concrete value compiles a small program per shape in JAX 0.10)."""
+    if isinstance(x, jax.core.Tracer):
+        return jnp.asarray(x, dtype)
+    return np.asarray(x, dtype)
+
+
 def fit_global_oem(
     problem: OEMProblem,
     theta0: Float[Array, " params"],
@@ -153,15 +162,27 @@ def fit_global_oem(
         raise ValueError("fit_global_oem needs window=None (one parameter set)")
     if problem.node_interval is not None and problem.state_scale is None:
         raise ValueError("multiple shooting needs the problem's state_scale")
-    theta0 = jnp.asarray(theta0, float)
-    free = jnp.asarray(problem.free if free is None else free, bool)
-    nodes0 = jnp.asarray(nodes0, float)
+    theta0 = _as_array(theta0, float)
+    free = _as_array(problem.free if free is None else free, bool)
+    nodes0 = _as_array(nodes0, float)
     if nodes0.shape[0] != problem.n_segments:
         raise ValueError(
             f"nodes0 has {nodes0.shape[0]} rows but the problem has "
             f"{problem.n_segments} shooting segments"
         )
-    return _fit(problem, theta0, nodes0, free, rtol, max_iter)
+    # through the cache's kept programs: a later process skips tracing (when the
+    # model functions are values of the package, e.g. the discrepancy model's)
+    return kept_call(
+        _fit,
+        {"max_iter": max_iter},
+        {
+            "problem": problem,
+            "theta0": theta0,
+            "nodes0": nodes0,
+            "free": free,
+            "rtol": np.asarray(rtol, float),
+        },
+    )
 
 
 @jax.jit
@@ -183,4 +204,8 @@ def _score(problem, fit, candidates):
 
 def score_test(problem: OEMProblem, fit: GlobalFit, candidates) -> ScoreTest:
     """Score test of the parameters `candidates` (indices, held fixed in `fit`)."""
-    return _score(problem, fit, jnp.asarray(candidates, int))
+    return kept_call(
+        _score,
+        {},
+        {"problem": problem, "fit": fit, "candidates": np.asarray(candidates, int)},
+    )
