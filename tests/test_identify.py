@@ -475,6 +475,104 @@ def read(path):
     assert "no column '9' for channel 'w' (columns: numbered 1 to 6" in res.output
 
 
+def test_user_mistakes_in_model_files_and_maps_are_one_line(two, tmp_path):
+    """What a user gets wrong in a model file or a column map is one line naming
+    the file and what to change, never a traceback or a silently wrong fit."""
+    import json
+
+    rec = two[0]
+    rows = np.column_stack(
+        [
+            rec.t,
+            np.degrees(rec.inputs[:, 0]),
+            rec.measured[:, 0],
+            rec.measured[:, 1],
+            rec.measured[:, 2],
+        ]
+    )
+    data = tmp_path / "run.csv"
+    np.savetxt(
+        data, rows, delimiter=",", header="T,DE,AZ,W,Q", comments="", fmt="%.17g"
+    )
+    good = {
+        "t": "T",
+        "de": {"column": "DE", "unit": "deg"},
+        "az": "AZ",
+        "w": "W",
+        "q": "Q",
+    }
+
+    def run(model_text, cmap, *files):
+        (tmp_path / "m.py").write_text(model_text)
+        (tmp_path / "map.json").write_text(json.dumps(cmap))
+        res = _cli(
+            [
+                "fit",
+                *(files or (data,)),
+                "--model",
+                tmp_path / "m.py",
+                "--columns",
+                tmp_path / "map.json",
+                "--json",
+            ]
+        )
+        return res
+
+    def one_line(res, *expected):
+        assert res.exit_code == 2, res.output
+        assert "Traceback" not in res.output
+        errors = [line for line in res.output.splitlines() if line.startswith("error:")]
+        assert len(errors) == 1, res.output
+        for text in expected:
+            assert text in errors[0], errors[0]
+
+    # a parameter name mistyped inside rates: named, with the valid names
+    typo = MODEL_FILE.replace('p["Mq"] * q', 'p["Mqq"] * q', 1)
+    one_line(
+        run(typo, good),
+        "m.py line",
+        "p['Mqq'] is not a model parameter",
+        "Zw, Zde, Mw, Mq, Mde",
+    )
+    # rates of the wrong length
+    short = MODEL_FILE.replace(
+        '    return jnp.stack([p["Zw"] * w + (U0 + ZQ) * q + p["Zde"] * u[0],\n', "", 1
+    ).replace(
+        '                      p["Mw"] * w', '    return jnp.stack([p["Mw"] * w', 1
+    )
+    one_line(run(short, good), "rates(t, x, u, p) returns 1 value(s); the model has 2")
+    # NumPy on a traced value
+    numpy = "import numpy as np\n" + MODEL_FILE.replace(
+        'p["Mq"] * q', 'p["Mq"] * np.tanh(q)', 1
+    )
+    one_line(run(numpy, good), "m.py line", "write it with jax.numpy")
+    # the elevator logged in degrees, mapped without its unit (a 57x wrong Mde
+    # otherwise)
+    one_line(
+        run(MODEL_FILE, {**good, "de": "DE"}),
+        "column 'DE' (channel 'de')",
+        'looks like degrees (give it "unit": "deg" in the column map)',
+    )
+    # a typo in the map's channel names
+    one_line(run(MODEL_FILE, {**good, "qq": "Q"}), "'qq', not a channel of the model")
+    # x0 per data file, and two files of one name in two folders stay two records
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    a, b = tmp_path / "a" / "run.csv", tmp_path / "b" / "run.csv"
+    a.write_bytes(data.read_bytes())
+    b.write_bytes(data.read_bytes())
+    res = run(MODEL_FILE + "x0 = {str(%r): (0.1, 0.0)}\n" % str(a), good, a, b)
+    assert res.exit_code == 0, res.output
+    report = json.loads(res.stdout.strip().splitlines()[-1])
+    assert report["records"] == [str(a), str(b)]
+    assert set(report["biases"]) == {str(a), str(b)}
+    # plain column names and numbers both map
+    assert run(MODEL_FILE, {**good, "w": 4}).exit_code == 2  # a CSV has no numbers
+    # a Record whose arrays disagree in length says which
+    with pytest.raises(ValueError, match="inputs has shape .* one row per time sample"):
+        dp.Record(rec.t, rec.inputs[:-1], rec.measured)
+
+
 def test_cli_holds_a_parameter_and_names_bad_input(tmp_path):
     _require(hfb320.DEFAULT_DATA)
     import json

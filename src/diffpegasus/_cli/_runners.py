@@ -51,15 +51,56 @@ def parse_holds(holds: list[str], spec: ModelSpec) -> ModelSpec:
 def load_records(spec: ModelSpec, files, columns=None):
     """One record per file, through the model's column map updated by `columns`
     (or the model file's `read` function when it has one and no `columns` given)."""
+    user = dict(load_columns(columns))
+    if spec.name.endswith(".py") and spec.columns:
+        _check_map_keys(spec.model, load_columns(spec.columns), spec.name)
+    _check_map_keys(spec.model, user, "--columns")
     cmap = dict(load_columns(spec.columns)) if spec.columns else {}
-    cmap.update(load_columns(columns))
+    cmap.update(user)
     reader = spec.read if columns is None else None
     model = spec.model
+    records = _load(spec, model, files, cmap, reader)
+    # two files of one name (run1/data.csv, run2/data.csv) keep apart in reports
+    names = [r.name for r in records]
+    if len(set(names)) < len(names):
+        records = [
+            Record(r.t, r.inputs, r.measured, x0=r.x0, name=str(f))
+            for r, f in zip(records, files, strict=True)
+        ]
+    return records
+
+
+def _check_map_keys(model, cmap: dict, where: str) -> None:
+    """A column-map key that is no channel of the model is a typo, not a no-op."""
+    known = {"t", *model.states, *model.inputs, *model.outputs}
+    unknown = sorted(k for k in cmap if k not in known)
+    if unknown:
+        raise LogError(
+            f"{where}: column map names {', '.join(map(repr, unknown))}, not a "
+            f"channel of the model (t, {', '.join(sorted(known - {'t'}))})"
+        )
+
+
+def _x0(spec: ModelSpec, path):
+    """The model file's initial state for `path`: one for every record, or a dict
+    by file name."""
+    if not isinstance(spec.x0, dict):
+        return spec.x0
+    path = pathlib.Path(path)
+    for key in (str(path), path.name, path.stem):
+        if key in spec.x0:
+            return spec.x0[key]
+    return None
+
+
+def _load(spec, model, files, cmap, reader):
     # inputs `manoeuvre_k` select per-manoeuvre parameters (e.g. the state biases
     # of `dp.lateral_model(manoeuvres=n)`): 1 on the k-th file, 0 on the others
     selectors = [n for n in model.inputs if n.startswith("manoeuvre_")]
     if not selectors:
-        return [load_record(model, f, cmap, x0=spec.x0, reader=reader) for f in files]
+        return [
+            load_record(model, f, cmap, x0=_x0(spec, f), reader=reader) for f in files
+        ]
     if len(selectors) != len(files):
         raise LogError(
             f"{spec.name} selects {len(selectors)} manoeuvres (inputs "
@@ -68,7 +109,7 @@ def load_records(spec: ModelSpec, files, columns=None):
     base = model.replace(inputs=tuple(n for n in model.inputs if n not in selectors))
     records = []
     for k, f in enumerate(files):
-        rec = load_record(base, f, cmap, x0=spec.x0, reader=reader)
+        rec = load_record(base, f, cmap, x0=_x0(spec, f), reader=reader)
         inputs = np.column_stack(
             [
                 rec.inputs[:, base.inputs.index(n)]

@@ -96,7 +96,10 @@ class Model(eqx.Module):
             )
         unknown = [f for f in self.fixed if f not in self.parameters]
         if unknown:
-            raise ValueError(f"fixed parameters {unknown} are not model parameters")
+            raise ValueError(
+                f"fixed parameters {unknown} are not model parameters "
+                f"({', '.join(self.parameters)})"
+            )
         if self.state_scale is not None and len(self.state_scale) != len(self.states):
             raise ValueError("state_scale needs one value per state")
 
@@ -185,8 +188,8 @@ class Record(eqx.Module):
 
     def __init__(self, t, inputs, measured, x0=None, name="record"):
         self.t = np.asarray(t, float).reshape(-1)
-        self.inputs = np.asarray(inputs, float).reshape(len(self.t), -1)
-        self.measured = np.asarray(measured, float).reshape(len(self.t), -1)
+        self.inputs = _rows(inputs, len(self.t), "inputs", name)
+        self.measured = _rows(measured, len(self.t), "measured", name)
         self.x0 = None if x0 is None else np.asarray(x0, float).reshape(-1)
         self.name = str(name)
 
@@ -238,6 +241,60 @@ class Record(eqx.Module):
                 f"{self.name}: x0 has {len(self.x0)} values, the model has "
                 f"{len(model.states)} states ({', '.join(model.states)})"
             )
+        self._check_functions(model)
+
+    def _check_functions(self, model: Model) -> None:
+        """Trace `rates` and `observe` once, abstractly (`jax.eval_shape`: nothing is
+        computed or compiled), at the first sample with the start values: a wrong
+        parameter name, a wrong shape, NumPy on a traced value or any error in the
+        user's code is reported here in one line rather than deep in a trace."""
+        import jax
+
+        x = self.x0 if self.x0 is not None else self.measured_states(model, [0])[0]
+        x = jnp.asarray(np.nan_to_num(np.asarray(x, float)))
+        u = jnp.asarray(self.inputs[0])
+        p = {
+            k: jnp.asarray(v)
+            for k, v in zip(model.parameters, model.start, strict=True)
+        }
+        t = jnp.asarray(self.t[0])
+        traced = (
+            jax.errors.TracerArrayConversionError,
+            jax.errors.ConcretizationTypeError,
+            jax.errors.TracerBoolConversionError,
+            jax.errors.TracerIntegerConversionError,
+        )
+        for what, fn, size, names in (
+            ("rates", model.rates, len(model.states), model.states),
+            ("observe", model.observe, len(model.outputs), model.outputs),
+        ):
+            try:
+                out = jax.eval_shape(fn, t, x, u, p)
+            except KeyError as e:
+                key = e.args[0] if e.args else e
+                raise ValueError(
+                    f"{_where(e)}{what}(t, x, u, p): p[{key!r}] is not a model "
+                    f"parameter ({', '.join(model.parameters)})"
+                ) from None
+            except traced as e:
+                raise ValueError(
+                    f"{_where(e)}{what}(t, x, u, p) converts a traced value to NumPy "
+                    "or Python (np.*, float(), if on a value): write it with "
+                    "jax.numpy (jnp.*, jnp.where) so it can be differentiated"
+                ) from None
+            except Exception as e:  # the user's code: one line, where it failed
+                first = str(e).splitlines()[0] if str(e) else ""
+                raise ValueError(
+                    f"{_where(e)}{what}(t, x, u, p) failed: {type(e).__name__}: {first}"
+                ) from None
+            shapes = [getattr(a, "shape", ()) for a in jax.tree.leaves(out)]
+            n = sum(int(np.prod(sh)) for sh in shapes)
+            if n != size:
+                kind = "states" if what == "rates" else "outputs"
+                raise ValueError(
+                    f"{what}(t, x, u, p) returns {n} value(s); the model has {size} "
+                    f"{kind} ({', '.join(names)})"
+                )
 
     def measured_states(self, model: Model, index) -> np.ndarray:
         """The states at sample indices `index` from outputs of the same name,
@@ -248,3 +305,30 @@ class Record(eqx.Module):
             if name in model.outputs:
                 out[:, j] = self.measured[index, model.outputs.index(name)]
         return out
+
+
+def _rows(a, n: int, what: str, name: str) -> np.ndarray:
+    """`a` as `(n, columns)`: one row per time sample."""
+    a = np.asarray(a, float)
+    if a.ndim == 1:
+        a = a[:, None]
+    if a.ndim != 2 or a.shape[0] != n:
+        raise ValueError(
+            f"{name}: {what} has shape {a.shape}; it needs one row per time sample "
+            f"({n} rows, one column per {'input' if what == 'inputs' else 'output'})"
+        )
+    return a
+
+
+def _where(e: BaseException) -> str:
+    """`file line N: ` of the innermost frame outside the package and JAX."""
+    import traceback
+
+    frames = traceback.extract_tb(e.__traceback__)
+    for f in reversed(frames):
+        if not any(
+            part in f.filename
+            for part in ("/jax/", "/jaxlib/", "/numpy/", "/diffpegasus/", "/equinox/")
+        ):
+            return f"{f.filename} line {f.lineno}: "
+    return ""

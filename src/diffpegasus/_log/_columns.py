@@ -26,6 +26,7 @@ import json
 import math
 import os
 import pathlib
+import re
 import tomllib
 
 import numpy as np
@@ -75,7 +76,7 @@ class Column:
     scale)."""
 
     def __init__(self, channel: str, spec, where: str):
-        if isinstance(spec, str):
+        if isinstance(spec, str | int) and not isinstance(spec, bool):
             spec = {"column": spec}
         if not isinstance(spec, dict):
             raise LogError(
@@ -245,7 +246,8 @@ def _channel(table, columns, name, path):
     if col.column not in table:
         raise LogError(
             f"{path}: no column {col.column!r} for channel {name!r} (columns: "
-            f"{_listing(table)}); map it with --columns"
+            f"{_listing(table)}); map it in the column map (--columns, or the model "
+            "file's columns)"
         )
     values = table[col.column] * col.factor
     bad = ~np.isfinite(values)
@@ -323,16 +325,30 @@ def load_record(
     # the unit-mistake checks of flight logs, on whatever channels the model has
     # (a theta in degrees, q in deg/s, qbar against 0.5 rho V^2, ...)
     from ._checks import check_physics
+    from ._format import check_ranges
 
     channels = {"t": t}
     for j, n in enumerate(model.inputs):
         channels[n] = inputs[:, j]
     for j, n in enumerate(model.outputs):
         channels[n] = measured[:, j]
+    check_ranges(
+        channels,
+        str(path),
+        {n: c.column for n, c in columns.items()},
+        hint='give it "unit": "deg" in the column map',
+    )
     try:
         check_physics(channels, {"skip_checks": ["geometry"]}, str(path), str(path))
     except ValueError as e:
-        raise LogError(str(e)) from None
+        # a file read through a column map has no sidecar to skip checks in
+        message = re.sub(
+            r" \(if the data are right, add \"skip_checks\": \[\"\w+\"\] to the "
+            r"sidecar\)",
+            " (check that channel's unit and scale in the column map)",
+            str(e),
+        )
+        raise LogError(message) from None
     if x0 is None:
         guess = []
         for name in model.states:

@@ -49,7 +49,15 @@ TRUTH_CHANNELS = tuple(f"true_{n}" for n in DERIVATIVE_NAMES)
 PEGASUS_METADATA = {"S_ref": 13.5, "c_ref": 2.48, "vehicle": "pegasus"}
 # Largest magnitude (rad) each angle channel can plausibly have; beyond it the column
 # is almost surely in degrees.
-_ANGLE_LIMITS = {"alpha": 1.2, "de": 0.8, "theta": math.pi}
+_ANGLE_LIMITS = {
+    "alpha": 1.2,
+    "beta": 1.0,
+    "de": 0.8,
+    "da": 0.8,
+    "dr": 0.8,
+    "theta": math.pi,
+    "phi": math.pi,
+}
 _POSITIVE = ("V", "mass", "Iyy")
 # Measured on this machine: 2 million rows of the 18 standard channels (694 MB at 17
 # digits) read in about 20 s and 0.8 GB; beyond this size a log is refused up front.
@@ -407,25 +415,42 @@ def validate_channels(
         )
         grid = t[0] + step * np.arange(n)
         channels = {c: np.interp(grid, t, v) for c, v in channels.items()}
+    check_ranges(channels, name)
+    return channels
+
+
+def check_ranges(
+    channels: dict[str, np.ndarray],
+    name: str,
+    columns: dict[str, str] | None = None,
+    hint: str = "flight logs store angles in radians",
+) -> None:
+    """Refuse an angle channel beyond what any flight reaches in radians (almost
+    surely degrees) and a speed, mass or inertia that is not positive. `columns`
+    names each channel's column in the file, for the message."""
+    columns = columns or {}
+
+    def where(col):
+        source = columns.get(col, col)
+        return f"column {source!r}" + (f" (channel {col!r})" if source != col else "")
+
     for col, limit in _ANGLE_LIMITS.items():
         if col in channels:
             v = channels[col]
             i = int(np.argmax(np.abs(v)))
             if abs(v[i]) > limit:
                 raise LogError(
-                    f"{name}: column {col!r}, row {i + 1}: value {v[i]:.6g} is larger "
-                    f"than {limit:g} rad; the column looks like degrees (flight logs "
-                    "store angles in radians)"
+                    f"{name}: {where(col)}, row {i + 1}: value {v[i]:.6g} is larger "
+                    f"than {limit:g} rad; the column looks like degrees ({hint})"
                 )
     for col in _POSITIVE:
         if col in channels:
             bad = np.flatnonzero(channels[col] <= 0)
             if bad.size:
                 raise LogError(
-                    f"{name}: column {col!r}, row {bad[0] + 1}: value "
+                    f"{name}: {where(col)}, row {bad[0] + 1}: value "
                     f"{num(channels[col][bad[0]])} must be positive"
                 )
-    return channels
 
 
 def read_log(
