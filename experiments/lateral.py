@@ -82,33 +82,6 @@ def lateral_model_of(aircraft, start):
     )
 
 
-def dimensional(aircraft, start):
-    """The linear model's derivatives implied by the aircraft at trim: rows of
-    `I^-1 [L; N]` (roll and yaw axes coupled by Ixz) and of `Y / m`."""
-    d = aircraft.lateral
-    qbar = 0.5 * aircraft.rho * SPEED**2
-    k = aircraft.b_ref / (2 * SPEED)
-    sb = qbar * aircraft.s_ref * aircraft.b_ref
-    mom = (
-        np.array(
-            [
-                [d.Cl_p * k, d.Cl_r * k, d.Cl_da, d.Cl_dr, d.Cl_beta],
-                [d.Cn_p * k, d.Cn_r * k, d.Cn_da, d.Cn_dr, d.Cn_beta],
-            ]
-        )
-        * sb
-    )
-    inertia = np.asarray(aircraft.inertia)[np.ix_([0, 2], [0, 2])]
-    ln = np.linalg.solve(inertia, mom)
-    y = (
-        qbar
-        * aircraft.s_ref
-        / aircraft.mass
-        * np.array([d.CY_p * k, d.CY_r * k, d.CY_da, d.CY_dr, d.CY_beta])
-    )
-    return dict(zip(dp.LATERAL_DERIVATIVES, [*ln[0], *ln[1], *y], strict=True))
-
-
 def table(names, truth, fit, title):
     est = fit.estimates()
     sd = dict(zip(fit.model.parameters, fit.stderr_corrected.tolist(), strict=True))
@@ -175,7 +148,7 @@ def main():
     t0 = time.perf_counter()
     lfit = dp.fit(lin, lin_records)
     result["linear_fit_s"] = time.perf_counter() - t0
-    implied = dimensional(aircraft, start)
+    implied = dp.implied_lateral_derivatives(aircraft, SPEED)
     result["linear"] = dict(
         rows=table(
             dp.LATERAL_DERIVATIVES,

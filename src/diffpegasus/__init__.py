@@ -119,6 +119,7 @@ from ._vehicle import (  # noqa: E402
     FlightVehicle as FlightVehicle,
     Geometry as Geometry,
     hfb320_model as hfb320_model,
+    implied_lateral_derivatives as implied_lateral_derivatives,
     LATERAL_COLUMNS as LATERAL_COLUMNS,
     LATERAL_DERIVATIVES as LATERAL_DERIVATIVES,
     LATERAL_INPUTS as LATERAL_INPUTS,

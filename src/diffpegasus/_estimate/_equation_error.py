@@ -238,7 +238,8 @@ def equation_error(
         est = sol / scale
         resid = b - np.einsum("nkf,f->nk", a, est)
         sigma = np.sqrt(np.sum(resid**2, axis=0) / (n - per_eq))
-        new = 1.0 / sigma
+        # (an equation fitted exactly, e.g. noise-free data: a finite weight)
+        new = 1.0 / np.maximum(sigma, 1e-150)
         if np.max(np.abs(new - weight) / new) < 1e-12:
             weight = new
             break

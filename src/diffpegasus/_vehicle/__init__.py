@@ -1,5 +1,6 @@
 from ._hfb320 import hfb320_model as hfb320_model
 from ._lateral import (
+    implied_lateral_derivatives as implied_lateral_derivatives,
     LATERAL_COLUMNS as LATERAL_COLUMNS,
     LATERAL_DERIVATIVES as LATERAL_DERIVATIVES,
     LATERAL_INPUTS as LATERAL_INPUTS,
