@@ -6,6 +6,24 @@ parameters the body-axis derivatives `[CXa, CXde, CZa, CZde, CMa, CMde]` (the th
 found them better conditioned than the lift/drag ones); outputs `[ax, az, q, qdot,
 alpha, V]`. The same building blocks as the simulator (`pitch_plane_rates`,
 `moment_about_cg`, `isa`, `gravity`) give the dynamics.
+
+With `terms` (`parameters="window"`, the default of [`estimate_oem`][]) chosen
+alpha derivatives of a window may also change inside it, with time and with alpha:
+`CZa(t) = CZa + CZa_t tau + CZa_alpha (alpha - alpha_w)`, `tau` the time within the
+window over its length minus 1/2 (mean zero over the window's samples) and
+`alpha_w` the window's mean measured alpha (both known inputs, after [`INPUTS`][]);
+the six reported derivatives are the values at the window's mean time and alpha,
+so its mean to first order. Why: the tables' derivatives are secants (`CL =
+CLa(alpha, M) alpha + CLde de`), and a pull-up sweeps alpha by degrees within
+0.5 s: a window's data fix the coefficient and its slopes, and the slope in alpha
+of `CLa(alpha) alpha` is not `CLa`. Without the terms the fit trades the two and
+the lift derivatives carry a structural bias larger than their standard errors
+(2-sigma coverage 65% over the Monte Carlo campaign). Parameters continuous and
+linear in time over the record (`parameters="linear"`) cannot take the terms: the
+secant changes with alpha from one window to the next faster than a continuous
+parameter may follow. By default only the normal force's alpha derivative has
+them ([`WINDOW_TERMS`][]): the axial and moment derivatives were covered without,
+and terms on all three (measured) quadrupled their MSE.
 """
 
 import dataclasses
@@ -33,20 +51,42 @@ from ._windows import WindowLayout
 INPUTS = ("de", "thrust", "mass", "Iyy", "Iyy_dot", "xcg", "xcp", "h")
 OUTPUTS = ("ax", "az", "q", "qdot", "alpha", "V")
 BODY_NAMES = ("CXa", "CXde", "CZa", "CZde", "CMa", "CMde")
+# Which alpha derivatives may change inside a window (`terms`), each with time (per
+# window length, 1/rad) and with alpha (1/rad^2): by default the normal force's only
+# (the lift derivatives' structural bias; the axial and moment ones are covered
+# without, and their terms would double those derivatives' variance).
+ALPHA_DERIVATIVES = ("CXa", "CZa", "CMa")  # body axes (CLa, CDa, CMa: wind axes)
+WINDOW_TERMS = ("CZa",)
+TERM_INPUTS = ("alpha_w", "tau")
+
+
+def term_names(terms: tuple[str, ...]) -> tuple[str, ...]:
+    """The extra parameters of `terms` (names from [`ALPHA_DERIVATIVES`][]):
+    `NAME_t` (change over the window, per window length) then `NAME_alpha`
+    (change with alpha, 1/rad^2) for each."""
+    return tuple(f"{n}_t" for n in terms) + tuple(f"{n}_alpha" for n in terms)
 STATE_SCALE = np.array([10.0, 1.0, 0.01, 0.01])
 
 
-def _loads(x, u, p, s_ref, c_ref, wind_axes):
+def _loads(x, u, p, s_ref, c_ref, wind_axes, terms=()):
     uu, ww, q, theta = x
-    de, thrust, mass, iyy, iyy_dot, xcg, xcp, h = u
+    de, thrust, mass, iyy, iyy_dot, xcg, xcp, h = u[:8]
     alpha = jnp.arctan2(ww, uu)
     v = jnp.sqrt(uu**2 + ww**2)
     qbar = 0.5 * isa(h).density * v**2
+    if terms:
+        # the alpha derivatives inside the window: with time (u[9], tau) and with
+        # alpha about the window's mean alpha u[8]
+        tau, da = u[9], alpha - u[8]
+        k = len(terms)
+        for i, name in enumerate(terms):
+            j = 2 * ALPHA_DERIVATIVES.index(name)
+            p = p.at[j].add(p[6 + i] * tau + p[6 + k + i] * da)
     if wind_axes:
-        cla, clde, cda, cdde, cma, cmde = p
+        cla, clde, cda, cdde, cma, cmde = p[:6]
         cx, cz = body_axis(cla * alpha + clde * de, cda * alpha + cdde * de, alpha)
     else:
-        cxa, cxde, cza, czde, cma, cmde = p
+        cxa, cxde, cza, czde, cma, cmde = p[:6]
         cx, cz = cxa * alpha + cxde * de, cza * alpha + czde * de
     fx_aero = qbar * s_ref * cx
     fz_aero = qbar * s_ref * cz
@@ -57,25 +97,56 @@ def _loads(x, u, p, s_ref, c_ref, wind_axes):
 
 
 @functools.cache
-def make_model(s_ref: float, c_ref: float, wind_axes: bool = False):
+def make_model(
+    s_ref: float, c_ref: float, wind_axes: bool = False, terms: tuple[str, ...] = ()
+):
     """`(rates, outputs)` of the Pegasus OEM model for the given reference geometry;
     parameters `[CXa, CXde, CZa, CZde, CMa, CMde]`, or with `wind_axes`
-    `[CLa, CLde, CDa, CDde, CMa, CMde]`. Cached, so that problems built from different
-    logs share the same functions and hence the compiled fits."""
+    `[CLa, CLde, CDa, CDde, CMa, CMde]`; with `terms` (names of alpha derivatives,
+    [`ALPHA_DERIVATIVES`][]) two more for each, [`term_names`][] (how they change
+    inside the window, see the module), with
+    two more known inputs after [`INPUTS`][]: [`TERM_INPUTS`][] (the window's
+    mean alpha, rad, and the time in the window, `tau`, -1/2 to 1/2). Cached,
+    so that problems built from different logs share the same functions and hence
+    the compiled fits."""
 
-    def rates(t, x, u, p):
-        fx, fz, moment, _, _ = _loads(x, u, p, s_ref, c_ref, wind_axes)
+    geometry = (float(s_ref), float(c_ref), bool(wind_axes), tuple(terms))
+    return _Rates(*geometry), _Outputs(*geometry)
+
+
+class _Rates(eqx.Module):
+    """The Pegasus OEM model's state rates: a value (equal for equal geometry,
+    picklable), so that fits of different logs share compiled and kept programs."""
+
+    s_ref: float = eqx.field(static=True)
+    c_ref: float = eqx.field(static=True)
+    wind_axes: bool = eqx.field(static=True)
+    terms: tuple[str, ...] = eqx.field(static=True)
+
+    def __call__(self, t, x, u, p):
+        fx, fz, moment, _, _ = _loads(
+            x, u, p, self.s_ref, self.c_ref, self.wind_axes, self.terms
+        )
         udot, wdot, qdot = pitch_plane_rates(
             x[0], x[1], x[2], x[3], fx, fz, moment, u[2], u[3], u[4], gravity(u[7])
         )
         return jnp.stack([udot, wdot, qdot, x[2]])
 
-    def outputs(t, x, u, p):
-        fx, fz, moment, alpha, v = _loads(x, u, p, s_ref, c_ref, wind_axes)
+
+class _Outputs(eqx.Module):
+    """The Pegasus OEM model's outputs (see [`_Rates`][])."""
+
+    s_ref: float = eqx.field(static=True)
+    c_ref: float = eqx.field(static=True)
+    wind_axes: bool = eqx.field(static=True)
+    terms: tuple[str, ...] = eqx.field(static=True)
+
+    def __call__(self, t, x, u, p):
+        fx, fz, moment, alpha, v = _loads(
+            x, u, p, self.s_ref, self.c_ref, self.wind_axes, self.terms
+        )
         qdot = (moment - u[4] * x[2]) / u[3]
         return jnp.stack([fx / u[2], fz / u[2], x[2], qdot, alpha, v])
-
-    return rates, outputs
 
 
 def to_lift_drag(body, alpha):
@@ -129,24 +200,36 @@ def pegasus_problem(
     decimate=5,
     single=False,
     wind_axes=False,
+    terms=(),
 ) -> tuple[OEMProblem, np.ndarray]:
     """The OEM problem for a log, at `1/decimate` of its rate; returns it with the
-    decimated sample indices."""
-    used = WindowLayout.make(len(log), log.sample_rate, window).used
-    idx = np.arange(0, used, decimate)
+    decimated sample indices. `terms`: the model of [`make_model`][] with the
+    alpha derivatives `terms` changing inside each window (two more parameters per
+    window for each; the window's mean measured alpha, rad, and `tau` are two more
+    input columns)."""
+    layout = WindowLayout.make(len(log), log.sample_rate, window)
+    idx = np.arange(0, layout.used, decimate)
     rate = log.sample_rate / decimate
-    rates, outputs = make_model(log.s_ref, log.c_ref, wind_axes)
+    rates, outputs = make_model(log.s_ref, log.c_ref, wind_axes, terms)
     w = int(round(window * rate))
+    columns = [log[c][idx] for c in INPUTS]
+    if terms:
+        alpha_w = np.asarray(layout.window_mean(jnp.asarray(log["alpha"])))
+        win = np.minimum(idx // layout.per_window, layout.count - 1)
+        columns.append(alpha_w[win])
+        # time in the window over its length, mean zero over its model samples
+        j = (idx - win * layout.per_window) // decimate
+        columns.append((j + 0.5) / w - 0.5)
     problem = OEMProblem(
         rates=rates,
         outputs=outputs,
         t0=float(log.t[0]),
         dt=float(decimate / log.sample_rate),
-        inputs=jnp.asarray(np.column_stack([log[c][idx] for c in INPUTS])),
+        inputs=jnp.asarray(np.column_stack(columns)),
         measured=jnp.asarray(
             np.column_stack([_block_mean(log[c], idx, decimate) for c in OUTPUTS])
         ),
-        free=(True,) * 6,
+        free=(True,) * (6 + len(term_names(terms))),
         window=w,
         node_interval=w if single else int(round(node_interval * rate)),
         state_scale=jnp.asarray(STATE_SCALE),
@@ -198,15 +281,18 @@ def starting_values(
 
 class OEMSetup(eqx.Module):
     """One flight's multiple-shooting OEM problem, ready to fit (stack several to
-    fit a batch with `jax.vmap`): the problem, starting parameters `(windows, 6)`,
-    starting nodes `(segments, 4)`, the window-mean alpha `(windows,)` (rad) for
-    the axis conversion and which windows are fitted `(windows,)`."""
+    fit a batch with `jax.vmap`): the problem, starting parameters `(windows, 6)`
+    (`(windows, 6 + 2 k)` with `k` window terms, which start at zero), starting nodes
+    `(segments, 4)`, the window-mean alpha `(windows,)` (rad) for the axis
+    conversion, which windows are fitted `(windows,)`, and `linear` (static: fit
+    with `fit_windowed_oem(..., linear=setup.linear)`)."""
 
     problem: OEMProblem
-    theta0: Float[Array, "windows 6"]
+    theta0: Float[Array, "windows params"]
     nodes0: Float[Array, "segments 4"]
     alpha: Float[Array, " windows"]
     active: Bool[Array, " windows"]
+    linear: bool = eqx.field(static=True, default=False)
 
 
 def oem_setup(
@@ -220,11 +306,18 @@ def oem_setup(
     single: bool = False,
     min_qbar: float = 2000.0,
     lse=None,
+    parameters: str = "window",
 ) -> tuple[OEMSetup, np.ndarray]:
-    """The OEM problem of a log with its starting values (see [`estimate_oem`][]);
+    """The OEM problem of a log with its starting values (see [`estimate_oem`][]
+    for the arguments; `parameters` as there, single shooting takes `constant`);
     returns it with the measured states `[u, w, q, theta]` at the decimated samples."""
     if axes not in ("body", "wind"):
         raise ValueError(f"axes must be body or wind, got {axes!r}")
+    if parameters not in ("window", "linear", "constant"):
+        raise ValueError(
+            f"parameters must be window, linear or constant, got {parameters!r}"
+        )
+    terms = WINDOW_TERMS if parameters == "window" and not single else ()
     layout = WindowLayout.make(len(log), log.sample_rate, window)
     problem, idx = pegasus_problem(
         log,
@@ -233,6 +326,7 @@ def oem_setup(
         decimate=decimate,
         single=single,
         wind_axes=axes == "wind",
+        terms=terms,
     )
     if problem.n_windows != layout.count:
         raise ValueError(
@@ -243,29 +337,41 @@ def oem_setup(
     theta0 = jnp.asarray(starting_values(log, layout, start, lse=lse))
     if axes == "body":
         theta0 = to_body(theta0, alpha_w)
+    if terms:
+        theta0 = jnp.concatenate(
+            [theta0, jnp.zeros((theta0.shape[0], len(term_names(terms))))], axis=1
+        )
     states = measured_states(log)[idx]
     nodes0 = jnp.asarray(states[node_times(problem)])
     active = layout.window_mean(jnp.asarray(log["qbar"])) >= min_qbar
-    return OEMSetup(problem, theta0, nodes0, alpha_w, active), states
+    setup = OEMSetup(
+        problem, theta0, nodes0, alpha_w, active, linear=parameters == "linear"
+    )
+    return setup, states
 
 
 def windowed_lift_drag(fit: WindowedFit, alpha: Float[Array, " windows"], axes: str):
     """A multiple-shooting fit as lift/drag derivatives per window: `(values, stderr
-    (coloured-residual corrected), valid, flags)`; NaN where the fit failed. Pure, so
-    `jax.vmap` applies it to a batch of fits."""
+    (coloured-residual corrected), valid, flags)`; NaN where the fit failed. Only
+    the six derivatives are reported (with the window terms, their standard errors
+    and correlations are those of the full fit, so the terms' uncertainty is in
+    them). Pure, so `jax.vmap` applies it to a batch of fits."""
     n_win = fit.params.shape[0]
-    off = fit.correlation * (1.0 - jnp.eye(fit.correlation.shape[-1]))[None]
+    corr = fit.correlation[:, :6, :6]
+    off = corr * (1.0 - jnp.eye(6))[None]
     flags = {
         "converged": jnp.full(n_win, fit.converged),
         "iterations": jnp.full(n_win, fit.iterations),
         "max_defect": jnp.full(n_win, fit.defect),
-        "se_inflation": jnp.mean(fit.stderr_corrected / fit.stderr, axis=1),
+        "se_inflation": jnp.mean(
+            fit.stderr_corrected[:, :6] / fit.stderr[:, :6], axis=1
+        ),
         "max_correlation": jnp.max(jnp.abs(off), axis=(1, 2)),
     }
     ok = fit.converged & fit.active
-    sd_c = fit.stderr_corrected
-    cov = sd_c[:, :, None] * fit.correlation * sd_c[:, None, :]
-    values, sd = _to_lift_drag_with_errors(fit.params, cov, alpha, axes)
+    sd_c = fit.stderr_corrected[:, :6]
+    cov = sd_c[:, :, None] * corr * sd_c[:, None, :]
+    values, sd = _to_lift_drag_with_errors(fit.params[:, :6], cov, alpha, axes)
     return (
         jnp.where(ok[:, None], values, jnp.nan),
         jnp.where(ok[:, None], sd, jnp.nan),
@@ -295,7 +401,7 @@ def estimate_oem(
     decimate: int = 5,
     start: str = "lse",
     axes: str = "body",
-    parameters: str = "linear",
+    parameters: str = "window",
     min_qbar: float = 2000.0,
     rtol: float = 1e-5,
     max_iter: int = 30,
@@ -315,8 +421,11 @@ def estimate_oem(
     - `start`: starting values, `lse`, `database` or `truth10`.
     - `axes`: estimate body-axis (`body`, the thesis's choice) or lift/drag (`wind`)
       derivatives; results are reported in lift/drag form either way.
-    - `parameters` (multiple shooting): `linear` (derivatives continuous and linear
-      in time between window boundaries; a window's estimate is their mean over the
+    - `parameters` (multiple shooting): `window` (the default: per window the six
+      derivatives and how the alpha derivatives change inside it, with time and
+      with alpha; see [`make_model`][]: the reported values are at the window's
+      mean time and alpha), `linear` (derivatives continuous and linear in time
+      between window boundaries; a window's estimate is their mean over the
       window) or `constant` per window (the thesis's model).
     - `min_qbar` (multiple shooting): windows whose mean measured dynamic pressure is
       below this (Pa) are not fitted and get no estimate (high in the climb the
@@ -328,8 +437,10 @@ def estimate_oem(
     coloured-residual factor of the window's standard errors), `max_correlation`
     (largest |correlation| between the window's body-axis parameters).
     """
-    if parameters not in ("linear", "constant"):
-        raise ValueError(f"parameters must be linear or constant, got {parameters!r}")
+    if parameters not in ("window", "linear", "constant"):
+        raise ValueError(
+            f"parameters must be window, linear or constant, got {parameters!r}"
+        )
     if shooting not in ("single", "multiple"):
         raise ValueError(f"shooting must be single or multiple, got {shooting!r}")
     layout = WindowLayout.make(len(log), log.sample_rate, window)
@@ -342,13 +453,14 @@ def estimate_oem(
         axes=axes,
         single=shooting == "single",
         min_qbar=min_qbar,
+        parameters=parameters,
     )
     if shooting == "multiple":
         fit = fit_windowed_oem(
             setup.problem,
             setup.theta0,
             setup.nodes0,
-            linear=parameters == "linear",
+            linear=setup.linear,
             active=setup.active,
             rtol=rtol,
             max_iter=max_iter,

@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
+from .._cache import kept_call
 from ._engine import (
     AbstractLayout,
     coloured_information as _coloured_information,
@@ -342,4 +343,9 @@ def fit_windowed_oem(
     )
     z0 = jnp.zeros(layout.size).at[cols].set(knots)
     z0 = z0.at[layout.local_cols()[:, : layout.nx]].set(nodes0)
-    return _fit(problem, structure, z0, active, rtol, max_iter)
+    # through the cache's kept programs: a later process skips tracing
+    return kept_call(
+        _fit,
+        {"structure": structure, "max_iter": max_iter},
+        {"problem": problem, "z0": z0, "active": active, "rtol": np.asarray(rtol)},
+    )
