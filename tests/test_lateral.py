@@ -472,6 +472,17 @@ def test_cli_fits_two_simulated_lateral_manoeuvres(tmp_path):
         z = (report["estimates"][name] - truth[name]) / report["stderr"][name]
         assert abs(z) < 4, (name, z)
 
+    # diagnose: the linear model's candidates are the aileron and rudder delays;
+    # the simulation has none (a 25 s log: 0.2% and 0.0% of det R, p 0.6 and 1)
+    result = runner.invoke(
+        app, ["diagnose", str(logs[0]), "--vehicle", "hfb320-lateral", "--json"]
+    )
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout.strip().splitlines()[-1])
+    ranked = {r["parameter"] for r in report["ranking"]}
+    assert ranked == {"aileron_delay.tau", "rudder_delay.tau"}
+    assert report["significant"] == []
+
 
 @pytest.mark.slow
 def test_cli_lateral_vehicle_on_the_hfb320_record():
