@@ -41,6 +41,17 @@ errors on `Ndr` with 1e-3 rad of noise). The variant makes `beta` and the bank a
 and moment equations of [`rigid_body_rates`][] with the measured longitudinal
 motion `u, w, q, theta` as pseudo-inputs; states `v, p, r, phi`; the 15 coefficient
 derivatives of [`LateralDerivatives`][] as parameters.
+
+**Discrepancy candidates** (held parameters for [`diagnose_model`][]): the 6-DOF
+model composes the library's sensor biases (`SIXDOF_LATERAL_EFFECTS`: sideslip
+offset, `ay, p, r`); the linear model, whose lumped biases absorb those, takes
+aileron and rudder delays (`LATERAL_EFFECTS`); any derivative held at zero is a
+candidate too (yaw damping missing: `Cn_r`, `Nr`).
+
+**Simulated logs** ([`simulate_lateral_log`][], the command line's `simulate
+--vehicle hfb320-lateral`): a 6-DOF business-jet manoeuvre with every channel and the
+truth, including the linear derivatives it implies
+([`implied_lateral_derivatives`][]).
 """
 
 from collections.abc import Sequence
