@@ -102,7 +102,7 @@ class EquationErrorFit(eqx.Module):
         from ._oem import parameter_table
 
         rows = parameter_table(
-            self.model.parameters, self.params, self.stderr, self.estimable
+            list(self.model.parameters), self.params, self.stderr, self.estimable
         )
         for row, e in zip(rows, self.estimable, strict=True):
             row["estimated"] = bool(e)

@@ -444,9 +444,11 @@ def sixdof_lateral_model(
                 strict=True,
             )
         )
-        # the library's sensor effects, through their measurement hook
+        # the library's sensor effects, through their measurement hook (a sensor
+        # bias reads no flight condition)
         for e in effects:
-            channels = make_effect(e, p[effect_parameter(e)]).measure(channels, None)
+            effect = make_effect(e, p[effect_parameter(e)])
+            channels = effect.measure(channels, None)  # pyright: ignore[reportArgumentType]
         return rates, jnp.stack([channels[n] for n in SIXDOF_LATERAL_OUTPUTS])
 
     def rates(t, x, u, p):
