@@ -53,9 +53,14 @@ def main():
     ap.add_argument("files", nargs="+")
     args = ap.parse_args()
     fit = fit_attas(args.files)
-    print(f"{'parameter':>10} {'estimate':>12} {'std err':>10}")
+    # the Cramer-Rao bound (what the book prints) and the standard error corrected
+    # for coloured residuals
+    print(f"{'parameter':>10} {'estimate':>12} {'CRB':>10} {'corrected':>10}")
     for row in fit.table():
-        print(f"{row['parameter']:>10} {row['estimate']:12.6g} {row['stderr']:10.3g}")
+        print(
+            f"{row['parameter']:>10} {row['estimate']:12.6g} "
+            f"{row['stderr_crb']:10.3g} {row['stderr']:10.3g}"
+        )
     print(
         f"det R {fit.cost:.6e}, {fit.iterations} iterations, converged {fit.converged}"
     )
