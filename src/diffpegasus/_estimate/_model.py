@@ -250,14 +250,15 @@ class Record(eqx.Module):
         user's code is reported here in one line rather than deep in a trace."""
         import jax
 
+        # shapes only (numpy and ShapeDtypeStructs): `jnp.asarray` of a concrete
+        # value would compile a small program per shape
         x = self.x0 if self.x0 is not None else self.measured_states(model, [0])[0]
-        x = jnp.asarray(np.nan_to_num(np.asarray(x, float)))
-        u = jnp.asarray(self.inputs[0])
-        p = {
-            k: jnp.asarray(v)
-            for k, v in zip(model.parameters, model.start, strict=True)
-        }
-        t = jnp.asarray(self.t[0])
+        x = np.nan_to_num(np.asarray(x, float))
+        u = np.asarray(self.inputs[0])
+        dtype = jax.dtypes.canonicalize_dtype(np.float64)
+        scalar = jax.ShapeDtypeStruct((), dtype, weak_type=True)
+        p = {k: scalar for k in model.parameters}
+        t = np.asarray(self.t[0])
         traced = (
             jax.errors.TracerArrayConversionError,
             jax.errors.ConcretizationTypeError,
