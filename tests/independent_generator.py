@@ -401,3 +401,166 @@ def write(path, channels: dict[str, np.ndarray], metadata: dict) -> pathlib.Path
 def make_log(path, seed=0, sample_rate=1000.0, duration=30.0, effects=None, noise=True):
     """Generate and write one flight; returns the CSV path."""
     return write(path, *generate(seed, sample_rate, duration, effects, noise))
+
+
+# --- a second vehicle: the HFB-320 business jet (for the engine's diagnosis) -------
+# The book's longitudinal model (Jategaonkar, test case 4) written out here, with
+# the aerodynamics identified on the real record, its constants, and its initial
+# state; what differs from the package's simulation (`simulate --vehicle hfb320`):
+# a 3-2-1-1 of true steps starting between samples, integration by DOP853
+# restarted at each step, other noise levels.
+HFB = {
+    "g": 9.80665,
+    "s_over_m": 4.028e-3,
+    "sc_over_iy": 8.0027e-4,
+    "thrust_moment": -7.0153e-6,
+    "v0": 104.67,
+    "mass": 7472.0,
+    "sigma_t": 0.0524,
+    "rho": 0.792,
+    "cbar": 1.215,
+    "x0": (106.023, 0.111685, 0.104887, -0.00332659),
+    "de_trim": -0.0075,
+    "thrust": 11633.0,
+}
+HFB_AERO = {
+    "CD0": 0.117776,
+    "CDV": -0.0517719,
+    "CDa": 0.234949,
+    "CL0": -0.204497,
+    "CLV": 0.363406,
+    "CLa": 3.21170,
+    "CM0": 0.134393,
+    "CMV": -0.0138949,
+    "CMa": -1.00232,
+    "CMq": -27.0630,
+    "CMde": -1.43719,
+}
+HFB_NOISE = {
+    "V": 0.15,
+    "alpha": 7e-4,
+    "theta": 7e-4,
+    "q": 3e-4,
+    "qdot": 3e-3,
+    "ax": 0.03,
+    "az": 0.03,
+}
+
+
+def _hfb_evaluate(x, de, thrust, bias_az=0.0):
+    c = HFB
+    p = HFB_AERO
+    v, alpha, theta, q = x
+    qbar = 0.5 * c["rho"] * v**2
+    cd = p["CD0"] + p["CDV"] * v / c["v0"] + p["CDa"] * alpha
+    cl = p["CL0"] + p["CLV"] * v / c["v0"] + p["CLa"] * alpha
+    cm = (
+        p["CM0"]
+        + p["CMV"] * v / c["v0"]
+        + p["CMa"] * alpha
+        + p["CMq"] * q * c["cbar"] / c["v0"]
+        + p["CMde"] * de
+    )
+    f_m = thrust / c["mass"]
+    vdot = (
+        -c["s_over_m"] * qbar * cd
+        + f_m * np.cos(alpha + c["sigma_t"])
+        + c["g"] * np.sin(alpha - theta)
+    )
+    alphadot = (
+        -c["s_over_m"] * qbar / v * cl
+        - f_m / v * np.sin(alpha + c["sigma_t"])
+        + q
+        + c["g"] / v * np.cos(alpha - theta)
+    )
+    qdot = c["sc_over_iy"] * qbar * cm + c["thrust_moment"] * thrust
+    cx = cl * np.sin(alpha) - cd * np.cos(alpha)
+    cz = -cl * np.cos(alpha) - cd * np.sin(alpha)
+    out = {
+        "V": v,
+        "alpha": alpha,
+        "theta": theta,
+        "q": q,
+        "qdot": qdot,
+        "ax": c["s_over_m"] * qbar * cx + f_m * np.cos(c["sigma_t"]),
+        "az": c["s_over_m"] * qbar * cz - f_m * np.sin(c["sigma_t"]) + bias_az,
+    }
+    return np.array([vdot, alphadot, q, qdot]), out
+
+
+def generate_hfb320(
+    seed: int = 0,
+    sample_rate: float = 10.0,
+    duration: float = 30.0,
+    effects: dict[str, float] | None = None,
+    noise: bool = True,
+    actuator: float | None = None,
+) -> tuple[dict[str, np.ndarray], dict]:
+    """One HFB-320 flight: `(channels, metadata)`, channels `t, de, thrust, V,
+    alpha, theta, q, qdot, ax, az` (SI, rad). A 3-2-1-1 of +/- 0.01 rad steps
+    (1 s unit) from 2 s plus a random fraction of a sample: true steps of the
+    logged surface, or with `actuator` (time constant, s) commanded steps that the
+    surface (logged) follows as a first-order lag; effects: only
+    `sensor_bias:az`."""
+    effects = dict(effects or {})
+    unknown = set(effects) - {"sensor_bias:az"}
+    if unknown:
+        raise ValueError(f"unknown effects {sorted(unknown)} for the HFB-320")
+    rng = np.random.default_rng(30_000 + seed)
+    start = 2.0 + rng.uniform(0.0, 1.0) / sample_rate
+    times = start + np.array([0.0, 3.0, 5.0, 6.0, 7.0])
+    levels = HFB["de_trim"] + 0.01 * np.array([1.0, -1.0, 1.0, -1.0, 0.0])
+    times = np.concatenate([[0.0], times])
+    levels = np.concatenate([[HFB["de_trim"]], levels])
+    n = int(round(duration * sample_rate)) + 1
+    t = np.arange(n) / sample_rate
+    edges = np.concatenate([times, [duration]])
+    x = np.array([*HFB["x0"], HFB["de_trim"]], float)
+    states = np.empty((n, 5))
+    for a, b, de in zip(edges[:-1], edges[1:], levels, strict=True):
+        sel = (t >= a) & ((t < b) | ((b == duration) & (t <= b)))
+
+        def rhs(_, y, de=de):
+            if actuator is None:
+                return np.append(_hfb_evaluate(y[:4], de, HFB["thrust"])[0], 0.0)
+            return np.append(
+                _hfb_evaluate(y[:4], y[4], HFB["thrust"])[0], (de - y[4]) / actuator
+            )
+
+        if actuator is None:
+            x[4] = de
+        sol = solve_ivp(
+            rhs,
+            (a, b),
+            x,
+            method="DOP853",
+            rtol=1e-11,
+            atol=1e-12,
+            dense_output=True,
+        )
+        if sel.any():
+            states[sel] = sol.sol(t[sel]).T
+        x = sol.y[:, -1]
+    de = states[:, 4]
+    _, out = _hfb_evaluate(
+        states[:, :4].T, de, HFB["thrust"], effects.get("sensor_bias:az", 0.0)
+    )
+    channels = {"t": t, "de": de, "thrust": np.full(n, HFB["thrust"])}
+    channels.update({k: np.asarray(v, float) for k, v in out.items()})
+    if noise:
+        rng = np.random.default_rng([seed, int(round(sample_rate)), 320])
+        for name, sigma in HFB_NOISE.items():
+            channels[name] = channels[name] + sigma * rng.normal(size=n)
+    metadata = {
+        "vehicle": "hfb320 (independent generator)",
+        "S_ref": HFB["s_over_m"] * HFB["mass"],
+        "c_ref": HFB["cbar"],
+        "sample_rate_hz": float(sample_rate),
+        "seed": seed,
+        "noise_sigmas": dict(HFB_NOISE) if noise else {},
+        "truth": dict(HFB_AERO),
+        "actuator_time_constant_s": actuator,
+        "hidden_effects": effects,
+        "simulator": "tests/independent_generator.py",
+    }
+    return channels, metadata

@@ -11,6 +11,7 @@ from .._vehicle._effects import EFFECTS, make_effect
 from ._fit import block_weights, fit_model, ModelFit
 from ._metrics import binned_misfit, channel_metrics, residual_noise_sigma
 from ._model import ModelSpec, OUTPUTS
+from ._rule import DecisionRule, DELAY_EFFECT, verdict
 
 
 # Absorbed by a baseline with alpha^2 terms (alpha_order >= 2); and a bias on the
@@ -268,22 +269,17 @@ def diagnose(
     reduction = 1.0 - st.cost_ratio
     order = np.argsort(-reduction)
     resolution = 0.5 / fit.log.sample_rate
+    rule = DecisionRule(settings.significance, settings.min_statistic)
     ranking = []
     for i in order:
-        p = float(min(1.0, st.p_value[i] * k))
-        is_delay = make_effect(candidates[i]).name == "actuator_delay"
-        if is_delay:
-            # a delay is judged by the log's resolution, not by the penalty: the
-            # baseline's structural misfit never mimicked a delay of half a log
-            # sample (measured, 80 clean flights), while a real 0.02 s delay at
-            # 50 Hz has a statistic of only 45; a lead (negative delay) is not
-            # physical
-            sig = bool(p < settings.significance and st.estimate[i] >= resolution)
-        else:
-            sig = bool(
-                p < settings.significance and st.statistic[i] > settings.min_statistic
-            )
-        limited = bool(is_delay and abs(st.estimate[i]) < resolution and not sig)
+        decided = rule.judge(
+            statistic=float(st.statistic[i]),
+            p_value=float(st.p_value[i]),
+            estimate=float(st.estimate[i]),
+            tested=k,
+            is_delay=make_effect(candidates[i]).name == DELAY_EFFECT,
+            resolution=resolution,
+        )
         close = [
             {"effect": candidates[j], "correlation": float(st.correlation[i, j])}
             for j in np.argsort(-np.abs(st.correlation[i]))
@@ -295,53 +291,20 @@ def diagnose(
                 "parameter": make_effect(candidates[i]).parameter,
                 "cost_reduction": float(reduction[i]),
                 "statistic": float(st.statistic[i]),
-                "p_value": p,
+                "p_value": decided["p_value"],
                 "estimate": float(st.estimate[i]),
                 "stderr": float(st.stderr[i]),
-                "significant": sig,
-                "resolution_limit": limited,
+                "significant": decided["significant"],
+                "resolution_limit": decided["resolution_limit"],
                 "hard_to_tell_from": close,
             }
         )
     significant = [r["effect"] for r in ranking if r["significant"]]
-    rule = (
-        f"significant: Bonferroni p < {settings.significance:g} and coloured score "
-        f"statistic > {settings.min_statistic:g}; the cost fall is the share of "
-        "the misfit, reported, not decided on"
-    )
-    limited = [r for r in ranking if r["resolution_limit"] and r["p_value"] < 0.01]
-    if not significant:
-        message = (
-            "no candidate effect is significant: the model explains the data as "
-            "well as any single library effect would"
-        )
-        strongest = max(ranking, key=lambda r: r["statistic"], default=None)
-        if strongest is not None and strongest["p_value"] < settings.significance:
-            message += (
-                f" (the strongest, {strongest['effect']}, has statistic "
-                f"{strongest['statistic']:.0f}, below the {settings.min_statistic:g} "
-                "that the baseline's own structural misfit reaches on clean flights)"
-            )
-    else:
-        top = next(r for r in ranking if r["significant"])
-        message = (
-            f"{top['effect']} is significant (score statistic {top['statistic']:.0f}, "
-            f"p {top['p_value']:.2g}) and explains {100 * top['cost_reduction']:.0f}% "
-            f"of det(R): {top['parameter']} = {top['estimate']:.4g} +/- "
-            f"{top['stderr']:.2g}"
-        )
-        if top["hard_to_tell_from"]:
-            others = ", ".join(c["effect"] for c in top["hard_to_tell_from"])
-            message += f"; the data cannot tell it apart from {others}"
-    for r in limited:
-        message += (
-            f". {r['effect']} = {r['estimate']:.2g} s is below half a log sample "
-            f"({resolution:.2g} s): a resolution limit of the log (where input steps "
-            "fall between samples), not physics"
-        )
+    rule_text = rule.describe()
+    message = verdict(ranking, rule, resolution)
     return {
         "ranking": ranking,
         "significant": significant,
         "message": message,
-        "rule": rule,
+        "rule": rule_text,
     }
