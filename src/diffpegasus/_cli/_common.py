@@ -93,6 +93,22 @@ AddOption = Annotated[
     list[str] | None,
     typer.Option("--add", help="Effect to estimate (repeatable), e.g. pitch_damping"),
 ]
+MethodOption = Annotated[
+    str,
+    typer.Option(
+        help="oem (output error) or fem (filter error: process noise such as "
+        "turbulence, estimated with the parameters; --vehicle/--model only)"
+    ),
+]
+ProcessNoiseOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        help="--method fem: a state with process noise, STATE or STATE=F0 (start "
+        "intensity, state units/sqrt(s)), repeatable; default the vehicle's or model "
+        "file's process_noise (hfb320: V, alpha, theta, q from FVSysID's starts), "
+        "else every state"
+    ),
+]
 
 
 def _settings(knots, alpha_order, rate, node_interval):

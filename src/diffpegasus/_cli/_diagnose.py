@@ -24,8 +24,10 @@ from ._common import (
     FixOption,
     JsonOption,
     KnotsOption,
+    MethodOption,
     ModelOption,
     NodeOption,
+    ProcessNoiseOption,
     RateOption,
     ResampleOption,
     VehicleOption,
@@ -49,8 +51,12 @@ def compare(
     ] = None,
     as_json: JsonOption = False,
     resample: ResampleOption = False,
+    method: MethodOption = "oem",
+    process_noise: ProcessNoiseOption = None,
 ):
-    """Fit the model by output error and show where it fails: per-channel metrics,
+    """Fit the model by output error (or, --vehicle/--model with --method fem, by
+    filter error: process noise such as turbulence) and show where it fails:
+    per-channel metrics (of the residuals, or of the filter's innovations),
     whiteness, misfit by flight regime, fitted derivatives with standard errors."""
     if model is not None or vehicle != "pegasus":
         _fit_model(
@@ -64,8 +70,15 @@ def compare(
             out,
             as_json,
             show_channels=True,
+            method=method,
+            process_noise=tuple(process_noise or ()),
         )
         return
+    if method != "oem" or process_noise:
+        _fail(
+            "--method fem goes with --vehicle NAME or --model FILE: the Pegasus "
+            "workflow's multiple-shooting spline baseline has no filter-error fit"
+        )
     from .._diagnose import run_compare
 
     settings = _settings(knots, alpha_order, rate, node_interval)
@@ -108,13 +121,20 @@ def _print_compare(result):
         )
 
 
-def _diagnose_model(which, log, columns, fix, add, as_json):
+def _diagnose_model(which, log, columns, fix, add, as_json, process_noise=()):
     from .._vehicle import vehicle_spec
+    from ._fem import diagnosis_states
     from ._runners import run_model_diagnose
 
     try:
         spec = vehicle_spec(str(which), add=add, candidates=True)
-        report = run_model_diagnose(spec, [log], columns=columns, holds=fix or ())
+        report = run_model_diagnose(
+            spec,
+            [log],
+            columns=columns,
+            holds=fix or (),
+            process_noise=diagnosis_states(process_noise, spec),
+        )
     except LogError as e:
         _fail(str(e))
     if as_json:
@@ -122,13 +142,25 @@ def _diagnose_model(which, log, columns, fix, add, as_json):
     else:
         for r in report["ranking"]:
             mark = "*" if r["significant"] else " "
+            if r["effect"] == "process_noise":
+                typer.echo(
+                    f"{mark} {'process_noise':24s} statistic {r['statistic']:8.1f}  "
+                    f"p = {r['p_value']:.2g}  cost fall "
+                    f"{100 * r['cost_reduction']:5.1f}%  (likelihood ratio, "
+                    f"{r['dof']} dof) F = "
+                    + ", ".join(f"{k} {v:.3g}" for k, v in r["intensities"].items())
+                )
+                continue
             typer.echo(
                 f"{mark} {r['effect']:24s} {100 * r['cost_reduction']:6.1f}%  "
                 f"p = {r['p_value']:.2g}  estimate {r['estimate']:.4g} "
                 f"+/- {r['stderr']:.2g}"
             )
         typer.echo(report["message"])
-    if not report["fit"]["converged"]:
+    # an output-error fit stopped by turbulence is no failure when the filter-error
+    # fit explains the record
+    explained = report.get("filter_error", {}).get("converged", False)
+    if not report["fit"]["converged"] and not explained:
         typer.echo(f"error: {log}: {report['message']}", err=True)
         raise typer.Exit(code=FIT_FAILED)
 
@@ -150,12 +182,38 @@ def diagnose(
     ] = None,
     as_json: JsonOption = False,
     resample: ResampleOption = False,
+    process_noise: Annotated[
+        list[str] | None,
+        typer.Option(
+            help="--vehicle/--model: score process noise (turbulence) on this state "
+            "too (repeatable; default the vehicle's or model file's process_noise, "
+            "hfb320: V, alpha, theta, q; `none` skips it). Not for the Pegasus "
+            "workflow (its 72-parameter spline baseline is fitted by multiple "
+            "shooting, which the filter-error method does not take)"
+        ),
+    ] = None,
 ):
     """Rank the library's effects by how much of the misfit each would explain
-    (score test with exact Jacobians); say when none is significant."""
+    (score test with exact Jacobians); say when none is significant. With
+    --vehicle/--model and process noise declared, process noise (turbulence) is a
+    candidate too: the filter-error fit's likelihood ratio, and every effect tested
+    again at that fit (a term missing even under process noise ranks first)."""
     if model is not None or vehicle != "pegasus":
-        _diagnose_model(model or vehicle, log, columns, fix, tuple(add or ()), as_json)
+        _diagnose_model(
+            model or vehicle,
+            log,
+            columns,
+            fix,
+            tuple(add or ()),
+            as_json,
+            tuple(process_noise or ()),
+        )
         return
+    if process_noise:
+        _fail(
+            "--process-noise goes with --vehicle NAME or --model FILE: the Pegasus "
+            "workflow's multiple-shooting spline baseline has no filter-error fit"
+        )
     from .._diagnose import run_diagnose
 
     add = tuple(add or ())

@@ -174,7 +174,11 @@ def estimate_oem_command(
     as_json: JsonOption = False,
     resample: ResampleOption = False,
 ):
-    """Output-error maximum likelihood, single or multiple shooting (thesis ch. 5)."""
+    """Output-error maximum likelihood, single or multiple shooting (thesis ch. 5).
+    Output error only: per-window derivatives on multiple-shooting segments have no
+    filter-error counterpart here (the filter runs through a whole record from a
+    held initial state); for logs flown through turbulence use `fit --method fem
+    --vehicle NAME` or `--model FILE`."""
     from .._estimate import estimate_oem
     from .._log._format import read_log
 

@@ -25,8 +25,10 @@ from ._common import (
     FixOption,
     JsonOption,
     KnotsOption,
+    MethodOption,
     ModelOption,
     NodeOption,
+    ProcessNoiseOption,
     RateOption,
     ResampleOption,
     VehicleOption,
@@ -46,10 +48,32 @@ def _fit_model(
     as_json,
     add=(),
     show_channels=False,
+    method="oem",
+    process_noise=(),
 ):
     from .._estimate import MultipleShooting
     from .._vehicle import vehicle_spec
+    from ._fem import check_method, format_fem_table, run_model_fem
     from ._runners import format_channels, format_table, run_model_fit
+
+    try:
+        check_method(method)
+    except LogError as e:
+        _fail(str(e))
+    if method == "fem":
+        if bias or initial_state == "estimated" or shooting_interval is not None:
+            _fail(
+                "--method fem holds each record's initial state (the filter corrects "
+                "it) on one segment without output biases: --bias, --initial-state "
+                "estimated and --shooting-interval go with --method oem"
+            )
+        if out is not None:
+            _fail(
+                "--out with --method fem: the report figures are of output-error "
+                "fits; use --json for the filter-error fit"
+            )
+    elif process_noise:
+        _fail("--process-noise goes with --method fem")
 
     if initial_state not in (None, "fixed", "estimated"):
         _fail(f"--initial-state must be fixed or estimated, got {initial_state!r}")
@@ -62,18 +86,27 @@ def _fit_model(
         spec = vehicle_spec(
             str(which), add=add, candidates=bool(add), manoeuvres=len(logs)
         )
-        report = run_model_fit(
-            spec,
-            logs,
-            columns=columns,
-            holds=fix or (),
-            initial_state=initial_state,
-            biases=tuple(bias) if bias else None,
-            shooting=None
-            if shooting_interval is None
-            else MultipleShooting(interval=shooting_interval),
-            out=out,
-        )
+        if method == "fem":
+            report = run_model_fem(
+                spec,
+                logs,
+                columns=columns,
+                holds=fix or (),
+                process_noise=process_noise,
+            )
+        else:
+            report = run_model_fit(
+                spec,
+                logs,
+                columns=columns,
+                holds=fix or (),
+                initial_state=initial_state,
+                biases=tuple(bias) if bias else None,
+                shooting=None
+                if shooting_interval is None
+                else MultipleShooting(interval=shooting_interval),
+                out=out,
+            )
     except LogError as e:
         _fail(str(e))
     except OSError as e:
@@ -81,7 +114,9 @@ def _fit_model(
     if as_json:
         _json_out(report)
     else:
-        typer.echo(format_table(report))
+        typer.echo(
+            format_fem_table(report) if method == "fem" else format_table(report)
+        )
         if show_channels and "channels" in report:
             typer.echo(format_channels(report["channels"]))
     if not report["converged"]:
@@ -132,11 +167,15 @@ def fit(
     ] = None,
     as_json: JsonOption = False,
     resample: ResampleOption = False,
+    method: MethodOption = "oem",
+    process_noise: ProcessNoiseOption = None,
 ):
     """Fit a vehicle's or model file's parameters to one or several logs (output
-    error; estimates, standard errors, correlations, cost), or, for Pegasus logs,
-    refit with the named effects added (--add): before/after metrics and the
-    effects' fitted values with standard errors."""
+    error; estimates, standard errors, correlations, cost; --method fem: filter
+    error, for logs flown through turbulence, with the process-noise intensities and
+    whether the filter's gain constraint binds), or, for Pegasus logs, refit with
+    the named effects added (--add): before/after metrics and the effects' fitted
+    values with standard errors (output error only)."""
     if model is not None or vehicle != "pegasus":
         _fit_model(
             model or vehicle,
@@ -149,8 +188,15 @@ def fit(
             out,
             as_json,
             tuple(add or ()),
+            method=method,
+            process_noise=tuple(process_noise or ()),
         )
         return
+    if method != "oem" or process_noise:
+        _fail(
+            "--method fem goes with --vehicle NAME or --model FILE: the Pegasus "
+            "effect refit's multiple-shooting spline baseline has no filter-error fit"
+        )
     if columns is not None or fix or bias or initial_state or shooting_interval:
         _fail(
             "--columns, --fix, --bias, --initial-state and --shooting-interval go "

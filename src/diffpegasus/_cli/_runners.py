@@ -303,9 +303,11 @@ def run_model_diagnose(
     initial_state=None,
     biases=None,
     shooting=None,
+    process_noise: tuple[str, ...] | None = None,
 ) -> dict:
     """Fit `spec`'s model with its candidates held, then rank the candidates by
-    score test; the JSON-ready report (`ranking`, `significant`, `message`)."""
+    score test; the JSON-ready report (`ranking`, `significant`, `message`). With
+    `process_noise` (states), process noise is scored too (`_fem.py`)."""
     if not spec.candidates:
         raise LogError(
             f"{spec.name} names no candidate terms to test (a model file lists held "
@@ -315,7 +317,7 @@ def run_model_diagnose(
         spec, files, columns, holds, initial_state, biases, shooting
     )
     report = {"fit": fit_report(result, spec), "ranking": [], "significant": []}
-    if not result.converged:
+    if not result.converged and not (process_noise and np.isfinite(result.cost)):
         report["message"] = (
             f"the output-error fit did not converge ({result.message}): no ranking"
         )
@@ -340,6 +342,20 @@ def run_model_diagnose(
             f"(p = {top['p_value']:.2g}){close}"
         )
     report["cost"] = result.cost
+    if process_noise and result.bias_outputs:
+        report["process_noise"] = (
+            "not scored: the filter-error method has no output biases (the model "
+            "file asks for them)"
+        )
+    elif process_noise:
+        from ._fem import process_noise_diagnosis
+
+        process_noise_diagnosis(spec, result, ranking, report, process_noise)
+    if not result.converged:
+        report["message"] = (
+            f"the output-error fit did not converge ({result.message}); "
+            + report["message"]
+        )
     return report
 
 

@@ -1,5 +1,6 @@
 """`simulate`, `check`, `effects`: make and inspect flight logs."""
 
+import dataclasses
 import json
 import pathlib
 from typing import Annotated
@@ -13,6 +14,17 @@ from ._common import (
     _os_error,
     app,
 )
+
+
+def seeded(effect, seed: int):
+    """`effect` with its realisation drawn from `seed` when it is random (the
+    turbulence), so that `simulate --seed` picks the gusts as it picks the sensor
+    noise; other effects unchanged."""
+    from .._vehicle._effects import Turbulence
+
+    if isinstance(effect, Turbulence):
+        return dataclasses.replace(effect, seed=int(seed))
+    return effect
 
 
 def _simulate_to_log(
@@ -36,7 +48,7 @@ def _simulate_to_log(
     )
     from .._vehicle._effects import parse_assignment
 
-    effects = tuple(parse_assignment(h) for h in hidden)
+    effects = tuple(seeded(parse_assignment(h), seed) for h in hidden)
     config = PegasusConfig(
         elevator=elevator_command(input_name),
         effects=effects,
@@ -114,18 +126,24 @@ def _simulate_vehicle(
             f"simulate knows the vehicles pegasus, hfb320 and hfb320-lateral, not "
             f"{name!r}"
         )
+    from .._vehicle._effects import Turbulence
     from .._vehicle._hfb320 import CANDIDATES, simulate_log
 
     planted = {}
+    turbulence = 0.0
     for text in hidden:
         try:
             effect = parse_assignment(text)
         except ValueError as e:
             _fail(str(e))
         spec = text.partition("=")[0].strip()
+        if isinstance(effect, Turbulence):
+            turbulence = float(effect.sigma)
+            continue
         if spec not in CANDIDATES:
             _fail(
-                f"{spec} does not compose with hfb320; it takes {', '.join(CANDIDATES)}"
+                f"{spec} does not compose with hfb320; it takes "
+                f"{', '.join(CANDIDATES)} and turbulence"
             )
         planted[spec] = float(effect.value())
     rate = 10.0 if sample_rate == 1000.0 else sample_rate
@@ -135,6 +153,7 @@ def _simulate_vehicle(
         seed=seed,
         noise=noise,
         hidden=planted,
+        turbulence=turbulence,
     )
     try:
         path = write_log(out, FlightLog(channels=channels, metadata=meta))
@@ -148,7 +167,9 @@ def simulate(
     out: Annotated[
         pathlib.Path, typer.Option(help="Log CSV to write (plus .json sidecar, .png)")
     ] = pathlib.Path("flight.csv"),
-    seed: Annotated[int, typer.Option(help="Seed for noise and perturbations")] = 0,
+    seed: Annotated[
+        int, typer.Option(help="Seed for noise, perturbations and turbulence")
+    ] = 0,
     input: Annotated[
         str,
         typer.Option(
@@ -162,7 +183,8 @@ def simulate(
         list[str] | None,
         typer.Option(
             help="Plant an effect, NAME=VALUE in SI units (repeatable), e.g. "
-            "pitch_damping=-800 or sensor_bias:az=0.3; see `diffpegasus effects`"
+            "pitch_damping=-800 or sensor_bias:az=0.3, or turbulence=SIGMA (Dryden "
+            "gusts, m/s, realisation drawn from --seed); see `diffpegasus effects`"
         ),
     ] = None,
     perturb: Annotated[

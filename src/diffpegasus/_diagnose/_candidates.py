@@ -2,7 +2,7 @@
 parameter at an output-error fit of any model, ranked by the predicted fall of det(R).
 """
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import jax.numpy as jnp
 import numpy as np
@@ -74,11 +74,28 @@ def diagnose_model(
     candidates: Sequence[str],
     *,
     level: float = 0.01,
+    process_noise: Sequence[str] | Mapping[str, float] | None = None,
     **fit_options,
 ) -> tuple[Fit, list[dict]]:
     """Fit `model` with the `candidates` (parameter names) held at their start
-    values, then rank them by score test (see [`score_candidates`][]). Keyword
-    arguments go to [`fit`][]."""
+    values, then rank them by score test (see [`score_candidates`][]). With
+    `process_noise` (states, or a dict of start intensities), process noise is a
+    candidate too, scored by the filter-error fit's likelihood ratio, and the
+    deterministic candidates are tested again at that fit (see
+    [`process_noise_candidate`][]; its row's `verdict` is the message when its
+    likelihood ratio passes). Keyword arguments go to [`fit`][]."""
     fixed = tuple(dict.fromkeys(tuple(model.fixed) + tuple(candidates)))
     result = fit(model.replace(fixed=fixed), records, **fit_options)
-    return result, score_candidates(result, candidates, level)
+    ranking = score_candidates(result, candidates, level)
+    # in turbulence the output-error fit may stop at its iteration cap: process
+    # noise is still scored from where it stopped (its det(R) only overstates LR)
+    if process_noise is not None and np.isfinite(result.cost):
+        from ._process_noise import process_noise_candidate, ProcessNoiseRule
+
+        _, ranking, message = process_noise_candidate(
+            result, ranking, process_noise, rule=ProcessNoiseRule(significance=level)
+        )
+        for row in ranking:
+            if row.get("effect") == "process_noise":
+                row["verdict"] = message
+    return result, ranking

@@ -130,7 +130,10 @@ class FilterSolution(eqx.Module):
     of the innovations, zero for held unknowns); `innovations` and `outputs`
     `(records, length, outputs)`; `kc` `(records, states)` the diagonal of `K C`;
     `gain` `(records, states, outputs)`; `active` whether `diag(K C) <= 1` bound a
-    step at the end.
+    step at the end; `jacobian` `(records, length, outputs, unknowns)` the whitened
+    innovations' Jacobian in every unknown (held ones too: a score test of a held
+    parameter needs its column) and `whitened` `(records, length, outputs)` the
+    whitened innovations, both at `z` (zero at padding).
     """
 
     z: Float[Array, " unknowns"]
@@ -144,6 +147,8 @@ class FilterSolution(eqx.Module):
     kc: Float[Array, "records states"]
     gain: Float[Array, "records states outputs"]
     active: Bool[Array, ""]
+    jacobian: Float[Array, "records length outputs unknowns"]
+    whitened: Float[Array, "records length outputs"]
 
 
 def _whiten(rmat):
@@ -152,9 +157,11 @@ def _whiten(rmat):
     return jax.scipy.linalg.solve_triangular(chol, jnp.eye(rmat.shape[0]), lower=True)
 
 
-def _linearise(model, prob, z, rmat):
+def _linearise(model, prob, z, rmat, rows=False):
     """Normal matrix `(n, n)` and gradient of `sum nu^T R^-1 nu`, with the
-    innovations, `diag(K C)` and its Jacobian `(records, states, n)`, and `C`s."""
+    innovations, `diag(K C)` and its Jacobian `(records, states, n)`, and `C`s;
+    with `rows`, also the whitened innovation Jacobian `(records, length,
+    outputs, n)` and whitened innovations `(records, length, outputs)`."""
 
     def fn(v):
         nu, y, kc, k, c = innovations(model, prob, v, rmat)
@@ -164,9 +171,11 @@ def _linearise(model, prob, z, rmat):
     nu = aux[0]
     w = _whiten(rmat)
     valid = prob.layout.valid[..., None, None]
-    jw = jnp.where(valid, jnp.einsum("ij,rtjk->rtik", w, jnu), 0.0)
-    jw = jw.reshape(-1, z.shape[0])
-    ew = jnp.einsum("ij,rtj->rti", w, nu).reshape(-1)
+    jw4 = jnp.where(valid, jnp.einsum("ij,rtjk->rtik", w, jnu), 0.0)
+    ew3 = jnp.einsum("ij,rtj->rti", w, nu)
+    jw, ew = jw4.reshape(-1, z.shape[0]), ew3.reshape(-1)
+    if rows:
+        return jw.T @ jw, jw.T @ ew, jkc, aux, jw4, ew3
     return jw.T @ jw, jw.T @ ew, jkc, aux
 
 
@@ -266,7 +275,7 @@ def solve_filter_error(
     z, rmat, cost, iterations, done, _, broken, active = jax.lax.while_loop(
         lambda c_: (c_[3] < max_iter) & ~c_[4] & ~c_[6], body, init
     )
-    h, _, _, (nu, y, kc, k, _) = _linearise(model, prob, z, rmat)
+    h, _, _, (nu, y, kc, k, _), jw, ew = _linearise(model, prob, z, rmat, rows=True)
     m = free.astype(h.dtype)
     hm = h * m[:, None] * m[None, :] + jnp.diag(1.0 - m)
     cov = jnp.linalg.inv(hm) * m[:, None] * m[None, :]
@@ -288,6 +297,8 @@ def solve_filter_error(
         kc=kc,
         gain=k,
         active=active | jnp.any(kc > 1.0 - 1e-3),
+        jacobian=jw,
+        whitened=jnp.where(lay.valid[..., None], ew, 0.0),
     )
 
 
@@ -309,6 +320,11 @@ class FilterErrorFit(eqx.Module):
       innovations (residuals) and predicted outputs.
     - `gain` per record `(states, outputs)`; `kc` per record `(states,)` the
       diagonal of `K C`; `constraint_active` whether `diag(K C) <= 1` binds.
+    - `jacobian` `(records, length, outputs, params + noise)`: the whitened
+      innovations' Jacobian in every parameter (held ones too) and intensity, and
+      `whitened` `(records, length, outputs)` the whitened innovations `W nu`
+      (`W^T W = R^-1`), records padded to the longest with zeros: what a score test
+      of a held parameter at this fit needs.
     - `iterations`; `result` a [`RESULTS`][] code (`converged`, `message`).
     """
 
@@ -329,6 +345,8 @@ class FilterErrorFit(eqx.Module):
     gain: np.ndarray
     kc: np.ndarray
     constraint_active: bool
+    jacobian: np.ndarray
+    whitened: np.ndarray
     iterations: int
     result: RESULTS
 
@@ -495,6 +513,8 @@ def fit_filter_error(
         gain=sol.gain,
         kc=sol.kc,
         constraint_active=bool(sol.active),
+        jacobian=sol.jacobian,
+        whitened=sol.whitened,
         iterations=int(sol.iterations),
         result=_result_code(sol.result),
     )

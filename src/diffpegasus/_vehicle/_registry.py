@@ -56,7 +56,14 @@ def vehicle_spec(
             candidates=tuple(f"{e}.tau" for e in effects if e not in add),
         )
     if name_or_file == "hfb320":
-        from ._hfb320 import CANDIDATES, COLUMNS, effect_parameter, hfb320_model, X0
+        from ._hfb320 import (
+            CANDIDATES,
+            COLUMNS,
+            effect_parameter,
+            hfb320_model,
+            PROCESS_NOISE,
+            X0,
+        )
 
         unknown = [a for a in add if a not in CANDIDATES]
         if unknown:
@@ -72,6 +79,7 @@ def vehicle_spec(
             columns=COLUMNS,
             x0=X0,
             candidates=tuple(effect_parameter(e) for e in effects if e not in add),
+            process_noise=dict(PROCESS_NOISE),
         )
     if name_or_file.endswith(".py") or pathlib.Path(name_or_file).is_file():
         spec = load_model_file(name_or_file)

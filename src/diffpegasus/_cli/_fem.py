@@ -1,0 +1,250 @@
+"""`fit/compare --method fem` (filter error) of a vehicle or model file, and the
+process-noise candidate of `diagnose --vehicle/--model`."""
+
+import sys
+
+import numpy as np
+
+from .._estimate._filter_error import FilterErrorFit, fit_filter_error
+from .._estimate._fit import SingleShooting
+from .._estimate._modelfile import ModelSpec
+from .._log._format import LogError
+from ._runners import channel_report, load_records, parse_holds
+
+
+METHODS = ("oem", "fem")
+
+
+def _say(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
+
+
+def check_method(method: str) -> str:
+    if method not in METHODS:
+        raise LogError(
+            f"--method must be oem (output error) or fem (filter error), got {method!r}"
+        )
+    return method
+
+
+def parse_process_noise(texts, spec: ModelSpec):
+    """`--process-noise STATE` / `STATE=F0` (repeatable) or, without any, the
+    spec's `process_noise` (a model file's, or the vehicle's: the HFB-320's is
+    FVSysID's four state equations and start intensities), else every state."""
+    model = spec.model
+    if not texts:
+        if spec.process_noise is not None:
+            return spec.process_noise
+        return tuple(model.states)
+    starts, names = {}, []
+    for text in texts:
+        name, sep, value = text.partition("=")
+        name = name.strip()
+        if name not in model.states:
+            raise LogError(
+                f"--process-noise {text}: {name!r} is not a state of {spec.name} "
+                f"({', '.join(model.states)})"
+            )
+        if sep:
+            try:
+                starts[name] = float(value)
+            except ValueError:
+                raise LogError(
+                    f"--process-noise {text}: {value!r} is not a number"
+                ) from None
+            if not starts[name] > 0:
+                raise LogError(f"--process-noise {text}: the start must be positive")
+        names.append(name)
+    if starts and len(starts) != len(names):
+        raise LogError(
+            "--process-noise: give every state a start intensity (STATE=F0) or none"
+        )
+    return starts if starts else tuple(names)
+
+
+def fem_report(result: FilterErrorFit, spec: ModelSpec) -> dict:
+    """The JSON-ready summary of a filter-error fit: the output-error report's keys
+    (`stderr` and `stderr_crb` are both the Cramér-Rao bound of the innovations'
+    likelihood) plus `method`, `process_noise` and `process_noise_stderr` (state ->
+    intensity, state units / sqrt(s)), `constraint_active` and `kc` (record ->
+    state -> the diagonal of K C)."""
+    ok = result.converged
+    model = result.model
+
+    def num(x):
+        x = float(x)
+        return x if np.isfinite(x) else None
+
+    hidden = set(spec.candidates)
+    out = {
+        "model": spec.name,
+        "method": "fem",
+        "records": [r.name for r in result.records],
+        "converged": ok,
+        "message": result.message,
+        "cost": num(result.cost),
+        "iterations": result.iterations,
+        "estimates": {},
+        "stderr": {},
+        "stderr_crb": {},
+        "fixed": [
+            p
+            for p, f in zip(model.parameters, result.free, strict=True)
+            if not f and p not in hidden
+        ],
+        "high_correlations": [],
+        "R": {o: num(v) for o, v in zip(model.outputs, np.diag(result.R), strict=True)},
+        "process_noise": {
+            s: num(f) if ok else None
+            for s, f in zip(result.process_noise, result.F, strict=True)
+        },
+        "process_noise_stderr": {
+            s: num(f) if ok else None
+            for s, f in zip(result.process_noise, result.F_stderr, strict=True)
+        },
+        "constraint_active": bool(result.constraint_active),
+        "kc": {
+            rec.name: dict(zip(model.states, map(num, result.kc[i]), strict=True))
+            for i, rec in enumerate(result.records)
+        },
+    }
+    for i, name in enumerate(model.parameters):
+        if name in hidden:
+            continue
+        est = num(result.params[i]) if ok else None
+        sd = num(result.stderr[i]) if ok and result.free[i] else None
+        out["estimates"][name] = est
+        out["stderr"][name] = sd
+        out["stderr_crb"][name] = sd
+    if ok:
+        names = model.parameters
+        for i in range(len(names)):
+            for j in range(i + 1, len(names)):
+                c = float(result.correlation[i, j])
+                if result.free[i] and result.free[j] and abs(c) > 0.9:
+                    out["high_correlations"].append(
+                        {"a": names[i], "b": names[j], "correlation": c}
+                    )
+    out["initial_states"] = {
+        rec.name: dict(
+            zip(
+                model.states,
+                np.asarray(
+                    rec.x0 if rec.x0 is not None else rec.measured_states(model, [0])[0]
+                ).tolist(),
+                strict=True,
+            )
+        )
+        for rec in result.records
+    }
+    return out
+
+
+def format_fem_table(report: dict) -> str:
+    """The estimate table of a filter-error fit with the intensities, cost and
+    whether the gain constraint binds."""
+    lines = [f"{'parameter':>12s} {'estimate':>14s} {'std. error':>12s} {'rel. %':>8s}"]
+    rows = list(report["estimates"].items()) + [
+        (f"F[{s}]", f) for s, f in report["process_noise"].items()
+    ]
+    sds = dict(report["stderr"])
+    sds.update({f"F[{s}]": v for s, v in report["process_noise_stderr"].items()})
+    for name, est in rows:
+        sd = sds[name]
+        if est is None:
+            lines.append(f"{name:>12s} {'-':>14s}")
+        elif name in report["fixed"]:
+            lines.append(f"{name:>12s} {est:14.6g} {'(held)':>12s}")
+        else:
+            rel = 100 * sd / abs(est) if est else float("nan")
+            lines.append(f"{name:>12s} {est:14.6g} {sd:12.4g} {rel:8.2f}")
+    lines.append(
+        f"filter error: det(R) = {report['cost']:.6e}   iterations: "
+        f"{report['iterations']}   diag(KC) <= 1 constraint "
+        f"{'active' if report['constraint_active'] else 'inactive'}"
+    )
+    for c in report["high_correlations"]:
+        lines.append(f"correlation {c['a']} / {c['b']}: {c['correlation']:+.3f}")
+    return "\n".join(lines)
+
+
+def run_model_fem(
+    spec: ModelSpec,
+    files,
+    *,
+    columns=None,
+    holds=(),
+    process_noise=(),
+    channels: bool = True,
+) -> dict:
+    """Fit `spec`'s model to `files` by the filter-error method (process noise on
+    `--process-noise` states, else the spec's), as the library's
+    `fit_filter_error(model, records, process_noise=..., full_R=False, rtol=1e-6,
+    max_iter=60, throw=False)`; the JSON-ready report, with per-channel metrics of
+    the innovations when `channels`."""
+    spec = parse_holds(list(holds), spec)
+    noise = parse_process_noise(process_noise, spec)
+    if (
+        spec.biases
+        or spec.initial_state != "fixed"
+        or not isinstance(spec.shooting, SingleShooting)
+    ):
+        raise LogError(
+            f"{spec.name}: the filter-error method holds each record's initial state "
+            "(the filter corrects it) on one segment, without output biases; this "
+            "model file asks for biases, estimated initial states or multiple "
+            "shooting (use --method oem)"
+        )
+    records = load_records(spec, files, columns)
+    _say(
+        f"fitting {spec.name} ({sum(spec.model.free)} free parameters, process noise "
+        f"on {', '.join(noise)}) to {len(records)} record(s) by filter error"
+    )
+    try:
+        result = fit_filter_error(
+            spec.model,
+            records,
+            process_noise=noise,
+            full_R=False,
+            rtol=1e-6,
+            max_iter=60,
+            throw=False,
+        )
+    except ValueError as e:
+        raise LogError(str(e)) from None
+    report = fem_report(result, spec)
+    if channels and result.converged:
+        report["channels"] = channel_report(result)
+    return report
+
+
+def diagnosis_states(texts, spec: ModelSpec):
+    """The states `diagnose` scores process noise on: `--process-noise STATE`
+    (repeatable; `none` skips the test), else the spec's `process_noise` (the
+    HFB-320's four state equations; a model file's), else none."""
+    texts = list(texts or ())
+    if texts == ["none"]:
+        return None
+    if texts:
+        return tuple(parse_process_noise(texts, spec))
+    return None if spec.process_noise is None else tuple(spec.process_noise)
+
+
+def process_noise_diagnosis(spec: ModelSpec, result, ranking, report: dict, names):
+    """Add the process-noise candidate on the states `names` to a `diagnose
+    --vehicle/--model` report (in place): the new ranking, the verdict when
+    process noise decides it, and the filter-error fit's summary. The filter-error
+    fit starts from the output-error estimates with intensities from the data
+    (a tenth of each state's spread per sqrt(s)), not from the book's values."""
+    from .._diagnose._process_noise import process_noise_candidate
+
+    names = tuple(names)
+    _say(f"scoring process noise on {', '.join(names)} (filter-error fit)")
+    fem, new, message = process_noise_candidate(result, ranking, names)
+    for row in new:
+        row["hard_to_tell_from"] = [n.split(".")[0] for n in row["hard_to_tell_from"]]
+    report["ranking"] = new
+    report["significant"] = [r["effect"] for r in new if r["significant"]]
+    if message is not None:
+        report["message"] = message
+    report["filter_error"] = fem_report(fem, spec)
