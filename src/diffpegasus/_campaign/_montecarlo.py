@@ -206,7 +206,7 @@ def _nn_chunk(net, channels, layout):
 def _oem_chunk(setups):
     def one(s):
         fit = fit_windowed_oem(
-            s.problem, s.theta0, s.nodes0, linear=True, active=s.active
+            s.problem, s.theta0, s.nodes0, linear=s.linear, active=s.active
         )
         values, sd, ok, flags = windowed_lift_drag(fit, s.alpha, "body")
         return values, sd, ok, flags["converged"][0], flags["iterations"][0]
@@ -596,6 +596,7 @@ def run_campaign(
                     decimate=campaign.decimate,
                     min_qbar=campaign.min_qbar,
                     lse=lse_values[i],
+                    parameters=ESTIMATOR_SETTINGS["oem"]["parameters"],
                 )
                 setups.append(setup)
             stacked = jax.tree_util.tree_map(lambda *x: jnp.stack(x), *setups)

@@ -7,23 +7,24 @@ found them better conditioned than the lift/drag ones); outputs `[ax, az, q, qdo
 alpha, V]`. The same building blocks as the simulator (`pitch_plane_rates`,
 `moment_about_cg`, `isa`, `gravity`) give the dynamics.
 
-With `terms` (`parameters="window"`, the default of [`estimate_oem`][]) chosen
-alpha derivatives of a window may also change inside it, with time and with alpha:
-`CZa(t) = CZa + CZa_t tau + CZa_alpha (alpha - alpha_w)`, `tau` the time within the
-window over its length minus 1/2 (mean zero over the window's samples) and
-`alpha_w` the window's mean measured alpha (both known inputs, after [`INPUTS`][]);
-the six reported derivatives are the values at the window's mean time and alpha,
-so its mean to first order. Why: the tables' derivatives are secants (`CL =
-CLa(alpha, M) alpha + CLde de`), and a pull-up sweeps alpha by degrees within
-0.5 s: a window's data fix the coefficient and its slopes, and the slope in alpha
-of `CLa(alpha) alpha` is not `CLa`. Without the terms the fit trades the two and
-the lift derivatives carry a structural bias larger than their standard errors
-(2-sigma coverage 65% over the Monte Carlo campaign). Parameters continuous and
-linear in time over the record (`parameters="linear"`) cannot take the terms: the
-secant changes with alpha from one window to the next faster than a continuous
-parameter may follow. By default only the normal force's alpha derivative has
-them ([`WINDOW_TERMS`][]): the axial and moment derivatives were covered without,
-and terms on all three (measured) quadrupled their MSE.
+With `terms` (`parameters="window"` of [`estimate_oem`][]) the alpha derivatives
+of a window may also change inside it, with time and with alpha: `CXa(t) = CXa +
+CXa_t tau + CXa_alpha (alpha - alpha_w)` (likewise CZa, CMa; every parameter
+constant per window), `tau` the time within the window over its length minus 1/2
+(mean zero over the window's samples) and `alpha_w` the window's mean measured
+alpha (both known inputs, after [`INPUTS`][]); the six reported derivatives are the
+values at the window's mean time and alpha, so its mean to first order. Why: the
+tables' derivatives are secants (`CL = CLa(alpha, M) alpha + CLde de`), and a
+pull-up sweeps alpha by degrees within 0.5 s: a window's data fix the coefficient
+and its slopes, and the slope in alpha of `CLa(alpha) alpha` is not `CLa`. Without
+the terms the fit trades the two and the lift derivatives carry a structural bias
+larger than their standard errors (2-sigma coverage 65% over the Monte Carlo
+campaign with `linear`). Parameters continuous and linear in time over the record
+cannot take the terms (measured by least squares on the exact coefficients of a
+noise-free flight: the bias stays): the secant changes with alpha from one window to
+the next faster than a continuous parameter may follow. The price is variance:
+twice the unknowns per window (measured on the reference trajectory, see the
+README).
 """
 
 import dataclasses
@@ -52,11 +53,10 @@ INPUTS = ("de", "thrust", "mass", "Iyy", "Iyy_dot", "xcg", "xcp", "h")
 OUTPUTS = ("ax", "az", "q", "qdot", "alpha", "V")
 BODY_NAMES = ("CXa", "CXde", "CZa", "CZde", "CMa", "CMde")
 # Which alpha derivatives may change inside a window (`terms`), each with time (per
-# window length, 1/rad) and with alpha (1/rad^2): by default the normal force's only
-# (the lift derivatives' structural bias; the axial and moment ones are covered
-# without, and their terms would double those derivatives' variance).
+# window length, 1/rad) and with alpha (1/rad^2); all parameters are then constant
+# per window (a continuous parameter cannot take the terms, see the module).
 ALPHA_DERIVATIVES = ("CXa", "CZa", "CMa")  # body axes (CLa, CDa, CMa: wind axes)
-WINDOW_TERMS = ("CZa",)
+WINDOW_TERMS = ALPHA_DERIVATIVES
 TERM_INPUTS = ("alpha_w", "tau")
 
 
@@ -65,6 +65,8 @@ def term_names(terms: tuple[str, ...]) -> tuple[str, ...]:
     `NAME_t` (change over the window, per window length) then `NAME_alpha`
     (change with alpha, 1/rad^2) for each."""
     return tuple(f"{n}_t" for n in terms) + tuple(f"{n}_alpha" for n in terms)
+
+
 STATE_SCALE = np.array([10.0, 1.0, 0.01, 0.01])
 
 
@@ -306,7 +308,7 @@ def oem_setup(
     single: bool = False,
     min_qbar: float = 2000.0,
     lse=None,
-    parameters: str = "window",
+    parameters: str = "linear",
 ) -> tuple[OEMSetup, np.ndarray]:
     """The OEM problem of a log with its starting values (see [`estimate_oem`][]
     for the arguments; `parameters` as there, single shooting takes `constant`);
@@ -401,7 +403,7 @@ def estimate_oem(
     decimate: int = 5,
     start: str = "lse",
     axes: str = "body",
-    parameters: str = "window",
+    parameters: str = "linear",
     min_qbar: float = 2000.0,
     rtol: float = 1e-5,
     max_iter: int = 30,
@@ -421,12 +423,13 @@ def estimate_oem(
     - `start`: starting values, `lse`, `database` or `truth10`.
     - `axes`: estimate body-axis (`body`, the thesis's choice) or lift/drag (`wind`)
       derivatives; results are reported in lift/drag form either way.
-    - `parameters` (multiple shooting): `window` (the default: per window the six
-      derivatives and how the alpha derivatives change inside it, with time and
-      with alpha; see [`make_model`][]: the reported values are at the window's
-      mean time and alpha), `linear` (derivatives continuous and linear in time
-      between window boundaries; a window's estimate is their mean over the
-      window) or `constant` per window (the thesis's model).
+    - `parameters` (multiple shooting): `linear` (derivatives continuous and
+      linear in time between window boundaries; a window's estimate is their mean
+      over the window), `window` (per window the six derivatives and how the alpha
+      derivatives change inside it, with time and with alpha, see [`make_model`][];
+      the reported values are at the window's mean time and alpha: no structural
+      bias from secant derivatives, twice the unknowns) or `constant` per window
+      (the thesis's model).
     - `min_qbar` (multiple shooting): windows whose mean measured dynamic pressure is
       below this (Pa) are not fitted and get no estimate (high in the climb the
       aerodynamic forces vanish into the noise and nothing can be identified).
