@@ -280,6 +280,7 @@ def arithmetic(mf, samples, k, nx, n_out, segments, n_unknowns, gflops):
     cholesky = n_unknowns**3 / 3 + 2 * n_unknowns**2
     total = jac + assembly + cholesky
     return {
+        "gflops_used": gflops,
         "flops_simulation": sim,
         "flops_jacobian": jac,
         "flops_normal_assembly": assembly,
