@@ -153,7 +153,11 @@ class Fit(eqx.Module):
 
     @property
     def converged(self) -> bool:
-        return bool(self.result == RESULTS.successful)
+        # compared on the host: `==` of two enumeration items is a jax operation,
+        # a program compiled in every process for one boolean
+        return int(np.asarray(self.result._value)) == int(
+            np.asarray(RESULTS.successful._value)
+        )
 
     @property
     def message(self) -> str:
