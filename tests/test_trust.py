@@ -159,16 +159,32 @@ PLANTED = [
     ),
 ]
 # The generator's gravity (9.80665 m/s^2 at 6371 km) is 0.008 m/s^2 stronger than
-# the model's (G Me / (Re + h)^2, 9.798 m/s^2 at sea level): clean flights show an
-# az bias of -0.010 +/- 0.002 m/s^2, which a planted az bias carries (measured
-# refits 0.2915 +/- 0.0019 at 1 kHz, 0.2901 +/- 0.0017 at 200 Hz for 0.3).
+# the model's (G Me / (Re + h)^2, 9.798 m/s^2 at sea level): in the w equation that
+# is a force g cos(theta) the model lacks, which an az bias absorbs. Measured (seed
+# 3, 200 Hz): clean az-bias score estimate -0.0099 +/- 0.0017 with the generator's
+# gravity, -0.0018 +/- 0.0017 with the package's patched into it; planted 0.3
+# refitted 0.2901 +/- 0.0017 and 0.2982 +/- 0.0017. So the expected refit is the
+# planted bias minus the mean gravity difference along body z, computed from the
+# two gravity laws at the log's altitude and attitude.
 STRUCTURAL = {
-    "sensor_bias:az": 0.015,
-    # clean flights show a thrust-misalignment-like misfit of +0.003 to +0.0066 m
-    # (the trim step and the transonic table just after ignition); measured refits
-    # of 0.03: 0.0360 +/- 0.0004 (1 kHz), 0.0324 +/- 0.0005 (200 Hz)
+    # clean flights show a thrust-misalignment-like misfit of +0.003 to +0.0066 m:
+    # the generator's table changes with Mach faster (a transonic peak, PCHIP) than
+    # the baseline's 6 Mach functions follow, right after ignition (with the
+    # generator's table frozen at Mach 2 the clean estimate is -0.0002 +/- 0.0002
+    # instead of +0.0060 +/- 0.0007, seed 3, 200 Hz); measured refits of 0.03:
+    # 0.0360 +/- 0.0004 (1 kHz), 0.0324 +/- 0.0005 (200 Hz)
     "thrust_misalignment": 0.008,
 }
+
+
+def gravity_shift(lg: dp.FlightLog) -> float:
+    """Mean of (generator's - package's gravity) x cos(theta) over the log, m/s^2:
+    what an az-bias estimate carries on the generator's logs."""
+    h, theta = lg["h"], lg["theta"]
+    diff = gen.gravity(h) - np.asarray(dp.gravity(h))
+    return float(np.mean(diff * np.cos(theta)))
+
+
 # what the data cannot tell the planted effect from (projected correlation > 0.9)
 TIED = {"pitch_damping": {"alpha_dot_damping"}}
 
@@ -189,7 +205,10 @@ def test_planted_effect_is_first_significant_and_recovered(name, value, rate, se
     # at 50 Hz: 0.03940 +/- 0.00016), which the standard error does not contain
     sampling = 0.05 / rate if name == "actuator_delay" else 0.0
     tolerance = 3 * est["stderr"] + STRUCTURAL.get(name, 0.0) + sampling
-    assert abs(est["estimate"] - value) < tolerance, est
+    expected = value
+    if name == "sensor_bias:az":
+        expected = value - gravity_shift(log(seed, rate, (name, value)))
+    assert abs(est["estimate"] - expected) < tolerance, (est, expected)
     # the noise sigma is the sidecar's, scaled to a block mean of the log (the
     # misfit itself stays above the noise: at 1 kHz the generator's noise is so
     # low that the baseline's structural misfit dominates, q about 19 x noise)
@@ -197,3 +216,134 @@ def test_planted_effect_is_first_significant_and_recovered(name, value, rate, se
     scale = np.sqrt(np.sum(w**2)) / np.sum(w)
     channels = fit_metrics(after)["channels"]
     assert channels["q"]["noise"] == pytest.approx(gen.NOISE["q"] * scale)
+
+
+# --- the decision rule, shared by the workflow and the engine (issue 15 item 2) ----
+def test_decision_rule_penalty_bonferroni_and_delay_resolution():
+    from diffpegasus._diagnose._rule import DecisionRule
+
+    rule = DecisionRule(significance=0.01, min_statistic=150.0)
+    common = dict(tested=10, is_delay=False, resolution=0.01, estimate=1.0)
+    # a large statistic with a passing p is significant; the p-value is corrected
+    out = rule.judge(statistic=200.0, p_value=1e-5, **common)
+    assert out == {"p_value": 1e-4, "significant": True, "resolution_limit": False}
+    # below the penalty: not significant however small p is (structural misfit of a
+    # baseline on clean flights reaches statistics of about 100)
+    assert not rule.judge(statistic=120.0, p_value=1e-20, **common)["significant"]
+    # Bonferroni: p 2e-3 over 10 candidates is 0.02, above 0.01
+    assert not rule.judge(statistic=400.0, p_value=2e-3, **common)["significant"]
+    # a delay is judged by the log's resolution (half a sample), not the penalty
+    delay = dict(tested=10, is_delay=True, resolution=0.01, p_value=1e-9)
+    assert rule.judge(statistic=40.0, estimate=0.02, **delay)["significant"]
+    small = rule.judge(statistic=900.0, estimate=0.004, **delay)
+    assert not small["significant"] and small["resolution_limit"]
+    # a lead (negative delay) is never significant
+    assert not rule.judge(statistic=900.0, estimate=-0.05, **delay)["significant"]
+
+
+def test_verdict_says_which_number_is_which():
+    from diffpegasus._diagnose._rule import DecisionRule, verdict
+
+    row = dict(
+        effect="sensor_bias:az",
+        parameter="bias",
+        statistic=820.0,
+        p_value=1e-30,
+        cost_reduction=0.05,
+        estimate=0.29,
+        stderr=0.01,
+        significant=True,
+        resolution_limit=False,
+        hard_to_tell_from=[],
+    )
+    delay = dict(
+        row,
+        effect="actuator_delay",
+        parameter="tau",
+        statistic=30.0,
+        p_value=1e-5,
+        estimate=0.004,
+        significant=False,
+        resolution_limit=True,
+    )
+    text = verdict([row, delay], DecisionRule(), 0.01)
+    # significance (statistic, p) and share of the misfit (det R) said apart; a
+    # small share does not hide a significant effect
+    assert "sensor_bias:az is significant (score statistic 820" in text
+    assert "explains 5% of det(R)" in text
+    assert "resolution limit of the log" in text and "not physics" in text
+    none = verdict([dict(row, significant=False, statistic=90.0)], DecisionRule(), 0.01)
+    assert none.startswith("no candidate effect is significant")
+    assert "below the 150" in none
+
+
+# --- the engine's diagnosis (`diagnose --vehicle hfb320`) on the independent
+# generator's HFB-320: true steps between samples, its own integrator and noise ----
+def _hfb_log(tmp_path, seed, rate=10.0, effects=None):
+    channels, meta = gen.generate_hfb320(seed, rate, effects=effects)
+    return gen.write(tmp_path / f"hfb_{seed}_{int(rate)}.csv", channels, meta)
+
+
+@pytest.mark.parametrize("seed,rate", [(3, 10.0), (6, 10.0), (6, 50.0)])
+def test_engine_diagnosis_of_clean_independent_flights_flags_nothing(
+    tmp_path, seed, rate
+):
+    from diffpegasus._cli._runners import run_model_diagnose
+    from diffpegasus._vehicle import vehicle_spec
+
+    report = run_model_diagnose(
+        vehicle_spec("hfb320", candidates=True), [_hfb_log(tmp_path, seed, rate)]
+    )
+    assert report["fit"]["converged"]
+    assert report["significant"] == [], report["ranking"][:3]
+    assert report["message"].startswith("no candidate effect is significant")
+    # where the steps fall between samples looks like a delay (seeds 3 and 6 at
+    # 10 Hz: statistics 309 and 388, the largest of 30 clean flights; p ~ 0 under
+    # the old rule, which flagged 27 of 30 flights): called a resolution limit
+    delay = next(r for r in report["ranking"] if r["effect"] == "actuator_delay")
+    assert abs(delay["estimate"]) < 0.5 / rate
+    if rate == 10.0:
+        assert delay["p_value"] < 0.01 and delay["resolution_limit"]
+        assert "resolution limit of the log" in report["message"]
+
+
+def test_engine_diagnosis_finds_a_planted_az_bias_on_independent_flights(tmp_path):
+    from diffpegasus._cli._runners import run_model_diagnose
+    from diffpegasus._vehicle import vehicle_spec
+
+    path = _hfb_log(tmp_path, 4, 10.0, {"sensor_bias:az": 0.1})
+    report = run_model_diagnose(vehicle_spec("hfb320", candidates=True), [path])
+    top = report["ranking"][0]
+    assert top["effect"] == "sensor_bias:az", report["ranking"][:3]
+    assert report["significant"] == ["sensor_bias:az"]
+    assert "sensor_bias:az is significant" in report["message"]
+    assert abs(top["estimate"] - 0.1) < 3 * top["stderr"]
+
+
+# --- standard errors that cover (issue 15 item 4): the secant bias of the OEM -----
+@pytest.mark.slow
+def test_window_terms_remove_the_secant_bias_of_the_lift_derivatives():
+    """Noise-free 20 s flight (ignition and the pull-up, alpha swept by degrees per
+    window): with derivatives continuous and linear in time the window estimates of
+    CLa carry a structural bias (the data fix the secant and its slope in alpha,
+    which differ); with the window terms (`parameters="window"`) it is gone.
+    Measured on the full noise-free reference flight: CLa rms error 0.066/rad
+    (linear) against 0.0079 (window)."""
+    import jax
+
+    from .helpers import short_config
+
+    log = dp.flight_to_log(
+        dp.simulate(short_config(sample_rate=200.0), jax.random.key(1))
+    )
+    err = {}
+    for kind in ("linear", "window"):
+        est = dp.estimate_oem(log, parameters=kind, decimate=1)
+        use = np.asarray(est.valid) & (np.asarray(est.window_start) >= 6.0)
+        e = np.asarray(est.values - est.truth)[use]
+        err[kind] = np.sqrt(np.mean(e**2, axis=0))
+    names = list(dp.DERIVATIVE_NAMES)
+    cla, clde = names.index("CLa"), names.index("CLde")
+    assert err["linear"][cla] > 0.03, err  # the bias the campaign's 65% came from
+    assert err["window"][cla] < 0.3 * err["linear"][cla], err
+    assert err["window"][clde] < 0.5 * err["linear"][clde], err

@@ -152,9 +152,9 @@ def _diagnose_model(which, log, columns, fix, add, as_json, process_noise=()):
                 )
                 continue
             typer.echo(
-                f"{mark} {r['effect']:24s} {100 * r['cost_reduction']:6.1f}%  "
-                f"p = {r['p_value']:.2g}  estimate {r['estimate']:.4g} "
-                f"+/- {r['stderr']:.2g}"
+                f"{mark} {r['effect']:24s} statistic {r['statistic']:8.1f}  "
+                f"p = {r['p_value']:.2g}  cost fall {100 * r['cost_reduction']:5.1f}%  "
+                f"estimate {r['estimate']:.4g} +/- {r['stderr']:.2g}"
             )
         typer.echo(report["message"])
     # an output-error fit stopped by turbulence is no failure when the filter-error
@@ -245,11 +245,13 @@ def diagnose(
         return
     typer.echo(result["message"])
     typer.echo(
-        f"{'effect':>24s} {'cost fall':>9s} {'p-value':>9s} {'estimate':>12s} {'std err':>9s}"
+        f"{'effect':>24s} {'statistic':>9s} {'p-value':>9s} {'cost fall':>9s} "
+        f"{'estimate':>12s} {'std err':>9s}"
     )
     for r in result["ranking"][:8]:
         mark = " *" if r["significant"] else ""
         typer.echo(
-            f"{r['effect']:>24s} {100 * r['cost_reduction']:8.1f}% {r['p_value']:9.2g} "
-            f"{r['estimate']:12.4g} {r['stderr']:9.2g}{mark}"
+            f"{r['effect']:>24s} {r['statistic']:9.1f} {r['p_value']:9.2g} "
+            f"{100 * r['cost_reduction']:8.1f}% {r['estimate']:12.4g} "
+            f"{r['stderr']:9.2g}{mark}"
         )

@@ -159,8 +159,10 @@ def estimate_oem_command(
     parameters: Annotated[
         str,
         typer.Option(
-            help="Derivatives linear in time between window boundaries, or "
-            "constant per window (the thesis's model); multiple shooting only"
+            help="linear: continuous and linear in time between window "
+            "boundaries; window: per window the derivatives and how the alpha "
+            "derivatives change inside it (with time and alpha); constant per "
+            "window (the thesis's model); multiple shooting only"
         ),
     ] = "linear",
     min_qbar: Annotated[

@@ -7,7 +7,8 @@ import sys
 
 import numpy as np
 
-from .._diagnose._candidates import score_candidates
+from .._diagnose._candidates import diagnosis_message, score_candidates
+from .._diagnose._rule import DecisionRule
 from .._estimate._fit import Fit, fit
 from .._estimate._model import Record
 from .._estimate._modelfile import ModelSpec
@@ -323,24 +324,13 @@ def run_model_diagnose(
         )
         return report
     ranking = score_candidates(result, spec.candidates)
+    # the workflow's measured decision rule and verdict (see _diagnose/_rule.py)
+    report["message"] = diagnosis_message(ranking, result)
+    report["rule"] = DecisionRule().describe()
     for row in ranking:
-        row["effect"] = row["parameter"].split(".")[0]
         row["hard_to_tell_from"] = [n.split(".")[0] for n in row["hard_to_tell_from"]]
     report["ranking"] = ranking
     report["significant"] = [r["effect"] for r in ranking if r["significant"]]
-    top = ranking[0]
-    if not report["significant"]:
-        report["message"] = "no candidate is significant"
-    else:
-        close = (
-            f" (cannot be told from {', '.join(top['hard_to_tell_from'])})"
-            if top["hard_to_tell_from"]
-            else ""
-        )
-        report["message"] = (
-            f"{top['effect']} would remove {100 * top['cost_reduction']:.0f}% of det(R) "
-            f"(p = {top['p_value']:.2g}){close}"
-        )
     report["cost"] = result.cost
     if process_noise and result.bias_outputs:
         report["process_noise"] = (

@@ -10,17 +10,30 @@ import numpy as np
 from .._estimate._fit import Fit, fit
 from .._estimate._model import Model, Record
 from .._estimate._score import score
+from ._rule import DecisionRule, DELAY_EFFECT, verdict
 
 
-def score_candidates(result: Fit, candidates: Sequence[str], level: float = 0.01):
-    """The ranking of held parameters `candidates` at the fit `result`.
+def score_candidates(
+    result: Fit,
+    candidates: Sequence[str],
+    level: float = 0.01,
+    min_statistic: float = DecisionRule.min_statistic,
+):
+    """The ranking of held parameters `candidates` at the fit `result`, decided by
+    the same rule as the Pegasus workflow's diagnosis ([`DecisionRule`][]).
 
-    Each row: `parameter`, `cost_reduction` (predicted fraction of det(R) removed by
-    the one Gauss-Newton step freeing it), `statistic` (chi-square, 1 degree of
-    freedom, variance with the residuals' colour), `p_value`, `estimate` and
-    `stderr` (after that step), `significant` (Bonferroni-corrected p below
-    `level`) and `hard_to_tell_from` (candidates whose sensitivities correlate
-    above 0.9 once the free unknowns are projected out). Best first.
+    Each row: `parameter`, `effect` (the library effect's name, the part before
+    the dot, or the parameter of a bare model), `cost_reduction` (predicted
+    fraction of det(R) removed by the one Gauss-Newton step freeing it: the share
+    of the misfit, reported, not decided on), `statistic` (chi-square, 1 degree of
+    freedom, variance with the residuals' colour), `p_value` (Bonferroni-corrected
+    over the candidates), `estimate` and `stderr` (after that step), `significant`
+    (p below `level` and statistic above the penalty `min_statistic`; an
+    `actuator_delay` instead needs an estimate of at least half a sample
+    interval), `resolution_limit` (a delay below half a sample interval: where the
+    input's steps fall between samples, not physics) and `hard_to_tell_from`
+    (candidates whose sensitivities correlate above 0.9 once the free unknowns are
+    projected out). Best (largest cost reduction) first.
     """
     model = result.model
     names = list(model.parameters)
@@ -43,10 +56,19 @@ def score_candidates(result: Fit, candidates: Sequence[str], level: float = 0.01
         p=len(names),
     )
     st = {k: np.asarray(getattr(st, k)) for k in st.__dataclass_fields__}
+    rule = DecisionRule(level, min_statistic)
     k = len(candidates)
     rows = []
     for i, c in enumerate(candidates):
-        p = float(st["p_value"][i])
+        effect = c.split(".")[0]
+        decided = rule.judge(
+            statistic=float(st["statistic"][i]),
+            p_value=float(st["p_value"][i]),
+            estimate=float(st["estimate"][i]),
+            tested=k,
+            is_delay=effect == DELAY_EFFECT,
+            resolution=sample_resolution(result),
+        )
         close = [
             candidates[j]
             for j in range(k)
@@ -55,17 +77,42 @@ def score_candidates(result: Fit, candidates: Sequence[str], level: float = 0.01
         rows.append(
             {
                 "parameter": c,
+                "effect": effect,
                 "cost_reduction": float(1.0 - st["cost_ratio"][i]),
                 "statistic": float(st["statistic"][i]),
-                "p_value": p,
+                "p_value": decided["p_value"],
                 "estimate": float(st["estimate"][i]),
                 "stderr": float(st["stderr"][i]),
-                "significant": bool(p * k < level),
+                "significant": decided["significant"],
+                "resolution_limit": decided["resolution_limit"],
                 "hard_to_tell_from": close,
             }
         )
     rows.sort(key=lambda r: -r["cost_reduction"])
     return rows
+
+
+def sample_resolution(result: Fit) -> float:
+    """Half the (largest) sample interval of the fitted records, s: the timing
+    resolution of an input step between samples."""
+    return 0.5 * max(float(np.mean(np.diff(r.t))) for r in result.records)
+
+
+def diagnosis_message(
+    ranking: list[dict],
+    result: Fit,
+    level: float = 0.01,
+    min_statistic: float = DecisionRule.min_statistic,
+) -> str:
+    """The verdict of [`score_candidates`][]'s ranking in words (shared with the
+    Pegasus workflow): the significant candidate's statistic and p-value (the
+    evidence) and its share of det(R), said apart; plainly when none is
+    significant; a sub-sample delay called a resolution limit."""
+    rows = [
+        dict(r, hard_to_tell_from=[n.split(".")[0] for n in r["hard_to_tell_from"]])
+        for r in ranking
+    ]
+    return verdict(rows, DecisionRule(level, min_statistic), sample_resolution(result))
 
 
 def diagnose_model(
@@ -74,19 +121,21 @@ def diagnose_model(
     candidates: Sequence[str],
     *,
     level: float = 0.01,
+    min_statistic: float = DecisionRule.min_statistic,
     process_noise: Sequence[str] | Mapping[str, float] | None = None,
     **fit_options,
 ) -> tuple[Fit, list[dict]]:
     """Fit `model` with the `candidates` (parameter names) held at their start
-    values, then rank them by score test (see [`score_candidates`][]). With
-    `process_noise` (states, or a dict of start intensities), process noise is a
-    candidate too, scored by the filter-error fit's likelihood ratio, and the
+    values, then rank them by score test and decide by the measured rule (see
+    [`score_candidates`][]; [`diagnosis_message`][] puts the verdict in words).
+    With `process_noise` (states, or a dict of start intensities), process noise
+    is a candidate too, scored by the filter-error fit's likelihood ratio, and the
     deterministic candidates are tested again at that fit (see
     [`process_noise_candidate`][]; its row's `verdict` is the message when its
     likelihood ratio passes). Keyword arguments go to [`fit`][]."""
     fixed = tuple(dict.fromkeys(tuple(model.fixed) + tuple(candidates)))
     result = fit(model.replace(fixed=fixed), records, **fit_options)
-    ranking = score_candidates(result, candidates, level)
+    ranking = score_candidates(result, candidates, level, min_statistic)
     # in turbulence the output-error fit may stop at its iteration cap: process
     # noise is still scored from where it stopped (its det(R) only overstates LR)
     if process_noise is not None and np.isfinite(result.cost):

@@ -240,8 +240,12 @@ def process_noise_candidate(
             row.update(
                 statistic_under_process_noise=u["statistic"],
                 p_value_under_process_noise=pu,
+                # a sub-sample delay is the log's resolution, not physics, at
+                # either fit (the shared rule, _diagnose/_rule.py)
                 survives_process_noise=bool(
-                    pu < rule.significance and u["statistic"] > rule.min_survivor
+                    pu < rule.significance
+                    and u["statistic"] > rule.min_survivor
+                    and not r.get("resolution_limit", False)
                 ),
             )
         if present:
