@@ -10,7 +10,7 @@ import numpy as np
 from .._estimate._fit import Fit, fit
 from .._estimate._model import Model, Record
 from .._estimate._score import score
-from ._rule import DecisionRule, DELAY_EFFECT, verdict
+from ._rule import DecisionRule, verdict
 
 
 def score_candidates(
@@ -66,7 +66,7 @@ def score_candidates(
             p_value=float(st["p_value"][i]),
             estimate=float(st["estimate"][i]),
             tested=k,
-            is_delay=effect == DELAY_EFFECT,
+            is_delay=effect.endswith("_delay"),  # actuator, aileron, rudder
             resolution=sample_resolution(result),
         )
         close = [
