@@ -60,7 +60,7 @@ def montecarlo(
     summary."""
     import os
 
-    from .._campaign._montecarlo import launch_local, start_distributed
+    from .._campaign._distributed import launch_local, start_distributed
 
     if processes < 1:
         _fail(f"--processes must be at least 1, got {processes}")
