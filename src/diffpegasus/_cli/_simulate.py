@@ -78,7 +78,7 @@ def _simulate_to_log(
 
 def _simulate_lateral(out, seed, hidden, duration, sample_rate, noise, input_name):
     from .._log._format import FlightLog, write_log
-    from .._vehicle._lateral import simulate_lateral_log
+    from .._vehicle._lateral_sixdof import simulate_lateral_log
 
     planted = {}
     for text in hidden:

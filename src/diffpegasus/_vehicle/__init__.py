@@ -1,6 +1,5 @@
 from ._hfb320 import hfb320_model as hfb320_model
 from ._lateral import (
-    implied_lateral_derivatives as implied_lateral_derivatives,
     LATERAL_COLUMNS as LATERAL_COLUMNS,
     LATERAL_DERIVATIVES as LATERAL_DERIVATIVES,
     LATERAL_INPUTS as LATERAL_INPUTS,
@@ -9,6 +8,9 @@ from ._lateral import (
     lateral_record as lateral_record,
     LATERAL_START as LATERAL_START,
     read_lateral_asc as read_lateral_asc,
+)
+from ._lateral_sixdof import (
+    implied_lateral_derivatives as implied_lateral_derivatives,
     SIXDOF_LATERAL_EFFECTS as SIXDOF_LATERAL_EFFECTS,
     SIXDOF_LATERAL_INPUTS as SIXDOF_LATERAL_INPUTS,
     sixdof_lateral_model as sixdof_lateral_model,
