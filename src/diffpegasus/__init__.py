@@ -178,6 +178,7 @@ from ._vehicle._pegasus._mass import (  # noqa: E402
     MassModel as MassModel,
     MassProperties as MassProperties,
 )
+from ._vehicle._pegasus._parts import pegasus_vehicle as pegasus_vehicle  # noqa: E402
 from ._vehicle._pegasus._propulsion import SolidMotor as SolidMotor  # noqa: E402
 from ._vehicle._pegasus._vehicle import Vehicle as Vehicle  # noqa: E402
 from ._vehicle._sixdof import (  # noqa: E402
