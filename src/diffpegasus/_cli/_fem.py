@@ -9,7 +9,7 @@ from .._estimate._filter_error import FilterErrorFit, fit_filter_error
 from .._estimate._fit import SingleShooting
 from .._estimate._modelfile import ModelSpec
 from .._log._format import LogError
-from ._runners import channel_report, load_records, parse_holds
+from ._runners import channel_report, load_records, num, parse_holds, report_head
 
 
 METHODS = ("oem", "fem")
@@ -71,29 +71,10 @@ def fem_report(result: FilterErrorFit, spec: ModelSpec) -> dict:
     ok = result.converged
     model = result.model
 
-    def num(x):
-        x = float(x)
-        return x if np.isfinite(x) else None
-
     hidden = set(spec.candidates)
     out = {
-        "model": spec.name,
+        **report_head(result, spec, np.diag(result.R)),
         "method": "fem",
-        "records": [r.name for r in result.records],
-        "converged": ok,
-        "message": result.message,
-        "cost": num(result.cost),
-        "iterations": result.iterations,
-        "estimates": {},
-        "stderr": {},
-        "stderr_crb": {},
-        "fixed": [
-            p
-            for p, f in zip(model.parameters, result.free, strict=True)
-            if not f and p not in hidden
-        ],
-        "high_correlations": [],
-        "R": {o: num(v) for o, v in zip(model.outputs, np.diag(result.R), strict=True)},
         "process_noise": {
             s: num(f) if ok else None
             for s, f in zip(result.process_noise, result.F, strict=True)

@@ -123,19 +123,22 @@ def _load(spec, model, files, cmap, reader):
     return records
 
 
-def fit_report(result: Fit, spec: ModelSpec) -> dict:
-    """The JSON-ready summary of a fit."""
-    ok = result.converged
+def num(x) -> float | None:
+    """A finite number for JSON, `None` for NaN or infinity."""
+    x = float(x)
+    return x if np.isfinite(x) else None
+
+
+def report_head(result, spec: ModelSpec, r_diagonal) -> dict:
+    """What every fit report starts with (output or filter error): the model, the
+    records, whether and how it converged, the cost, the held parameters, the
+    diagonal of R by output; `estimates`, `stderr`, `stderr_crb` and
+    `high_correlations` left for the caller to fill."""
     model = result.model
-
-    def num(x):
-        x = float(x)
-        return x if np.isfinite(x) else None
-
-    out = {
+    return {
         "model": spec.name,
         "records": [r.name for r in result.records],
-        "converged": ok,
+        "converged": result.converged,
         "message": result.message,
         "cost": num(result.cost),
         "iterations": result.iterations,
@@ -148,8 +151,15 @@ def fit_report(result: Fit, spec: ModelSpec) -> dict:
             if not f and p not in spec.candidates
         ],
         "high_correlations": [],
-        "R": {o: num(v) for o, v in zip(model.outputs, result.R, strict=True)},
+        "R": {o: num(v) for o, v in zip(model.outputs, r_diagonal, strict=True)},
     }
+
+
+def fit_report(result: Fit, spec: ModelSpec) -> dict:
+    """The JSON-ready summary of a fit."""
+    ok = result.converged
+    model = result.model
+    out = report_head(result, spec, result.R)
     hidden = set(spec.candidates)
     for row in result.table():
         name = row["parameter"]
