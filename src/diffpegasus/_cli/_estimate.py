@@ -66,8 +66,6 @@ def _estimates_verdict(est, d: dict) -> tuple[str, str]:
 
 
 def _emit_estimates(est, out: pathlib.Path | None, as_json: bool, units: str) -> None:
-    from .._report._plotting import plot_estimates
-
     d = est.to_dict(units)
     message, level = _estimates_verdict(est, d)
     failed = level == "error"
@@ -77,6 +75,8 @@ def _emit_estimates(est, out: pathlib.Path | None, as_json: bool, units: str) ->
                 column[:] = [None] * len(column)
     d["message"] = message
     if out is not None:
+        from .._report._plotting import plot_estimates  # matplotlib only when plotting
+
         try:
             out.mkdir(parents=True, exist_ok=True)
             est.write_csv(out / f"{est.method}_estimates.csv", units)

@@ -151,6 +151,7 @@ class _Outputs(eqx.Module):
         return jnp.stack([fx / u[2], fz / u[2], x[2], qdot, alpha, v])
 
 
+@jax.jit
 def to_lift_drag(body, alpha):
     """Body-axis derivatives `(..., 6)` to `[CLa, CLde, CDa, CDde, CMa, CMde]` at the
     window-mean alpha (thesis eqs 5.41-5.44)."""
@@ -169,6 +170,7 @@ def to_lift_drag(body, alpha):
     )
 
 
+@jax.jit
 def to_body(lift_drag, alpha):
     """The inverse of [`to_lift_drag`][]."""
     sa, ca = jnp.sin(alpha), jnp.cos(alpha)
@@ -257,10 +259,7 @@ def starting_values(
     already computed."""
     alpha = np.asarray(layout.window_mean(jnp.asarray(log["alpha"])))
     mach = np.asarray(layout.window_mean(jnp.asarray(log["mach"])))
-    db = load_database()
-    prior = np.asarray(
-        jax.vmap(lambda a, m: db.derivatives(a, m).as_array())(alpha, mach)
-    )
+    prior = np.asarray(_prior(load_database(), alpha, mach))
     if start == "database":
         return prior
     if start == "lse":
@@ -279,6 +278,11 @@ def starting_values(
             jax.random.uniform(key, truth.shape, minval=0.9, maxval=1.1)
         )
     raise ValueError(f"start must be lse, database or truth10, got {start!r}")
+
+
+@eqx.filter_jit
+def _prior(db, alpha, mach):
+    return jax.vmap(lambda a, m: db.derivatives(a, m).as_array())(alpha, mach)
 
 
 class OEMSetup(eqx.Module):
@@ -352,6 +356,7 @@ def oem_setup(
     return setup, states
 
 
+@eqx.filter_jit
 def windowed_lift_drag(fit: WindowedFit, alpha: Float[Array, " windows"], axes: str):
     """A multiple-shooting fit as lift/drag derivatives per window: `(values, stderr
     (coloured-residual corrected), valid, flags)`; NaN where the fit failed. Only

@@ -169,12 +169,13 @@ class _Layout(AbstractLayout):
 
 def _make_layout(problem, active, n_seg, nx, p, k, linear, n_windows) -> _Layout:
     per = k * problem.window_samples
-    index = jnp.arange(n_seg)[:, None] * per + jnp.arange(per)[None, :]
-    in_window = jnp.minimum(index // problem.window_samples, n_windows - 1)
+    # numpy: static shapes, so no small programs compiled per call
+    index = np.arange(n_seg)[:, None] * per + np.arange(per)[None, :]
+    in_window = np.minimum(index // problem.window_samples, n_windows - 1)
     return _Layout(
         problem=problem,
         active=active,
-        measured=problem.measured[jnp.minimum(index, problem.n_samples - 1)],
+        measured=problem.measured[np.minimum(index, problem.n_samples - 1)],
         valid=(index < problem.n_samples) & active[in_window],
         link=jnp.ones(n_seg - 1, bool),
         scale=problem.state_scale * problem.continuity_tol,
