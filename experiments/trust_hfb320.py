@@ -14,7 +14,7 @@ between samples, its own noise). For every flight:
   coloured-residual-corrected standard errors, per parameter.
 
 Run: `python experiments/trust_hfb320.py [--seeds 30] [--generator package|independent]
-[--rate 10] [--actuator TAU] [--out results/trust_hfb320]`; writes one JSON line per flight (resumable) and a
+[--rate 10] [--actuator TAU] [--add EFFECT] [--out results/trust_hfb320]`; writes one JSON line per flight (resumable) and a
 summary.
 """
 
@@ -61,11 +61,19 @@ def main():
         help="independent generator: surface lag time constant, s (default: true steps)",
     )
     parser.add_argument(
+        "--add",
+        action="append",
+        default=[],
+        help="library effect estimated with the fit (e.g. actuator_delay: the "
+        "input's timing as a nuisance parameter); repeatable",
+    )
+    parser.add_argument(
         "--out", type=pathlib.Path, default=pathlib.Path("results/trust_hfb320")
     )
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     tag = "" if args.actuator is None else f"_lag{args.actuator:g}"
+    tag += "".join(f"_add_{a}" for a in args.add)
     lines = args.out / f"{args.generator}_{int(args.rate)}{tag}.jsonl"
     done = set()
     if lines.exists():
@@ -79,7 +87,13 @@ def main():
         spec = vehicle_spec("hfb320", candidates=True)
         report = run_model_diagnose(spec, [path])
         _, result = _fit_spec(
-            vehicle_spec("hfb320"), [path], None, (), None, None, None
+            vehicle_spec("hfb320", add=tuple(args.add)),
+            [path],
+            None,
+            (),
+            None,
+            None,
+            None,
         )
         names = list(result.model.parameters)
         row = {
