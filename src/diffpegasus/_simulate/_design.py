@@ -75,19 +75,40 @@ class Limits(eqx.Module):
     max_excursion: float = float("inf")
 
 
-def _with_input(design: DesignProblem, excitation: AbstractInput) -> OEMProblem:
-    e = jax.vmap(excitation)(design.times)
-    inputs = design.problem.inputs.at[:, design.column].add(e)
-    return eqx.tree_at(lambda p: p.inputs, design.problem, inputs)
+# Every quantity below depends on an excitation only through its values and its
+# exact time derivative on the design's sample grid ([`samples`][]): the compiled
+# programs take those arrays, so inputs of different kinds (pulse, 3211, multisine,
+# a scaled one...) share one program each instead of compiling their own.
+
+
+def samples(
+    design: DesignProblem, excitation: AbstractInput
+) -> tuple[Float[Array, " samples"], Float[Array, " samples"]]:
+    """The excitation and its exact time derivative on the design's sample grid."""
+    t = design.times
+    e = jax.vmap(excitation)(t)
+    rate = jax.vmap(jax.grad(lambda s: excitation(s)))(t)
+    # strongly typed, so that every kind of input meets the same compiled program
+    return e.astype(t.dtype), rate.astype(t.dtype)
+
+
+_samples_jit = eqx.filter_jit(samples)
+
+
+def _values(design: DesignProblem, excitation: AbstractInput):
+    t = design.times
+    return jax.vmap(excitation)(t).astype(t.dtype)
+
+
+_values_jit = eqx.filter_jit(_values)
 
 
 @eqx.filter_jit
-def simulate_outputs(
-    design: DesignProblem, excitation: AbstractInput | None, theta=None
-) -> Float[Array, "samples outputs"]:
-    """Model outputs over the segment with the excitation added (None: without)."""
-    problem = design.problem if excitation is None else _with_input(design, excitation)
-    theta = design.theta if theta is None else theta
+def _outputs_of(design: DesignProblem, e, theta) -> Float[Array, "samples outputs"]:
+    problem = design.problem
+    if e is not None:
+        inputs = problem.inputs.at[:, design.column].add(e)
+        problem = eqx.tree_at(lambda p: p.inputs, problem, inputs)
     xs, ts = _window_solve(problem, design.x0, theta, problem.t0)
     u = jax.vmap(lambda t: _input_at(problem, t, theta))(ts[:-1])
     return jax.vmap(lambda t, x, uu: problem.outputs(t, x, uu, theta))(
@@ -95,24 +116,36 @@ def simulate_outputs(
     )
 
 
+def simulate_outputs(
+    design: DesignProblem, excitation: AbstractInput | None, theta=None
+) -> Float[Array, "samples outputs"]:
+    """Model outputs over the segment with the excitation added (None: without)."""
+    e = None if excitation is None else _values_jit(design, excitation)
+    return _outputs_of(design, e, design.theta if theta is None else theta)
+
+
 @eqx.filter_jit
-def fisher_information(
-    design: DesignProblem, excitation: AbstractInput | None
-) -> Float[Array, "params params"]:
-    """`sum_t S_t^T R^-1 S_t` with exact sensitivities `S_t = dy(t)/dtheta`, free
-    parameters only (fixed ones get a unit diagonal)."""
+def _fisher_of(design: DesignProblem, e) -> Float[Array, "params params"]:
     free = jnp.asarray(design.problem.free)
-    sens = jax.jacfwd(lambda th: simulate_outputs(design, excitation, th))(design.theta)
+    sens = jax.jacfwd(lambda th: _outputs_of(design, e, th))(design.theta)
     sens = jnp.where(free[None, None, :], sens, 0.0)
     m = jnp.einsum("toa,o,tob->ab", sens, 1.0 / design.noise, sens)
     return m + jnp.diag(jnp.where(free, 0.0, 1.0))
 
 
+def fisher_information(
+    design: DesignProblem, excitation: AbstractInput | None
+) -> Float[Array, "params params"]:
+    """`sum_t S_t^T R^-1 S_t` with exact sensitivities `S_t = dy(t)/dtheta`, free
+    parameters only (fixed ones get a unit diagonal)."""
+    e = None if excitation is None else _values_jit(design, excitation)
+    return _fisher_of(design, e)
+
+
 @eqx.filter_jit
-def predicted_covariance(design: DesignProblem, excitation) -> Float[Array, "k k"]:
-    """The Cramér-Rao covariance of the (transformed) parameters."""
+def _covariance_of(design: DesignProblem, e) -> Float[Array, "k k"]:
     free = jnp.asarray(design.problem.free)
-    cov = jnp.linalg.inv(fisher_information(design, excitation))
+    cov = jnp.linalg.inv(_fisher_of(design, e))
     cov = jnp.where(free[:, None] & free[None, :], cov, 0.0)
     if design.transform is None:
         return cov
@@ -120,16 +153,25 @@ def predicted_covariance(design: DesignProblem, excitation) -> Float[Array, "k k
     return jac @ cov @ jac.T
 
 
+def predicted_covariance(design: DesignProblem, excitation) -> Float[Array, "k k"]:
+    """The Cramér-Rao covariance of the (transformed) parameters."""
+    e = None if excitation is None else _values_jit(design, excitation)
+    return _covariance_of(design, e)
+
+
 @eqx.filter_jit
+def _stderr_of(design: DesignProblem, e) -> Float[Array, " k"]:
+    return jnp.sqrt(jnp.diag(_covariance_of(design, e)))
+
+
 def predicted_stderr(design: DesignProblem, excitation) -> Float[Array, " k"]:
     """Cramér-Rao standard errors of the (transformed) parameters."""
-    return jnp.sqrt(jnp.diag(predicted_covariance(design, excitation)))
+    e = None if excitation is None else _values_jit(design, excitation)
+    return _stderr_of(design, e)
 
 
-def criterion(design: DesignProblem, excitation, kind: str = "D") -> Float[Array, ""]:
-    """D: `log det` of the covariance of the parameters relative to their a-priori
-    values; A: the sum of their squared relative standard errors. Lower is better."""
-    cov = predicted_covariance(design, excitation)
+def _criterion_of(design: DesignProblem, e, kind: str = "D") -> Float[Array, ""]:
+    cov = _covariance_of(design, e)
     ref = design.theta if design.transform is None else design.transform(design.theta)
     free = np.asarray(design.problem.free)
     if design.transform is None:
@@ -144,26 +186,43 @@ def criterion(design: DesignProblem, excitation, kind: str = "D") -> Float[Array
     raise ValueError(f"criterion must be D or A, got {kind!r}")
 
 
-@eqx.filter_jit
-def peaks(design: DesignProblem, excitation) -> dict[str, Array]:
-    """Peak deflection (rad), rate (rad/s) and output excursion of an excitation on
-    the design's sample grid (rate from the exact time derivative)."""
-    t = design.times
-    e = jax.vmap(excitation)(t)
-    rate = jax.vmap(jax.grad(lambda s: excitation(s)))(t)
+_criterion_jit = eqx.filter_jit(_criterion_of)
+
+
+def criterion(design: DesignProblem, excitation, kind: str = "D") -> Float[Array, ""]:
+    """D: `log det` of the covariance of the parameters relative to their a-priori
+    values; A: the sum of their squared relative standard errors. Lower is better."""
+    return _criterion_of(design, _values(design, excitation), kind)
+
+
+def _compiled_criterion(design: DesignProblem, excitation, kind: str) -> float:
+    """`criterion`, through the one program every kind of excitation shares."""
+    return float(_criterion_jit(design, _values_jit(design, excitation), kind))
+
+
+def _peaks_of(design: DesignProblem, e, rate) -> dict[str, Array]:
     out = {"deflection": jnp.max(jnp.abs(e)), "rate": jnp.max(jnp.abs(rate))}
     if design.excursion_output is not None:
         k = design.excursion_output
-        y1 = simulate_outputs(design, excitation)[:, k]
-        y0 = simulate_outputs(design, None)[:, k]
+        y1 = _outputs_of(design, e, design.theta)[:, k]
+        y0 = _outputs_of(design, None, design.theta)[:, k]
         out["excursion"] = jnp.max(jnp.abs(y1 - y0))
     else:
         out["excursion"] = jnp.zeros(())
     return out
 
 
-def _violation(design, excitation, limits):
-    p = peaks(design, excitation)
+_peaks_jit = eqx.filter_jit(_peaks_of)
+
+
+def peaks(design: DesignProblem, excitation) -> dict[str, Array]:
+    """Peak deflection (rad), rate (rad/s) and output excursion of an excitation on
+    the design's sample grid (rate from the exact time derivative)."""
+    return _peaks_jit(design, *_samples_jit(design, excitation))
+
+
+def _violation_of(design, e, rate, limits):
+    p = _peaks_of(design, e, rate)
     ratios = jnp.stack(
         [
             p["deflection"] / limits.max_deflection,
@@ -174,18 +233,28 @@ def _violation(design, excitation, limits):
     return jnp.max(ratios)
 
 
+def _violation(design, excitation, limits):
+    return _violation_of(design, *samples(design, excitation), limits)
+
+
 @eqx.filter_jit
+def _limit_scale(design: DesignProblem, e, rate, limits: Limits) -> Array:
+    # the excitation scaled by s has samples s e and rate s rate
+    scale = jnp.ones(())
+    for _ in range(4):
+        v = _violation_of(design, scale * e, scale * rate, limits)
+        scale = scale * 0.999 / v
+    v = _violation_of(design, scale * e, scale * rate, limits)
+    return scale * jnp.minimum(1.0, 0.999 / v)
+
+
 def within_limits(design: DesignProblem, excitation, limits: Limits) -> Scaled:
     """The excitation scaled (up or down) until its binding limit is just met, so
     inputs compared under the same limits each use their whole allowance (the
     output excursion is not exactly linear in the amplitude, so the scale is
     refined)."""
-    scale = jnp.ones(())
-    for _ in range(4):
-        v = _violation(design, Scaled(excitation, scale), limits)
-        scale = scale * 0.999 / v
-    v = _violation(design, Scaled(excitation, scale), limits)
-    return Scaled(excitation, scale * jnp.minimum(1.0, 0.999 / v))
+    e, rate = _samples_jit(design, excitation)
+    return Scaled(excitation, _limit_scale(design, e, rate, limits))
 
 
 def optimise_input(
@@ -230,11 +299,12 @@ def optimise_input(
         params, state, value = step(params, state)
         history.append(float(value))
     best = within_limits(design, eqx.combine(params, static), limits)
-    crit = eqx.filter_jit(criterion)
     return best, {
         "loss": np.asarray(history),
-        "start": float(crit(design, within_limits(design, excitation0, limits), kind)),
-        "end": float(crit(design, best, kind)),
+        "start": _compiled_criterion(
+            design, within_limits(design, excitation0, limits), kind
+        ),
+        "end": _compiled_criterion(design, best, kind),
     }
 
 
@@ -337,13 +407,12 @@ def run_design(
         steps=steps,
     )
     inputs["optimised"] = best
-    crit = eqx.filter_jit(criterion)
     rows = {}
     for name, exc in inputs.items():
         p = peaks(design, exc)
         rows[name] = {
             "stderr": np.asarray(predicted_stderr(design, exc)),
-            "criterion": float(crit(design, exc, kind)),
+            "criterion": _compiled_criterion(design, exc, kind),
             "peaks": {k: float(v) for k, v in p.items()},
         }
     hand = min(HAND_PICKED, key=lambda n: rows[n]["criterion"])
