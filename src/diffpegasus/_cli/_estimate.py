@@ -161,8 +161,10 @@ def estimate_oem_command(
         typer.Option(
             help="linear: continuous and linear in time between window "
             "boundaries; window: per window the derivatives and how the alpha "
-            "derivatives change inside it (with time and alpha); constant per "
-            "window (the thesis's model); multiple shooting only"
+            "derivatives change inside it (with time and alpha); hybrid: "
+            "those terms for the force derivatives in alpha only (CXa, CZa per "
+            "window), the others linear; constant per window (the thesis's "
+            "model); multiple shooting only"
         ),
     ] = "linear",
     min_qbar: Annotated[

@@ -15,9 +15,12 @@ by less than `rtol` relatively. Continuity is enforced by defect residuals
 
 The parameters are either constant over each window (the thesis's model) or
 continuous and linear in time between window boundaries (`linear=True`: one knot per
-boundary, the same number of unknowns). The linear form follows derivatives that
-change within a window (a pull-up sweeps alpha by several degrees in 0.5 s); a
-window's estimate is then the mean of its parameters over the window.
+boundary, the same number of unknowns), or a mix of the two, chosen per parameter
+(`linear` a tuple of bools). The linear form follows derivatives that change within a
+window (a pull-up sweeps alpha by several degrees in 0.5 s); a window's estimate is
+then the mean of its parameters over the window. A parameter constant per window in
+a mixed fit uses the knot at the window's start for the whole window (the knot after
+the last window is not estimated).
 """
 
 import functools
@@ -93,6 +96,9 @@ class _Layout(AbstractLayout):
     k: int = eqx.field(static=True)
     linear: bool = eqx.field(static=True)
     n_windows: int = eqx.field(static=True)
+    # with `linear`: which parameters are constant per window instead (their knot j
+    # holds window j's value)
+    stepped: tuple[bool, ...] = eqx.field(static=True)
 
     @property
     def nb(self):
@@ -127,7 +133,7 @@ class _Layout(AbstractLayout):
         for j in range(self.k):
             for i in range(self.p):
                 col = j * self.p + i
-                if self.linear:
+                if self.linear and not self.stepped[i]:
                     a[self.nx + j * self.p + i, col] = 0.5
                     a[self.nx + (j + 1) * self.p + i, col] = 0.5
                 else:
@@ -156,18 +162,29 @@ class _Layout(AbstractLayout):
             padded = jnp.concatenate(
                 [jnp.zeros(1, bool), self.active, jnp.zeros(1, bool)]
             )
-            knot_active = padded[:-1] | padded[1:]
+            # a stepped parameter's knot belongs to its window alone (the last none)
+            knot_active = jnp.where(
+                jnp.asarray(self.stepped)[None, :],
+                padded[1:, None],
+                (padded[:-1] | padded[1:])[:, None],
+            )
         else:
-            knot_active = self.active
+            knot_active = jnp.broadcast_to(
+                self.active[:, None], (self.n_windows, self.p)
+            )
         n_k = knot_active.shape[0]
         return (
             jnp.asarray(free)
             .at[knot_cols[:n_k]]
-            .set(jnp.asarray(free)[knot_cols[:n_k]] & knot_active[:, None])
+            .set(jnp.asarray(free)[knot_cols[:n_k]] & knot_active)
         )
 
 
-def _make_layout(problem, active, n_seg, nx, p, k, linear, n_windows) -> _Layout:
+def _make_layout(
+    problem, active, n_seg, nx, p, k, linear, n_windows, stepped=None
+) -> _Layout:
+    if stepped is None:
+        stepped = (not linear,) * p
     per = k * problem.window_samples
     # numpy: static shapes, so no small programs compiled per call
     index = np.arange(n_seg)[:, None] * per + np.arange(per)[None, :]
@@ -185,6 +202,7 @@ def _make_layout(problem, active, n_seg, nx, p, k, linear, n_windows) -> _Layout
         k=k,
         linear=linear,
         n_windows=n_windows,
+        stepped=stepped,
     )
 
 
@@ -194,9 +212,11 @@ def _segment(problem: OEMProblem, layout: _Layout, s, v):
     nx, k, p = layout.nx, layout.k, layout.p
     length = problem.window_samples
     knots = v[nx : nx + k * p].reshape(k, p)
-    ends = (
-        jnp.concatenate([knots[1:], v[nx + k * p :][None]]) if layout.linear else None
-    )
+    if layout.linear:
+        ends = jnp.concatenate([knots[1:], v[nx + k * p :][None]])
+        ends = jnp.where(jnp.asarray(layout.stepped)[None, :], knots, ends)
+    else:
+        ends = None
     frac = jnp.arange(length)[:, None] / length
 
     def step(x, inp):
@@ -239,6 +259,7 @@ def _fit(problem, structure, z0, active, rtol, max_iter):
     n_win = layout.n_windows
     a = knot_cols[:n_win]
     b = knot_cols[1 : n_win + 1] if layout.linear else a
+    b = np.where(np.asarray(layout.stepped)[None, :], a, b)
     knots = z[knot_cols[: layout.used_knots()]]
     params = 0.5 * (z[a] + z[b])
 
@@ -289,7 +310,7 @@ def fit_windowed_oem(
     theta0: Float[Array, "windows params"],
     nodes0: Float[Array, "segments states"],
     *,
-    linear: bool = False,
+    linear: bool | tuple[bool, ...] = False,
     active=None,
     rtol: float = 1e-5,
     max_iter: int = 30,
@@ -302,7 +323,9 @@ def fit_windowed_oem(
     parameters per window; `nodes0` starting node states (usually the measured states
     at the node times), all estimated; `linear`: parameters continuous and linear in
     time between window boundaries instead of constant per window (the boundary
-    values start from the mean of the neighbouring windows' `theta0`); `active`
+    values start from the mean of the neighbouring windows' `theta0`), or one bool
+    per parameter to mix the two (a parameter constant per window starts from its
+    `theta0`); `active`
     `(windows,)` which windows are fitted (default all; an inactive window's samples
     are not used and its own knots stay at their starting values — with `linear` the
     knot it shares with an active neighbour is estimated, so report inactive windows
@@ -316,6 +339,14 @@ def fit_windowed_oem(
         raise ValueError("fit_windowed_oem needs both window and node_interval")
     theta0 = jnp.asarray(theta0, float)
     nodes0 = jnp.asarray(nodes0, float)
+    if isinstance(linear, bool):
+        linear = (linear,) * theta0.shape[1]
+    if len(linear) != theta0.shape[1]:
+        raise ValueError(
+            f"linear has {len(linear)} entries for {theta0.shape[1]} parameters"
+        )
+    stepped = tuple(not bool(x) for x in linear)
+    linear = not all(stepped)
     structure = (
         problem.n_segments,
         nodes0.shape[1],
@@ -323,6 +354,7 @@ def fit_windowed_oem(
         problem.windows_per_segment,
         linear,
         problem.n_windows,
+        stepped,
     )
     active = (
         jnp.ones(problem.n_windows, bool)
@@ -337,7 +369,11 @@ def fit_windowed_oem(
         )
     if linear:
         mid = 0.5 * (theta0[1:] + theta0[:-1])
-        theta0 = jnp.concatenate([theta0[:1], mid, theta0[-1:]])
+        theta0 = jnp.where(
+            jnp.asarray(stepped)[None, :],
+            jnp.concatenate([theta0, theta0[-1:]]),
+            jnp.concatenate([theta0[:1], mid, theta0[-1:]]),
+        )
     cols = layout.knot_cols()
     knots = jnp.concatenate(
         [theta0, jnp.repeat(theta0[-1:], cols.shape[0] - theta0.shape[0], axis=0)]
