@@ -212,7 +212,7 @@ def simulate_log(
     params.update({effect_parameter(n): v for n, v in hidden.items()})
     theta = np.array([params[k] for k in model.parameters])
     t = np.arange(0.0, duration + 0.5 / rate, 1.0 / rate)
-    pulse = three_two_one_one(0.01, 1.0, start=2.0)
+    pulse = three_two_one_one(float(np.rad2deg(0.01)), 1.0, start=2.0)  # deg
     de = TRIM["de"] + np.array([float(pulse(x)) for x in t])
     inputs = np.column_stack([de, np.full_like(t, TRIM["thrust"])])
     y = simulate_outputs(model, t, inputs, theta, x0, oversample=10)
