@@ -154,34 +154,40 @@ def _theta_at(t):
     return TRUE * (1.0 + RAMP * t / 10.0)
 
 
-@pytest.fixture(scope="module")
-def drifting(data):
-    """Reference outputs from an independent adaptive solve (Tsit5, tight tolerances)
-    of the model with time-varying parameters."""
-    de, _ = data
+def _reference(de, theta_at, jumps=None):
+    """Outputs of the model with time-varying parameters `theta_at(t)` from an
+    independent adaptive solve (Tsit5, tight tolerances; `jumps`: times where the
+    parameters step), and the parameters' window means `(4, 6)`."""
     t = jnp.arange(200) * 0.05
     u = diffrax.LinearInterpolation(ts=t, ys=de)
     sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(lambda t_, x, a: _rates(t_, x, u.evaluate(t_), _theta_at(t_))),
+        diffrax.ODETerm(lambda t_, x, a: _rates(t_, x, u.evaluate(t_), theta_at(t_))),
         diffrax.Tsit5(),
         0.0,
         float(t[-1]),
         0.01,
         jnp.zeros(2),
         saveat=diffrax.SaveAt(ts=t),
-        stepsize_controller=diffrax.PIDController(rtol=1e-11, atol=1e-13),
+        stepsize_controller=diffrax.PIDController(
+            rtol=1e-11, atol=1e-13, jump_ts=jumps
+        ),
         max_steps=100_000,
     )
-    clean = jax.vmap(lambda t_, x, u_: _outputs(t_, x, u_, _theta_at(t_)))(
-        t, sol.ys, de
-    )
+    clean = jax.vmap(lambda t_, x, u_: _outputs(t_, x, u_, theta_at(t_)))(t, sol.ys, de)
     truth = jnp.stack(
         [
-            jnp.mean(jax.vmap(_theta_at)(t[w * 50 : (w + 1) * 50]), axis=0)
+            jnp.mean(jax.vmap(theta_at)(t[w * 50 : (w + 1) * 50]), axis=0)
             for w in range(4)
         ]
     )
-    return de, clean, truth
+    return clean, truth
+
+
+@pytest.fixture(scope="module")
+def drifting(data):
+    """Reference outputs of the model with linearly drifting parameters."""
+    de, _ = data
+    return de, *_reference(de, _theta_at)
 
 
 def _windowed(measured, de):
@@ -190,13 +196,9 @@ def _windowed(measured, de):
     return prob, theta0, jnp.zeros((2, 2)).at[1].set(measured[100, 1:])
 
 
-def test_windowed_segment_jacobian_matches_finite_differences(drifting):
-    de, clean, _ = drifting
-    prob, theta0, nodes0 = _windowed(clean, de)
-    layout = _make_layout(prob, jnp.ones(4, bool), 2, 2, 6, 2, True, 4)
-    v = jnp.concatenate(
-        [nodes0[0], jnp.ravel(jax.vmap(_theta_at)(jnp.arange(3) * 2.5))]
-    )
+def _segment_jacobian_checked(prob, layout, v):
+    """The exact Jacobian of segment 0's outputs and end state in its local vector
+    `v`, asserted equal to central finite differences."""
     f = jax.jit(
         lambda v_: jnp.concatenate(
             [jnp.ravel(y) for y in _segment(prob, layout, 0, v_)]
@@ -209,6 +211,17 @@ def test_windowed_segment_jacobian_matches_finite_differences(drifting):
         axis=1,
     )
     np.testing.assert_allclose(np.asarray(exact), np.asarray(fd), rtol=1e-5, atol=1e-6)
+    return exact
+
+
+def test_windowed_segment_jacobian_matches_finite_differences(drifting):
+    de, clean, _ = drifting
+    prob, theta0, nodes0 = _windowed(clean, de)
+    layout = _make_layout(prob, jnp.ones(4, bool), 2, 2, 6, 2, True, 4)
+    v = jnp.concatenate(
+        [nodes0[0], jnp.ravel(jax.vmap(_theta_at)(jnp.arange(3) * 2.5))]
+    )
+    _segment_jacobian_checked(prob, layout, v)
 
 
 def test_linear_windowed_parameters_follow_a_drift_constant_ones_cannot(drifting):
@@ -249,33 +262,7 @@ def _theta_stepped(t):
 @pytest.fixture(scope="module")
 def stepping(data):
     de, _ = data
-    t = jnp.arange(200) * 0.05
-    u = diffrax.LinearInterpolation(ts=t, ys=de)
-    sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(
-            lambda t_, x, a: _rates(t_, x, u.evaluate(t_), _theta_stepped(t_))
-        ),
-        diffrax.Tsit5(),
-        0.0,
-        float(t[-1]),
-        0.01,
-        jnp.zeros(2),
-        saveat=diffrax.SaveAt(ts=t),
-        stepsize_controller=diffrax.PIDController(
-            rtol=1e-11, atol=1e-13, jump_ts=jnp.array([2.5, 5.0, 7.5])
-        ),
-        max_steps=100_000,
-    )
-    clean = jax.vmap(lambda t_, x, u_: _outputs(t_, x, u_, _theta_stepped(t_)))(
-        t, sol.ys, de
-    )
-    truth = jnp.stack(
-        [
-            jnp.mean(jax.vmap(_theta_stepped)(t[w * 50 : (w + 1) * 50]), axis=0)
-            for w in range(4)
-        ]
-    )
-    return de, clean, truth
+    return de, *_reference(de, _theta_stepped, jnp.array([2.5, 5.0, 7.5]))
 
 
 def test_mixed_segment_jacobian_matches_finite_differences(drifting):
@@ -286,18 +273,7 @@ def test_mixed_segment_jacobian_matches_finite_differences(drifting):
     v = jnp.concatenate(
         [nodes0[0], jnp.ravel(jax.vmap(_theta_stepped)(jnp.arange(3) * 2.5))]
     )
-    f = jax.jit(
-        lambda v_: jnp.concatenate(
-            [jnp.ravel(y) for y in _segment(prob, layout, 0, v_)]
-        )
-    )
-    exact = jax.jacfwd(f)(v)
-    h = 1e-6
-    fd = jnp.stack(
-        [(f(v.at[i].add(h)) - f(v.at[i].add(-h))) / (2 * h) for i in range(v.size)],
-        axis=1,
-    )
-    np.testing.assert_allclose(np.asarray(exact), np.asarray(fd), rtol=1e-5, atol=1e-6)
+    exact = _segment_jacobian_checked(prob, layout, v)
     # a stepped parameter's next knot does not enter the segment (its window's
     # value holds to the window's end); Zde is column 2 of a knot, after the node
     zde_next = 2 + 2 * 6 + 2
