@@ -324,6 +324,25 @@ def test_estimate_out_problems(tmp_path, command):
     )
 
 
+@pytest.mark.parametrize(
+    "option, value, fragment",
+    [
+        ("--parameters", "hybird", "--parameters must be one of hybrid, linear"),
+        ("--axes", "stability", "--axes must be body or wind"),
+        ("--shooting", "triple", "--shooting must be single or multiple"),
+    ],
+)
+def test_estimate_oem_options_refused_before_any_work(
+    tmp_path, option, value, fragment
+):
+    # the log does not exist: a refused option is said first, before reading it
+    missing = str(tmp_path / "never_read.csv")
+    line = _assert_one_error(
+        runner.invoke(app, ["estimate", "oem", missing, option, value]), fragment
+    )
+    assert repr(value) in line
+
+
 def test_simulate_out_problems(tmp_path):
     afile, folder = _out_cases(tmp_path)
     _assert_one_error(

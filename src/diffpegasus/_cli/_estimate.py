@@ -184,12 +184,19 @@ def estimate_oem_command(
     held initial state); for logs flown through turbulence use `fit --method fem
     --vehicle NAME` or `--model FILE`."""
     from .._estimate import estimate_oem
+    from .._estimate._pegasus_oem import PARAMETERS
     from .._log._format import read_log
 
     _check_units(units)
     _check_out(out, "folder")
     if shooting not in ("single", "multiple"):
         _fail(f"--shooting must be single or multiple, got {shooting!r}")
+    if parameters not in PARAMETERS:
+        _fail(
+            f"--parameters must be one of {', '.join(PARAMETERS)}, got {parameters!r}"
+        )
+    if axes not in ("body", "wind"):
+        _fail(f"--axes must be body or wind, got {axes!r}")
     try:
         flight = with_vehicle(read_log(log, resample=resample), vehicle)
         typer.echo("fitting (compiles on first use)...", err=True)
