@@ -20,31 +20,11 @@ import diffpegasus as dp
 from diffpegasus._estimate._filter_error import fit_filter_error
 from diffpegasus._estimate._fit import fit
 from diffpegasus._estimate._model import Record
-from diffpegasus._vehicle._hfb320 import hfb320_model, START, X0
+from diffpegasus._vehicle._hfb320 import BOOK_FEM, hfb320_model, START, X0
 
 
 DATA = "/work/shared/data/hfb320/hfb320_1_10.asc"
 OUTPUTS = ("V", "alpha", "theta", "q", "qdot", "ax", "az")
-# FVSysID chapter07/mDefCase04.m, quoted there as ml_fem's estimates for this record
-BOOK_FEM = dict(
-    zip(
-        START,
-        (
-            0.122688,
-            -0.0644969,
-            0.320055,
-            -0.0929113,
-            0.148726,
-            4.32785,
-            0.111905,
-            0.00395154,
-            -0.967854,
-            -34.7098,
-            -1.52913,
-        ),
-        strict=True,
-    )
-)
 BOOK_F = (0.358553, 2.42099e-3, 4.47607e-4, 1.73778e-3)
 BOOK_R = (
     0.01758668956825,

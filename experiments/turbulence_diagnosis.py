@@ -30,23 +30,16 @@ jax.config.update("jax_enable_x64", True)
 
 import diffpegasus as dp  # noqa: E402
 from diffpegasus._vehicle import vehicle_spec  # noqa: E402
-from diffpegasus._vehicle._hfb320 import simulate_log, X0  # noqa: E402
+from diffpegasus._vehicle._hfb320 import simulate_log, simulated_record  # noqa: E402
 
 
 OUT = pathlib.Path(__file__).parent / "results"
 STATES = ("V", "alpha", "theta", "q")
-OUTPUTS = ("V", "alpha", "theta", "q", "qdot", "ax", "az")
 
 
 def record(seed, sigma, duration=30.0):
     ch, _ = simulate_log(duration=duration, seed=seed, turbulence=sigma)
-    return dp.Record(
-        ch["t"],
-        np.column_stack([ch["de"], ch["thrust"]]),
-        np.column_stack([ch[n] for n in OUTPUTS]),
-        x0=X0,
-        name=f"seed{seed}",
-    )
+    return simulated_record(ch, name=f"seed{seed}")
 
 
 def diagnose(model, candidates, rec):

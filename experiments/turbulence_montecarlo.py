@@ -37,7 +37,7 @@ from diffpegasus._vehicle._hfb320 import (  # noqa: E402
     hfb320_model,
     IDENTIFIED,
     simulate_log,
-    X0,
+    simulated_record,
 )
 
 
@@ -48,16 +48,7 @@ METHODS = ("oem", "oem_x0", "fem")
 
 def hfb320_record(seed, sigma, duration=30.0):
     ch, meta = simulate_log(duration=duration, seed=seed, turbulence=sigma)
-    rec = dp.Record(
-        ch["t"],
-        np.column_stack([ch["de"], ch["thrust"]]),
-        np.column_stack(
-            [ch[n] for n in ("V", "alpha", "theta", "q", "qdot", "ax", "az")]
-        ),
-        x0=X0,
-        name=f"seed{seed}",
-    )
-    return rec, meta
+    return simulated_record(ch, name=f"seed{seed}"), meta
 
 
 def pegasus_record(seed, sigma, duration=30.0):

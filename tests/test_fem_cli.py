@@ -15,39 +15,19 @@ from diffpegasus._cli import app
 from diffpegasus._diagnose._process_noise import TURBULENCE_VERDICT
 from diffpegasus._vehicle import vehicle_spec
 from diffpegasus._vehicle._hfb320 import (
+    BOOK_FEM,
     hfb320_model,
     IDENTIFIED,
     PROCESS_NOISE,
     simulate_log,
+    simulated_record,
     X0,
 )
 
 from .test_oem import _require, hfb320
 
 
-OUTPUTS = ("V", "alpha", "theta", "q", "qdot", "ax", "az")
 STATES = ("V", "alpha", "theta", "q")
-# FVSysID's chapter-7 definition file for this record quotes these as "from ml_fem
-# for test_case=4" (experiments/hfb320_fem.py): an independent implementation
-BOOK_FEM = dict(
-    zip(
-        ("CD0", "CDV", "CDa", "CL0", "CLV", "CLa", "CM0", "CMV", "CMa", "CMq", "CMde"),
-        (
-            0.122688,
-            -0.0644969,
-            0.320055,
-            -0.0929113,
-            0.148726,
-            4.32785,
-            0.111905,
-            0.00395154,
-            -0.967854,
-            -34.7098,
-            -1.52913,
-        ),
-        strict=True,
-    )
-)
 BOOK_F = dict(zip(STATES, (0.358553, 2.42099e-3, 4.47607e-4, 1.73778e-3), strict=True))
 
 
@@ -251,13 +231,7 @@ def test_simulate_seed_draws_the_turbulence(tmp_path, monkeypatch):
 
 def _record(seed, sigma):
     ch, _ = simulate_log(duration=30.0, seed=seed, turbulence=sigma)
-    return dp.Record(
-        ch["t"],
-        np.column_stack([ch["de"], ch["thrust"]]),
-        np.column_stack([ch[n] for n in OUTPUTS]),
-        x0=X0,
-        name=f"seed{seed}",
-    )
+    return simulated_record(ch, name=f"seed{seed}")
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,14 @@ from .._estimate._filter_error import FilterErrorFit, fit_filter_error
 from .._estimate._fit import SingleShooting
 from .._estimate._modelfile import ModelSpec
 from .._log._format import LogError
-from ._runners import channel_report, load_records, num, parse_holds, report_head
+from ._runners import (
+    channel_report,
+    load_records,
+    num,
+    parse_holds,
+    parse_name_value,
+    report_head,
+)
 
 
 METHODS = ("oem", "fem")
@@ -38,20 +45,11 @@ def parse_process_noise(texts, spec: ModelSpec):
         return tuple(model.states)
     starts, names = {}, []
     for text in texts:
-        name, sep, value = text.partition("=")
-        name = name.strip()
-        if name not in model.states:
-            raise LogError(
-                f"--process-noise {text}: {name!r} is not a state of {spec.name} "
-                f"({', '.join(model.states)})"
-            )
-        if sep:
-            try:
-                starts[name] = float(value)
-            except ValueError:
-                raise LogError(
-                    f"--process-noise {text}: {value!r} is not a number"
-                ) from None
+        name, value = parse_name_value(
+            "--process-noise", text, model.states, f"a state of {spec.name}"
+        )
+        if value is not None:
+            starts[name] = value
             if not starts[name] > 0:
                 raise LogError(f"--process-noise {text}: the start must be positive")
         names.append(name)

@@ -20,6 +20,22 @@ def _say(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
+def parse_name_value(option: str, text: str, names, what: str):
+    """`NAME` or `NAME=VALUE` of a command-line `option`: `(name, float value or
+    None)`; a NAME not in `names` ("'x' is not WHAT (names)") or a VALUE that is no
+    number is one `LogError` naming the option and the text."""
+    name, sep, value = text.partition("=")
+    name = name.strip()
+    if name not in names:
+        raise LogError(f"{option} {text}: {name!r} is not {what} ({', '.join(names)})")
+    if not sep:
+        return name, None
+    try:
+        return name, float(value)
+    except ValueError:
+        raise LogError(f"{option} {text}: {value!r} is not a number") from None
+
+
 def parse_holds(holds: list[str], spec: ModelSpec) -> ModelSpec:
     """Apply `--fix NAME=VALUE` (hold at VALUE) and `--fix NAME` (hold at the start)."""
     if not holds:
@@ -27,18 +43,11 @@ def parse_holds(holds: list[str], spec: ModelSpec) -> ModelSpec:
     model = spec.model
     start, fixed = {}, list(model.fixed)
     for text in holds:
-        name, sep, value = text.partition("=")
-        name = name.strip()
-        if name not in model.parameters:
-            raise LogError(
-                f"--fix {text}: {name!r} is not a parameter of {spec.name} "
-                f"({', '.join(model.parameters)})"
-            )
-        if sep:
-            try:
-                start[name] = float(value)
-            except ValueError:
-                raise LogError(f"--fix {text}: {value!r} is not a number") from None
+        name, value = parse_name_value(
+            "--fix", text, model.parameters, f"a parameter of {spec.name}"
+        )
+        if value is not None:
+            start[name] = value
         if name not in fixed:
             fixed.append(name)
     model = (

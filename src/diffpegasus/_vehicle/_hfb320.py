@@ -19,7 +19,7 @@ The record shipped in
 import jax.numpy as jnp
 import numpy as np
 
-from .._estimate._model import Model
+from .._estimate._model import Model, Record
 from ._parts import (
     AbstractAerodynamics,
     ConstantAtmosphere,
@@ -142,6 +142,21 @@ IDENTIFIED = {
     "CMq": -27.0630,
     "CMde": -1.43719,
 }
+# FVSysID's filter-error estimates for the record (chapter 7, mDefCase04.m, quoted
+# there as ml_fem's for test_case=4): the reference of `fit --method fem`.
+BOOK_FEM = {
+    "CD0": 0.122688,
+    "CDV": -0.0644969,
+    "CDa": 0.320055,
+    "CL0": -0.0929113,
+    "CLV": 0.148726,
+    "CLa": 4.32785,
+    "CM0": 0.111905,
+    "CMV": 0.00395154,
+    "CMa": -0.967854,
+    "CMq": -34.7098,
+    "CMde": -1.52913,
+}
 # Sensor noise of simulated flights (1 sigma, SI units, radians).
 NOISE = {
     "V": 0.1,
@@ -243,3 +258,16 @@ def simulate_log(
             "airspeed": V0,
         }
     return channels, metadata
+
+
+def simulated_record(channels: dict[str, np.ndarray], name: str = ""):
+    """A [`simulate_log`][] flight as a `Record` of [`hfb320_model`][]: its inputs
+    and outputs in the model's order, the book's initial state `X0` held."""
+    model = hfb320_model()
+    return Record(
+        channels["t"],
+        np.column_stack([channels[n] for n in model.inputs]),
+        np.column_stack([channels[n] for n in model.outputs]),
+        x0=X0,
+        name=name,
+    )
