@@ -305,6 +305,108 @@ def test_mixed_windowed_parameters_follow_steps_and_drifts(stepping):
     assert np.all(np.asarray(mixed.stderr)[:, free] > 0)
 
 
+# Window terms that one window's data cannot tell apart (as the Pegasus model's time
+# and alpha terms where alpha is linear in time): Zde changes inside each window with
+# tau (parameter 6) and with an input d (parameter 7, constant per window); d is
+# curved in tau in windows 0, 1 and 3 and equal to tau in window 2 (also at the
+# windows' edge samples, which a window's last step interpolates towards).
+TERMS_TRUE = jnp.array([0.2, 0.5])  # times Zde: Zde_t, Zde_d
+
+
+def _rates_terms(t, x, u, p):
+    zde = p[2] + p[6] * u[1] + p[7] * u[2]
+    return _rates(t, x, u[:1], p[:6].at[2].set(zde))
+
+
+def _outputs_terms(t, x, u, p):
+    zde = p[2] + p[6] * u[1] + p[7] * u[2]
+    return _outputs(t, x, u[:1], p[:6].at[2].set(zde))
+
+
+@pytest.fixture(scope="module")
+def collinear(data):
+    """Problem, truth `(4, 8)` and nodes of the model with window terms, its
+    outputs from the model itself (one segment through the four windows) plus white
+    noise (without noise the fit's own model fits exactly and det(R) never settles)."""
+    de, _ = data
+    tau = jnp.tile((jnp.arange(50) + 0.5) / 50 - 0.5, 4)
+    edge = 0.5 - 0.5 / 50
+    curved = tau + 4.0 * (tau - edge) * (tau + edge)
+    d = jnp.where(jnp.arange(200) // 50 == 2, tau, curved)
+    inputs = jnp.column_stack([de[:, 0], tau, d])
+    truth = jnp.broadcast_to(
+        jnp.concatenate([TRUE, TERMS_TRUE * TRUE[2]]), (4, 8)
+    ).at[2, 7].set(0.0)  # held at zero where it cannot be told from Zde_t
+
+    def problem(measured, node_interval):
+        return dp.OEMProblem(
+            rates=_rates_terms,
+            outputs=_outputs_terms,
+            t0=0.0,
+            dt=0.05,
+            inputs=inputs,
+            measured=measured,
+            free=(True, False) + (True,) * 6,
+            node_interval=node_interval,
+            window=50,
+            state_scale=jnp.array([1.0, 0.1]),
+        )
+
+    probe = problem(jnp.zeros((200, 3)), 200)
+    one = _make_layout(probe, jnp.ones(4, bool), 1, 2, 8, 4, False, 4)
+    clean, _ = _segment(probe, one, 0, jnp.concatenate([jnp.zeros(2), truth.ravel()]))
+    noise = jax.random.normal(jax.random.key(5), clean.shape) * jnp.array(
+        [0.02, 0.005, 0.0005]
+    )[None, :]
+    prob = problem(clean + noise, 100)
+    nodes0 = jnp.zeros((2, 2)).at[1].set(clean[100, 1:])
+    return prob, truth, nodes0
+
+
+def test_held_window_term_converges_and_is_reported(collinear):
+    prob, truth, nodes0 = collinear
+    theta0 = jnp.broadcast_to(jnp.concatenate([START, jnp.zeros(2)]), (4, 8))
+    mixed = (True,) * 6 + (False, False)  # as `hybrid`: the terms per window
+    held = np.zeros((4, 8), bool)
+    held[2, 7] = True
+    fit = dp.fit_windowed_oem(prob, theta0, nodes0, linear=mixed, held=held, rtol=1e-9)
+    assert bool(fit.converged)
+    np.testing.assert_array_equal(np.asarray(fit.held), held)
+    # held: at its start, no standard error; its window's other term still estimated
+    assert float(fit.params[2, 7]) == 0.0 and float(fit.stderr[2, 7]) == 0.0
+    assert float(fit.stderr[2, 6]) > 0.0
+    free = np.array([0, 2, 3, 4, 5, 6, 7])
+    est = np.asarray(~fit.held)[:, free]
+    z = np.asarray(fit.params - truth)[:, free][est] / np.asarray(fit.stderr)[:, free][est]
+    assert np.max(np.abs(z)) < 3.5, z
+    assert np.all(np.isfinite(np.asarray(fit.correlation)))
+    # with the term free in window 2 the normal equations are singular there: the
+    # covariance is unusable (measured: zero standard errors, correlations 1e149, inf)
+    loose = dp.fit_windowed_oem(prob, theta0, nodes0, linear=mixed, rtol=1e-9)
+    assert not np.any(np.asarray(loose.held))
+    assert not np.all(np.isfinite(np.asarray(loose.correlation)))
+
+
+def test_alpha_terms_identifiable_only_where_alpha_departs_from_a_line():
+    from diffpegasus._estimate._pegasus_oem import alpha_terms_identifiable
+
+    w, sigma = 100, 1e-3
+    tau = np.tile((np.arange(w) + 0.5) / w - 0.5, 4)
+    k = np.arange(4 * w) // w
+    # continuous: straight in windows 0 and 2 (steep in 2), bent in 1 (departure 3
+    # sigma rms) and 3 (0.7 sigma rms: significant over 100 samples, not above the
+    # noise); a half sine's departure from its best line is 0.308 of its amplitude
+    slope = np.where(k == 2, 0.2, 0.01) / w
+    bump = np.sin(np.pi * (tau + 0.5)) * sigma / 0.308
+    alpha = 0.05 + np.cumsum(slope) + np.select([k == 1, k == 3], [3.0, 0.7], 0.0) * bump
+    noise = np.random.default_rng(0).normal(0.0, sigma, alpha.shape)
+    free = alpha_terms_identifiable(alpha + noise, tau, w)
+    np.testing.assert_array_equal(free, [False, True, False, False])
+    # a shorter last window counts too
+    free = alpha_terms_identifiable((alpha + noise)[: 3 * w + 60], tau[: 3 * w + 60], w)
+    assert free.shape == (4,) and free[1] and not free[3]
+
+
 def test_linear_windowed_noisy_recovery_within_standard_errors(drifting):
     de, clean, truth = drifting
     noise = (

@@ -137,7 +137,12 @@ def _nn_chunk(net, channels, layout):
 def _oem_chunk(setups):
     def one(s):
         fit = fit_windowed_oem(
-            s.problem, s.theta0, s.nodes0, linear=s.linear, active=s.active
+            s.problem,
+            s.theta0,
+            s.nodes0,
+            linear=s.linear,
+            active=s.active,
+            held=s.held,
         )
         values, sd, ok, flags = windowed_lift_drag(fit, s.alpha, "body")
         return values, sd, ok, flags["converged"][0], flags["iterations"][0]

@@ -35,6 +35,16 @@ window-mean error against the truth, rms 1/rad, for CL, CD, CM): c and d linear
 both per window with terms 0.002, 0.001, 0.001. The moment derivatives need no
 terms (linear leaves them 0.002) and per window they cost variance (the moment
 derivatives' MSE 4x with `window`), the force derivatives in alpha need them.
+
+A window's alpha terms (`NAME_alpha`) are estimated only where its measured alpha
+departs from its linear trend in time by more than the alpha noise
+([`alpha_terms_identifiable`][]); elsewhere they are held at zero. Where alpha is
+linear in time inside a window (before ignition, late in the climb), `alpha -
+alpha_w` is `tau` times a constant and the two terms are collinear: the alpha term
+then wanders along the flat direction (by 1e3-8e4 in the Monte Carlo campaign's
+fits with it free) and keeps the det(R) rule from stopping. Holding it there loses
+nothing the data could tell: the term's contribution, its value times alpha's
+departure from the trend, is below what the noise lets one see.
 """
 
 import dataclasses
@@ -72,6 +82,12 @@ WINDOW_TERMS = ALPHA_DERIVATIVES
 # terms; the elevator and moment derivatives stay continuous and linear in time.
 HYBRID_TERMS = ("CXa", "CZa")
 TERM_INPUTS = ("alpha_w", "tau")
+# A window's alpha terms are estimated where the rms of its measured alpha's
+# departure from its linear trend in time (noise removed) exceeds this many times the
+# alpha noise: a signal-to-noise of one, chosen, not measured on a campaign (under
+# noise alone the statistic is 1 +/- 0.14 for a window of 100 samples, so a window
+# passes only on a departure as large as the noise).
+ALPHA_TERM_SNR = 1.0
 PARAMETERS = ("hybrid", "linear", "window", "constant")
 
 
@@ -95,6 +111,37 @@ def term_names(terms: tuple[str, ...]) -> tuple[str, ...]:
 
 
 STATE_SCALE = np.array([10.0, 1.0, 0.01, 0.01])
+
+
+def alpha_terms_identifiable(
+    alpha: np.ndarray, tau: np.ndarray, window: int, snr: float = ALPHA_TERM_SNR
+) -> np.ndarray:
+    """`(windows,)` whether each window's alpha terms can be told from its time
+    terms: the measured alpha departs from its straight line in time (least squares
+    on `[1, tau]` within the window) by more than `snr` times the alpha noise, rms,
+    noise removed: `rss / (n - 2) > (1 + snr^2) sigma^2`.
+
+    **Arguments:** `alpha` `(samples,)` measured alpha at the model's samples, rad;
+    `tau` `(samples,)` time in the window over its length; `window` samples per
+    window (the last window may be shorter). The noise `sigma` is estimated from the
+    whole record's second differences (alpha is a state, smooth at the model's rate,
+    so they see the noise alone: `std(a[i+1] - 2 a[i] + a[i-1]) / sqrt(6)`).
+    """
+    alpha = np.asarray(alpha, float)
+    tau = np.asarray(tau, float)
+    sigma2 = np.mean(np.diff(alpha, 2) ** 2) / 6.0
+    w = np.arange(alpha.size) // window
+
+    def per_window(x):
+        return np.bincount(w, x)
+
+    n = per_window(np.ones_like(alpha))
+    # residual of the straight line on [1, tau], per window, from centred sums
+    ta = tau - (per_window(tau) / n)[w]
+    e = alpha - (per_window(alpha) / n)[w]
+    slope = per_window(ta * e) / per_window(ta * ta)
+    rss = per_window((e - slope[w] * ta) ** 2)
+    return rss / np.maximum(n - 2, 1) > (1.0 + snr**2) * sigma2
 
 
 def _loads(x, u, p, s_ref, c_ref, wind_axes, terms=()):
@@ -317,14 +364,18 @@ class OEMSetup(eqx.Module):
     fit a batch with `jax.vmap`): the problem, starting parameters `(windows, 6)`
     (`(windows, 6 + 2 k)` with `k` window terms, which start at zero), starting nodes
     `(segments, 4)`, the window-mean alpha `(windows,)` (rad) for the axis
-    conversion, which windows are fitted `(windows,)`, and `linear` (static, a
-    bool or one per parameter: fit with `fit_windowed_oem(..., linear=setup.linear)`)."""
+    conversion, which windows are fitted `(windows,)`, which parameters are held at
+    their start in each window `(windows, params)` (the alpha terms where
+    [`alpha_terms_identifiable`][] says no) and `linear` (static, a bool or one per
+    parameter: fit with `fit_windowed_oem(..., linear=setup.linear,
+    active=setup.active, held=setup.held)`)."""
 
     problem: OEMProblem
     theta0: Float[Array, "windows params"]
     nodes0: Float[Array, "segments 4"]
     alpha: Float[Array, " windows"]
     active: Bool[Array, " windows"]
+    held: Bool[Array, "windows params"]
     linear: bool | tuple[bool, ...] = eqx.field(static=True, default=False)
 
 
@@ -379,12 +430,22 @@ def oem_setup(
     states = measured_states(log)[idx]
     nodes0 = jnp.asarray(states[node_times(problem)])
     active = layout.window_mean(jnp.asarray(log["qbar"])) >= min_qbar
+    held = np.zeros(theta0.shape, bool)
+    if terms:
+        k = len(terms)
+        w = problem.window_samples
+        n = problem.n_samples
+        tau = np.asarray(problem.inputs[:n, len(INPUTS) + TERM_INPUTS.index("tau")])
+        alpha_m = np.asarray(problem.measured[:, OUTPUTS.index("alpha")])
+        free = alpha_terms_identifiable(alpha_m, tau, w)
+        held[:, 6 + k :] = ~free[:, None]
     setup = OEMSetup(
         problem,
         theta0,
         nodes0,
         alpha_w,
         active,
+        jnp.asarray(held),
         linear=linear_mask(parameters, terms),
     )
     return setup, states
@@ -408,6 +469,7 @@ def windowed_lift_drag(fit: WindowedFit, alpha: Float[Array, " windows"], axes: 
             fit.stderr_corrected[:, :6] / fit.stderr[:, :6], axis=1
         ),
         "max_correlation": jnp.max(jnp.abs(off), axis=(1, 2)),
+        "terms_held": jnp.any(fit.held[:, 6:], axis=1),
     }
     ok = fit.converged & fit.active
     sd_c = fit.stderr_corrected[:, :6]
@@ -479,7 +541,9 @@ def estimate_oem(
     (multiple shooting: Cramér-Rao corrected for coloured residuals; single:
     Cramér-Rao); flags `converged`, `iterations`, `max_defect`, `se_inflation` (mean
     coloured-residual factor of the window's standard errors), `max_correlation`
-    (largest |correlation| between the window's body-axis parameters).
+    (largest |correlation| between the window's body-axis parameters),
+    `terms_held` (multiple shooting: the window's alpha terms were held at zero,
+    alpha being linear in time inside it to within its noise, see the module).
     """
     if parameters not in PARAMETERS:
         raise ValueError(
@@ -506,6 +570,7 @@ def estimate_oem(
             setup.nodes0,
             linear=setup.linear,
             active=setup.active,
+            held=setup.held,
             rtol=rtol,
             max_iter=max_iter,
         )

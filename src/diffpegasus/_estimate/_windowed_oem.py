@@ -20,7 +20,10 @@ boundary, the same number of unknowns), or a mix of the two, chosen per paramete
 window (a pull-up sweeps alpha by several degrees in 0.5 s); a window's estimate is
 then the mean of its parameters over the window. A parameter constant per window in
 a mixed fit uses the knot at the window's start for the whole window (the knot after
-the last window is not estimated).
+the last window is not estimated). A parameter may be held at its starting value in
+some windows (`held`): e.g. a window term whose regressor is collinear with another's
+in that window, which would otherwise wander along the flat direction and keep the
+iteration from stopping.
 """
 
 import functools
@@ -55,7 +58,9 @@ class WindowedFit(eqx.Module):
     coloured residuals) of `params`; `correlation` `(windows, params, params)` of each
     window's parameters; `knots` the estimated parameter values, `(windows, params)`
     for constant and `(windows + 1, params)` (values at the window boundaries) for
-    linear parameters; `nodes` `(segments, states)`; `cost` det(R); `R` `(outputs,)`
+    linear parameters; `held` `(windows, params)` which parameters were held at their
+    starting values in each window (their `stderr` zero); `nodes` `(segments,
+    states)`; `cost` det(R); `R` `(outputs,)`
     diagonal; `outputs` `(samples, outputs)`; `tic` `(outputs,)` Theil's inequality
     coefficient; `defect` largest continuity defect relative to the state scale;
     `iterations`; `converged`.
@@ -67,6 +72,7 @@ class WindowedFit(eqx.Module):
     correlation: Float[Array, "windows params params"]
     knots: Float[Array, "knots params"]
     active: Bool[Array, " windows"]
+    held: Bool[Array, "windows params"]
     nodes: Float[Array, "segments states"]
     cost: Float[Array, ""]
     R: Float[Array, " outputs"]
@@ -81,11 +87,13 @@ class _Layout(AbstractLayout):
     """The engine's layout for parameters per window: where each unknown lives in
     the flat vector `[blocks (S nb), tail (P)]`: a block is `[node (nx), k knots x
     P]`; with linear parameters the knot at the end of the last window is the tail.
-    Carries the problem (data, model functions) and the traced `active` window mask.
+    Carries the problem (data, model functions), the traced `active` window mask and
+    the traced `held` mask (parameters held at their start per window).
     """
 
     problem: OEMProblem
     active: Bool[Array, " windows"]
+    held: Bool[Array, "windows params"]
     measured: Float[Array, "segments length outputs"]
     valid: Bool[Array, "segments length"]
     link: Bool[Array, " links"]
@@ -157,21 +165,19 @@ class _Layout(AbstractLayout):
         free = np.ones(self.size, bool)
         free[knot_cols[self.used_knots() :].ravel()] = False
         free[knot_cols[:, ~np.asarray(self.problem.free)].ravel()] = False
-        # a knot is estimated if a window that uses it is active
+        # a knot is estimated if an active window that uses it does not hold it
+        uses = self.active[:, None] & ~self.held
         if self.linear:
-            padded = jnp.concatenate(
-                [jnp.zeros(1, bool), self.active, jnp.zeros(1, bool)]
-            )
+            none = jnp.zeros((1, self.p), bool)
+            padded = jnp.concatenate([none, uses, none])
             # a stepped parameter's knot belongs to its window alone (the last none)
             knot_active = jnp.where(
                 jnp.asarray(self.stepped)[None, :],
-                padded[1:, None],
-                (padded[:-1] | padded[1:])[:, None],
+                padded[1:],
+                padded[:-1] | padded[1:],
             )
         else:
-            knot_active = jnp.broadcast_to(
-                self.active[:, None], (self.n_windows, self.p)
-            )
+            knot_active = uses
         n_k = knot_active.shape[0]
         return (
             jnp.asarray(free)
@@ -181,10 +187,12 @@ class _Layout(AbstractLayout):
 
 
 def _make_layout(
-    problem, active, n_seg, nx, p, k, linear, n_windows, stepped=None
+    problem, active, n_seg, nx, p, k, linear, n_windows, stepped=None, held=None
 ) -> _Layout:
     if stepped is None:
         stepped = (not linear,) * p
+    if held is None:
+        held = jnp.zeros((n_windows, p), bool)
     per = k * problem.window_samples
     # numpy: static shapes, so no small programs compiled per call
     index = np.arange(n_seg)[:, None] * per + np.arange(per)[None, :]
@@ -192,6 +200,7 @@ def _make_layout(
     return _Layout(
         problem=problem,
         active=active,
+        held=held,
         measured=problem.measured[np.minimum(index, problem.n_samples - 1)],
         valid=(index < problem.n_samples) & active[in_window],
         link=jnp.ones(n_seg - 1, bool),
@@ -236,8 +245,8 @@ def _segment(problem: OEMProblem, layout: _Layout, s, v):
 
 
 @functools.partial(jax.jit, static_argnames=("structure", "max_iter"))
-def _fit(problem, structure, z0, active, rtol, max_iter):
-    layout = _make_layout(problem, active, *structure)
+def _fit(problem, structure, z0, active, held, rtol, max_iter):
+    layout = _make_layout(problem, active, *structure, held=held)
     nx, p = layout.nx, layout.p
     model = VectorModel(problem.rates, problem.outputs, problem.input_delay)
     sol = solve(
@@ -294,6 +303,7 @@ def _fit(problem, structure, z0, active, rtol, max_iter):
         correlation=correlation,
         knots=knots,
         active=active,
+        held=held,
         nodes=z[local[:, :nx]],
         cost=sol.cost,
         R=sol.R,
@@ -312,6 +322,7 @@ def fit_windowed_oem(
     *,
     linear: bool | tuple[bool, ...] = False,
     active=None,
+    held=None,
     rtol: float = 1e-5,
     max_iter: int = 30,
 ) -> WindowedFit:
@@ -330,7 +341,11 @@ def fit_windowed_oem(
     are not used and its own knots stay at their starting values — with `linear` the
     knot it shares with an active neighbour is estimated, so report inactive windows
     as having no estimate, as `estimate_oem` does; e.g. where the dynamic pressure is
-    too low to tell anything; a traced array, so it batches).
+    too low to tell anything; a traced array, so it batches); `held` `(windows,
+    params)` parameters held at their starting values in a window (default none; a
+    linear parameter's knot is estimated if an active window using it does not hold
+    it; traced, so it batches), e.g. a window term that the window's data cannot tell
+    from another.
 
     **Returns:** a [`WindowedFit`][]. Pure and jitted: `jax.vmap` over problems
     (e.g. the flights of a campaign) batches it.
@@ -361,7 +376,14 @@ def fit_windowed_oem(
         if active is None
         else jnp.asarray(active, bool)
     )
-    layout = _make_layout(problem, active, *structure)
+    held = (
+        jnp.zeros(theta0.shape, bool) if held is None else jnp.asarray(held, bool)
+    )
+    if held.shape != theta0.shape:
+        raise ValueError(
+            f"held {held.shape} must have the shape of theta0 {theta0.shape}"
+        )
+    layout = _make_layout(problem, active, *structure, held=held)
     if theta0.shape[0] != layout.n_windows or nodes0.shape[0] != layout.n_seg:
         raise ValueError(
             f"theta0 {theta0.shape} and nodes0 {nodes0.shape} must have one row per "
@@ -384,5 +406,11 @@ def fit_windowed_oem(
     return kept_call(
         _fit,
         {"structure": structure, "max_iter": max_iter},
-        {"problem": problem, "z0": z0, "active": active, "rtol": np.asarray(rtol)},
+        {
+            "problem": problem,
+            "z0": z0,
+            "active": active,
+            "held": held,
+            "rtol": np.asarray(rtol),
+        },
     )
