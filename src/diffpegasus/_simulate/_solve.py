@@ -2,7 +2,15 @@
 
 `simulate(config, key)` is a pure function of a [`PegasusConfig`][] (a PyTree), so a
 batch of configurations simulates in one call with `simulate_batch` (`jax.vmap`).
+
+One compiled program serves every configuration of the same length and rate: before
+the solve, a configuration's numbers become arrays (a Python float would be a static
+argument, compiled into the program) and its effects are padded to one of each
+deterministic kind at zero, which by the effect interface changes nothing. So a sweep
+over planted effects, their sizes, drop conditions or noise levels compiles once.
 """
+
+import math
 
 import equinox as eqx
 import jax
@@ -13,12 +21,12 @@ from jaxtyping import Array, Float, PRNGKeyArray
 from .._custom_types import ScalarLike
 from .._log._format import FlightLog, PEGASUS_METADATA
 from .._vehicle._atmosphere import isa
-from .._vehicle._effects import AbstractEffect
+from .._vehicle._effects import AbstractEffect, EFFECTS, SensorBias
 from .._vehicle._pegasus._aerodynamics import DERIVATIVE_NAMES
 from .._vehicle._pegasus._dynamics import evaluate, FlightModel
 from .._vehicle._pegasus._vehicle import Vehicle
 from ._inputs import AbstractInput, excitation, Schedule, Sum
-from ._sensors import SensorModel
+from ._sensors import DEFAULT_SIGMA, SensorModel
 
 
 # Nominal open-loop pull-up (time s, elevator deg; negative is trailing edge up).
@@ -111,7 +119,43 @@ def _vector_field(t, y, model):
     return evaluate(t, y, model).rates
 
 
-@eqx.filter_jit
+def _kind(effect: AbstractEffect) -> tuple[str, str] | None:
+    if type(effect) is SensorBias:
+        return (effect.name, effect.channel)
+    if EFFECTS.get(getattr(effect, "name", "")) is type(effect):
+        return (effect.name, "")
+    return None
+
+
+# One zero-valued effect of every deterministic kind, in a fixed order; sensor biases
+# on the channels the default sensor model measures.
+_ZERO_EFFECTS = tuple(
+    [cls() for cls in EFFECTS.values() if cls is not SensorBias]
+    + [SensorBias(channel=channel) for channel in sorted(DEFAULT_SIGMA)]
+)
+
+
+def canonical(config: PegasusConfig) -> PegasusConfig:
+    """The same flight as a configuration that shares its compiled program with
+    every other one of the same length, rate and step.
+
+    Python floats become float64 arrays, and the effects become one of each
+    deterministic kind in a fixed order: the planted ones where given, zero-valued
+    ones elsewhere (an effect at zero changes nothing); other effects (turbulence,
+    user-defined) follow in their given order.
+    """
+    known = {_kind(zero) for zero in _ZERO_EFFECTS}
+    effects = []
+    for zero in _ZERO_EFFECTS:
+        given = [e for e in config.effects if _kind(e) == _kind(zero)]
+        effects.extend(given or [zero])
+    effects.extend(e for e in config.effects if _kind(e) not in known)
+    config = eqx.tree_at(lambda c: c.effects, config, tuple(effects))
+    return jax.tree.map(
+        lambda x: jnp.asarray(x, float) if isinstance(x, float) else x, config
+    )
+
+
 def simulate(
     config: PegasusConfig, key: PRNGKeyArray | None = None, *, noise: bool = True
 ) -> Flight:
@@ -124,28 +168,69 @@ def simulate(
     - `noise`: `False` gives the noise-free measurements (biases still apply).
 
     **Returns:** a [`Flight`][] sampled at `config.sample_rate`. One diffrax solve with
-    Tsit5 at the fixed step `config.dt`.
+    Tsit5 at the fixed step `config.dt`, compiled once for every configuration of the
+    same length, rate and step ([`canonical`][]).
     """
     if key is None:
         key = jax.random.key(0)
+    return _simulate(canonical(config), key, noise=noise)
+
+
+def _step_grid(t_end: float, dt: float) -> np.ndarray:
+    """Step boundaries `0, dt, 2 dt, ..., t_end`, s (the last step shorter when
+    `t_end` is not a multiple of `dt`, never shorter than 1e-6 of a step)."""
+    n = t_end / dt
+    steps = max(1, round(n) if abs(n - round(n)) < 1e-6 else math.ceil(n))
+    grid = np.arange(steps + 1) * dt
+    grid[-1] = t_end
+    return grid
+
+
+def _fixed_step_solve(
+    model: FlightModel, y0: Float[Array, "6"], times: np.ndarray, dt: float
+) -> Float[Array, "time 6"]:
+    """The state at the sample `times` (s): Tsit5 at the fixed step `dt` (s) from
+    0 to `times[-1]`, sampled by its fourth-order dense output.
+
+    diffrax's manual stepping in a `lax.scan` rather than `diffeqsolve`: at a fixed
+    step the solve cannot fail, and `diffeqsolve`'s runtime checks on the save times
+    and the result are host callbacks that keep a program out of the persistent
+    compilation cache. The step and sample positions are known before tracing, so
+    each sample's step is found in numpy. (Measured on an 80 s flight at 1 kHz:
+    compiles in 2.1 s and runs in 0.21 s, against 3.2 s and 0.30 s for
+    `diffeqsolve` with `SaveAt(ts=...)`.)
+    """
+    import diffrax  # here, not at the top: commands that never simulate skip it
+
+    term, solver = diffrax.ODETerm(_vector_field), diffrax.Tsit5()
+    grid = _step_grid(float(times[-1]), dt)
+    step_of = np.clip(np.searchsorted(grid, times, side="right") - 1, 0, len(grid) - 2)
+
+    def step(carry, t01):
+        y, state = carry
+        y1, _, info, state, _ = solver.step(
+            term, t01[0], t01[1], y, model, state, made_jump=False
+        )
+        return (y1, state), info
+
+    state = solver.init(term, grid[0], grid[1], y0, model)
+    bounds = jnp.asarray(np.stack([grid[:-1], grid[1:]], axis=-1))
+    _, infos = jax.lax.scan(step, (y0, state), bounds)
+
+    def sample(i, t):
+        info = jax.tree.map(lambda x: x[i], infos)
+        local = solver.interpolation_cls(t0=bounds[i, 0], t1=bounds[i, 1], **info)
+        return local.evaluate(t)
+
+    return jax.vmap(sample)(jnp.asarray(step_of), jnp.asarray(times))
+
+
+@eqx.filter_jit
+def _simulate(config: PegasusConfig, key: PRNGKeyArray, *, noise: bool) -> Flight:
     times = config.times
     ts = jnp.asarray(times)
     model = config.model
-    import diffrax  # here, not at the top: commands that never simulate skip it
-
-    sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(_vector_field),
-        diffrax.Tsit5(),
-        t0=0.0,
-        t1=float(times[-1]),
-        dt0=config.dt,
-        y0=config.initial.state(),
-        args=model,
-        saveat=diffrax.SaveAt(ts=ts),
-        stepsize_controller=diffrax.ConstantStepSize(),
-        max_steps=int(times[-1] / config.dt) + 16,
-    )
-    states = sol.ys
+    states = _fixed_step_solve(model, config.initial.state(), times, config.dt)
     ev = jax.vmap(lambda t, y: evaluate(t, y, model))(ts, states)
     channels = dict(ev.channels)
     for name in DERIVATIVE_NAMES:
@@ -200,7 +285,6 @@ def sample_perturbations(key: PRNGKeyArray, n: int) -> Perturbation:
     return jax.vmap(Perturbation.sample)(jax.random.split(key, n))
 
 
-@eqx.filter_jit
 def simulate_batch(
     config: PegasusConfig,
     keys: PRNGKeyArray,
@@ -223,9 +307,14 @@ def simulate_batch(
     keeps the vmapped vector field as cheap as the unbatched one. For other sweeps,
     `jax.vmap` over [`simulate`][] directly.
     """
+    return _simulate_batch(canonical(config), keys, perturbations, noise=noise)
+
+
+@eqx.filter_jit
+def _simulate_batch(config, keys, perturbations, *, noise):
     if perturbations is None:
-        return jax.vmap(lambda k: simulate(config, k, noise=noise))(keys)
-    return jax.vmap(lambda p, k: simulate(p.apply(config), k, noise=noise))(
+        return jax.vmap(lambda k: _simulate(config, k, noise=noise))(keys)
+    return jax.vmap(lambda p, k: _simulate(p.apply(config), k, noise=noise))(
         perturbations, keys
     )
 
