@@ -334,9 +334,11 @@ def collinear(data):
     curved = tau + 4.0 * (tau - edge) * (tau + edge)
     d = jnp.where(jnp.arange(200) // 50 == 2, tau, curved)
     inputs = jnp.column_stack([de[:, 0], tau, d])
-    truth = jnp.broadcast_to(
-        jnp.concatenate([TRUE, TERMS_TRUE * TRUE[2]]), (4, 8)
-    ).at[2, 7].set(0.0)  # held at zero where it cannot be told from Zde_t
+    truth = (
+        jnp.broadcast_to(jnp.concatenate([TRUE, TERMS_TRUE * TRUE[2]]), (4, 8))
+        .at[2, 7]
+        .set(0.0)
+    )  # held at zero where it cannot be told from Zde_t
 
     def problem(measured, node_interval):
         return dp.OEMProblem(
@@ -355,9 +357,10 @@ def collinear(data):
     probe = problem(jnp.zeros((200, 3)), 200)
     one = _make_layout(probe, jnp.ones(4, bool), 1, 2, 8, 4, False, 4)
     clean, _ = _segment(probe, one, 0, jnp.concatenate([jnp.zeros(2), truth.ravel()]))
-    noise = jax.random.normal(jax.random.key(5), clean.shape) * jnp.array(
-        [0.02, 0.005, 0.0005]
-    )[None, :]
+    noise = (
+        jax.random.normal(jax.random.key(5), clean.shape)
+        * jnp.array([0.02, 0.005, 0.0005])[None, :]
+    )
     prob = problem(clean + noise, 100)
     nodes0 = jnp.zeros((2, 2)).at[1].set(clean[100, 1:])
     return prob, truth, nodes0
@@ -377,7 +380,10 @@ def test_held_window_term_converges_and_is_reported(collinear):
     assert float(fit.stderr[2, 6]) > 0.0
     free = np.array([0, 2, 3, 4, 5, 6, 7])
     est = np.asarray(~fit.held)[:, free]
-    z = np.asarray(fit.params - truth)[:, free][est] / np.asarray(fit.stderr)[:, free][est]
+    z = (
+        np.asarray(fit.params - truth)[:, free][est]
+        / np.asarray(fit.stderr)[:, free][est]
+    )
     assert np.max(np.abs(z)) < 3.5, z
     assert np.all(np.isfinite(np.asarray(fit.correlation)))
     # with the term free in window 2 the normal equations are singular there: the
@@ -387,24 +393,37 @@ def test_held_window_term_converges_and_is_reported(collinear):
     assert not np.all(np.isfinite(np.asarray(loose.correlation)))
 
 
-def test_alpha_terms_identifiable_only_where_alpha_departs_from_a_line():
-    from diffpegasus._estimate._pegasus_oem import alpha_terms_identifiable
+def test_departs_from_trend_only_above_the_noise():
+    from diffpegasus._estimate._pegasus_oem import departs_from_trend
 
     w, sigma = 100, 1e-3
     tau = np.tile((np.arange(w) + 0.5) / w - 0.5, 4)
     k = np.arange(4 * w) // w
+    rng = np.random.default_rng(0)
     # continuous: straight in windows 0 and 2 (steep in 2), bent in 1 (departure 3
     # sigma rms) and 3 (0.7 sigma rms: significant over 100 samples, not above the
     # noise); a half sine's departure from its best line is 0.308 of its amplitude
     slope = np.where(k == 2, 0.2, 0.01) / w
     bump = np.sin(np.pi * (tau + 0.5)) * sigma / 0.308
-    alpha = 0.05 + np.cumsum(slope) + np.select([k == 1, k == 3], [3.0, 0.7], 0.0) * bump
-    noise = np.random.default_rng(0).normal(0.0, sigma, alpha.shape)
-    free = alpha_terms_identifiable(alpha + noise, tau, w)
-    np.testing.assert_array_equal(free, [False, True, False, False])
+    alpha = (
+        0.05 + np.cumsum(slope) + np.select([k == 1, k == 3], [3.0, 0.7], 0.0) * bump
+    )
+    alpha = alpha + rng.normal(0.0, sigma, alpha.shape)
+    np.testing.assert_array_equal(
+        departs_from_trend(alpha, tau, w), [False, True, False, False]
+    )
     # a shorter last window counts too
-    free = alpha_terms_identifiable((alpha + noise)[: 3 * w + 60], tau[: 3 * w + 60], w)
+    free = departs_from_trend(alpha[: 3 * w + 60], tau[: 3 * w + 60], w)
     assert free.shape == (4,) and free[1] and not free[3]
+    # an acceleration that steps with a known input (the elevator, at mid-window in
+    # every window) departs from its line only through what the input does not explain
+    de = np.where((np.arange(4 * w) % w) >= w // 2, 0.02, 0.0)
+    az = -3.0 * np.cumsum(slope) + 40.0 * de + 3.0 * np.where(k == 1, bump, 0.0)
+    az = az + rng.normal(0.0, sigma, az.shape)
+    np.testing.assert_array_equal(departs_from_trend(az, tau, w), [True] * 4)
+    np.testing.assert_array_equal(
+        departs_from_trend(az, tau, w, de[:, None]), [False, True, False, False]
+    )
 
 
 def test_linear_windowed_noisy_recovery_within_standard_errors(drifting):

@@ -36,15 +36,21 @@ both per window with terms 0.002, 0.001, 0.001. The moment derivatives need no
 terms (linear leaves them 0.002) and per window they cost variance (the moment
 derivatives' MSE 4x with `window`), the force derivatives in alpha need them.
 
-A window's alpha terms (`NAME_alpha`) are estimated only where its measured alpha
-departs from its linear trend in time by more than the alpha noise
-([`alpha_terms_identifiable`][]); elsewhere they are held at zero. Where alpha is
-linear in time inside a window (before ignition, late in the climb), `alpha -
+A window's alpha terms (`NAME_alpha`) are estimated only where alpha departs from
+its straight line in time inside the window by more than the noise of a measurement
+that sees it ([`departs_from_trend`][]): the vane's alpha, or the loads alpha drives
+(ax and az for the force derivatives, qdot for CMa; the elevator and thrust taken
+out, as known inputs); elsewhere they are held at zero. Where alpha is a straight
+line in time inside a window (before ignition, late in the climb), `alpha -
 alpha_w` is `tau` times a constant and the two terms are collinear: the alpha term
 then wanders along the flat direction (by 1e3-8e4 in the Monte Carlo campaign's
-fits with it free) and keeps the det(R) rule from stopping. Holding it there loses
-nothing the data could tell: the term's contribution, its value times alpha's
-departure from the trend, is below what the noise lets one see.
+fits with it free) and keeps the det(R) rule from stopping (11 of 100 campaign fits
+at the iteration cap). Holding it there loses nothing the data could tell. Why the
+loads as well as the vane: at high dynamic pressure the accelerometers resolve
+alpha changes far below the vane's noise, and there the term is determined (its
+standard error 0.3/rad^2 at 30-100 kPa against 60-1400 in the windows that
+wandered); holding it wherever the vane alone sees a straight line biased the lift
+derivatives there (campaign coverage of CLa 85%, 77% at 30-100 kPa).
 """
 
 import dataclasses
@@ -82,11 +88,11 @@ WINDOW_TERMS = ALPHA_DERIVATIVES
 # terms; the elevator and moment derivatives stay continuous and linear in time.
 HYBRID_TERMS = ("CXa", "CZa")
 TERM_INPUTS = ("alpha_w", "tau")
-# A window's alpha terms are estimated where the rms of its measured alpha's
-# departure from its linear trend in time (noise removed) exceeds this many times the
-# alpha noise: a signal-to-noise of one, chosen, not measured on a campaign (under
-# noise alone the statistic is 1 +/- 0.14 for a window of 100 samples, so a window
-# passes only on a departure as large as the noise).
+# A window's alpha terms are estimated where the rms departure from the straight
+# line in time (noise removed) of alpha or of a load it drives exceeds this many
+# times that signal's noise: a signal-to-noise of one, chosen, not measured on a
+# campaign (under noise alone the statistic is 1 +/- 0.14 for a window of 100
+# samples, so a window passes only on a departure as large as the noise).
 ALPHA_TERM_SNR = 1.0
 PARAMETERS = ("hybrid", "linear", "window", "constant")
 
@@ -113,35 +119,39 @@ def term_names(terms: tuple[str, ...]) -> tuple[str, ...]:
 STATE_SCALE = np.array([10.0, 1.0, 0.01, 0.01])
 
 
-def alpha_terms_identifiable(
-    alpha: np.ndarray, tau: np.ndarray, window: int, snr: float = ALPHA_TERM_SNR
+def departs_from_trend(
+    x: np.ndarray,
+    tau: np.ndarray,
+    window: int,
+    extra: np.ndarray | None = None,
+    snr: float = ALPHA_TERM_SNR,
 ) -> np.ndarray:
-    """`(windows,)` whether each window's alpha terms can be told from its time
-    terms: the measured alpha departs from its straight line in time (least squares
-    on `[1, tau]` within the window) by more than `snr` times the alpha noise, rms,
-    noise removed: `rss / (n - 2) > (1 + snr^2) sigma^2`.
+    """`(windows,)` whether a signal departs from its straight line in time inside
+    each window (least squares on `[1, tau, extra]` within the window) by more than
+    `snr` times its noise, rms, noise removed: `rss / (n - rank) > (1 + snr^2)
+    sigma^2`.
 
-    **Arguments:** `alpha` `(samples,)` measured alpha at the model's samples, rad;
+    **Arguments:** `x` `(samples,)` the measured signal at the model's samples;
     `tau` `(samples,)` time in the window over its length; `window` samples per
-    window (the last window may be shorter). The noise `sigma` is estimated from the
-    whole record's second differences (alpha is a state, smooth at the model's rate,
-    so they see the noise alone: `std(a[i+1] - 2 a[i] + a[i-1]) / sqrt(6)`).
+    window (the last window may be shorter); `extra` `(samples, k)` known inputs
+    whose effect is not a departure (the elevator, for an acceleration). The noise
+    `sigma` is estimated from the whole record's second differences, robustly (their
+    median square: a step in the signal, e.g. an acceleration at an elevator step,
+    moves a few of them only): `sigma^2 = median(d2^2) / (6 * 0.4549)`, 0.4549 the
+    median of a chi-square with one degree of freedom.
     """
-    alpha = np.asarray(alpha, float)
+    x = np.asarray(x, float)
     tau = np.asarray(tau, float)
-    sigma2 = np.mean(np.diff(alpha, 2) ** 2) / 6.0
-    w = np.arange(alpha.size) // window
-
-    def per_window(x):
-        return np.bincount(w, x)
-
-    n = per_window(np.ones_like(alpha))
-    # residual of the straight line on [1, tau], per window, from centred sums
-    ta = tau - (per_window(tau) / n)[w]
-    e = alpha - (per_window(alpha) / n)[w]
-    slope = per_window(ta * e) / per_window(ta * ta)
-    rss = per_window((e - slope[w] * ta) ** 2)
-    return rss / np.maximum(n - 2, 1) > (1.0 + snr**2) * sigma2
+    extra = np.zeros((x.size, 0)) if extra is None else np.asarray(extra, float)
+    sigma2 = np.median(np.diff(x, 2) ** 2) / (6.0 * 0.4549)
+    out = []
+    for start in range(0, x.size, window):
+        sl = slice(start, start + window)
+        basis = np.column_stack([np.ones(x[sl].size), tau[sl], extra[sl]])
+        coef, _, rank, _ = np.linalg.lstsq(basis, x[sl], rcond=1e-10)
+        rss = np.sum((x[sl] - basis @ coef) ** 2)
+        out.append(rss / max(x[sl].size - rank, 1) > (1.0 + snr**2) * sigma2)
+    return np.array(out)
 
 
 def _loads(x, u, p, s_ref, c_ref, wind_axes, terms=()):
@@ -365,10 +375,10 @@ class OEMSetup(eqx.Module):
     (`(windows, 6 + 2 k)` with `k` window terms, which start at zero), starting nodes
     `(segments, 4)`, the window-mean alpha `(windows,)` (rad) for the axis
     conversion, which windows are fitted `(windows,)`, which parameters are held at
-    their start in each window `(windows, params)` (the alpha terms where
-    [`alpha_terms_identifiable`][] says no) and `linear` (static, a bool or one per
-    parameter: fit with `fit_windowed_oem(..., linear=setup.linear,
-    active=setup.active, held=setup.held)`)."""
+    their start in each window `(windows, params)` (the alpha terms where neither
+    alpha nor the loads depart from their straight line, see the module) and
+    `linear` (static, a bool or one per parameter: fit with `fit_windowed_oem(...,
+    linear=setup.linear, active=setup.active, held=setup.held)`)."""
 
     problem: OEMProblem
     theta0: Float[Array, "windows params"]
@@ -435,10 +445,29 @@ def oem_setup(
         k = len(terms)
         w = problem.window_samples
         n = problem.n_samples
-        tau = np.asarray(problem.inputs[:n, len(INPUTS) + TERM_INPUTS.index("tau")])
-        alpha_m = np.asarray(problem.measured[:, OUTPUTS.index("alpha")])
-        free = alpha_terms_identifiable(alpha_m, tau, w)
-        held[:, 6 + k :] = ~free[:, None]
+        u = np.asarray(problem.inputs[:n])
+        y = np.asarray(problem.measured)
+        tau = u[:, len(INPUTS) + TERM_INPUTS.index("tau")]
+        known = np.column_stack(
+            [
+                u[:, INPUTS.index("de")],
+                u[:, INPUTS.index("thrust")] / u[:, INPUTS.index("mass")],
+            ]
+        )
+
+        def departs(name, extra=None):
+            return departs_from_trend(y[:, OUTPUTS.index(name)], tau, w, extra)
+
+        # alpha departs from its line where the vane sees it or where the loads it
+        # drives do (at high dynamic pressure the accelerometers resolve alpha
+        # changes far below the vane's noise)
+        alpha = departs("alpha")
+        seen = {"CXa": ("ax", "az"), "CZa": ("ax", "az"), "CMa": ("qdot",)}
+        for i, name in enumerate(terms):
+            free = alpha.copy()
+            for channel in seen[name]:
+                free |= departs(channel, known)
+            held[:, 6 + k + i] = ~free
     setup = OEMSetup(
         problem,
         theta0,

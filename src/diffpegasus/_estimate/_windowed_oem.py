@@ -376,9 +376,7 @@ def fit_windowed_oem(
         if active is None
         else jnp.asarray(active, bool)
     )
-    held = (
-        jnp.zeros(theta0.shape, bool) if held is None else jnp.asarray(held, bool)
-    )
+    held = jnp.zeros(theta0.shape, bool) if held is None else jnp.asarray(held, bool)
     if held.shape != theta0.shape:
         raise ValueError(
             f"held {held.shape} must have the shape of theta0 {theta0.shape}"
