@@ -111,10 +111,12 @@ def test_batched_equals_per_log():
     batch = dp.lse_batch(channels, layout)
     for i in range(3):
         single = dp.lse_arrays({k: v[i] for k, v in channels.items()}, layout)
+        # the same least squares summed in another order (vmapped vs single): the
+        # worst window (t 0.5-1 s, before ignition) differs by 5.5e-12 relative
         np.testing.assert_allclose(
             np.asarray(batch["values"][i]),
             np.asarray(single["values"]),
-            rtol=1e-12,
+            rtol=1e-10,
             equal_nan=True,
         )
 
