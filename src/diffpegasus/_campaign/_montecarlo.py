@@ -43,7 +43,6 @@ from .._estimate._nn import (
     train_network,
 )
 from .._estimate._pegasus_oem import oem_setup, windowed_lift_drag
-from .._estimate._windowed_oem import fit_windowed_oem
 from .._estimate._windows import WindowLayout
 from .._simulate._solve import (
     elevator_command,
@@ -136,14 +135,7 @@ def _nn_chunk(net, channels, layout):
 
 def _oem_chunk(setups):
     def one(s):
-        fit = fit_windowed_oem(
-            s.problem,
-            s.theta0,
-            s.nodes0,
-            linear=s.linear,
-            active=s.active,
-            held=s.held,
-        )
+        fit = s.fit()
         values, sd, ok, flags = windowed_lift_drag(fit, s.alpha, "body")
         return values, sd, ok, flags["converged"][0], flags["iterations"][0]
 

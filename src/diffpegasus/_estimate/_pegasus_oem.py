@@ -377,8 +377,7 @@ class OEMSetup(eqx.Module):
     conversion, which windows are fitted `(windows,)`, which parameters are held at
     their start in each window `(windows, params)` (the alpha terms where neither
     alpha nor the loads depart from their straight line, see the module) and
-    `linear` (static, a bool or one per parameter: fit with `fit_windowed_oem(...,
-    linear=setup.linear, active=setup.active, held=setup.held)`)."""
+    `linear` (static, a bool or one per parameter); [`OEMSetup.fit`][] fits it."""
 
     problem: OEMProblem
     theta0: Float[Array, "windows params"]
@@ -387,6 +386,20 @@ class OEMSetup(eqx.Module):
     active: Bool[Array, " windows"]
     held: Bool[Array, "windows params"]
     linear: bool | tuple[bool, ...] = eqx.field(static=True, default=False)
+
+    def fit(self, **options) -> WindowedFit:
+        """[`fit_windowed_oem`][] of this problem from its start, with its windows,
+        held parameters and parameterisation; `options` (`rtol`, `max_iter`) as
+        there."""
+        return fit_windowed_oem(
+            self.problem,
+            self.theta0,
+            self.nodes0,
+            linear=self.linear,
+            active=self.active,
+            held=self.held,
+            **options,
+        )
 
 
 def oem_setup(
@@ -593,16 +606,7 @@ def estimate_oem(
         parameters=parameters,
     )
     if shooting == "multiple":
-        fit = fit_windowed_oem(
-            setup.problem,
-            setup.theta0,
-            setup.nodes0,
-            linear=setup.linear,
-            active=setup.active,
-            held=setup.held,
-            rtol=rtol,
-            max_iter=max_iter,
-        )
+        fit = setup.fit(rtol=rtol, max_iter=max_iter)
         values, sd, ok, flags = windowed_lift_drag(fit, setup.alpha, axes)
     else:
         body, body_sd, ok, its = _sequential_single(
