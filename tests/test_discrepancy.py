@@ -53,6 +53,25 @@ def test_bspline_basis_matches_scipy():
     np.testing.assert_allclose(ours.sum(axis=1), 1.0, atol=1e-12)
 
 
+def test_mach_breakpoints_blend_record_share_and_mach_range():
+    from diffpegasus._diagnose._model import mach_breakpoints
+
+    # a drop: 5 s dwell near Mach 0.8, then a climb at a steady 0.09 /s to Mach 3
+    t = np.arange(0.0, 30.0, 0.02)
+    mach = np.where(t < 5.0, 0.797 + 0.0026 * t, 0.81 + 0.088 * (t - 5.0))
+    quantile = mach_breakpoints(mach, 7)
+    blend = mach_breakpoints(mach, 7, "blend")
+    for b in (quantile, blend):
+        assert b[0] == pytest.approx(mach.min()) and b[-1] == pytest.approx(mach.max())
+    # quantiles spend an interval on the dwell and none inside Mach 0.81-1.2
+    assert quantile[1] < 0.82 and quantile[2] > 1.2
+    # the blend: every interval gets at least half a step of Mach range
+    assert np.all(np.diff(blend) >= 0.5 * (mach.max() - mach.min()) / 6 - 1e-12)
+    assert np.any((blend > 0.85) & (blend < 1.2))
+    with pytest.raises(ValueError, match="placement"):
+        mach_breakpoints(mach, 7, "uniform")
+
+
 def test_segment_jacobian_matches_finite_differences():
     from diffpegasus._diagnose._fit import equation_error_start, global_problem
     from diffpegasus._diagnose._model import measured_states

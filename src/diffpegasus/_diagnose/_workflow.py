@@ -41,6 +41,7 @@ class Settings:
     README, "A decision rule that holds on other data")."""
 
     knots: int = 6
+    knot_placement: str = "quantile"
     alpha_order: int = 3
     alpha_elevator: bool = True
     rate: float = 50.0
@@ -55,6 +56,7 @@ class Settings:
             s_ref=log.s_ref,
             c_ref=log.c_ref,
             knots=self.knots,
+            knot_placement=self.knot_placement,
             alpha_order=self.alpha_order,
             alpha_elevator=self.alpha_elevator,
             effects=effects,
