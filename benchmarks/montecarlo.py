@@ -29,7 +29,7 @@ import jax  # noqa: E402
 import numpy as np  # noqa: E402
 
 import diffpegasus as dp  # noqa: E402
-from diffpegasus import _montecarlo as mc  # noqa: E402
+from diffpegasus._campaign import _montecarlo as mc  # noqa: E402
 
 
 def timed(fn):
@@ -71,9 +71,7 @@ def main():
 
     @jax.jit
     def oem_one(setup):
-        return dp.fit_windowed_oem(
-            setup.problem, setup.theta0, setup.nodes0, linear=True, active=setup.active
-        ).params
+        return setup.fit().params
 
     loop = {"simulate": [], "lse": [], "nn": [], "oem": []}
     for i in range(args.subset + 1):  # the first flight compiles; not counted

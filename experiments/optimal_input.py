@@ -24,14 +24,16 @@ import numpy as np
 
 import diffpegasus as dp
 import diffpegasus._simulate._design as design_mod
-from diffpegasus._cli import _design_report
+from diffpegasus._cli._campaign import _design_report
 from diffpegasus._report._plotting import plot_design
 
 
 def realised_errors(design, excitation, runs, key):
     """RMS over `runs` noisy realisations of the OEM estimate minus the truth, in
     the reported (lift/drag) form, `(6,)` 1/rad; and how many fits converged."""
-    problem = design_mod._with_input(design, excitation)
+    e = design_mod._values(design, excitation)
+    inputs = design.problem.inputs.at[:, design.column].add(e)
+    problem = eqx.tree_at(lambda q: q.inputs, design.problem, inputs)
     clean = design_mod.simulate_outputs(design, excitation)
     noise = jax.random.normal(key, (runs, *clean.shape)) * jnp.sqrt(design.noise)
 
