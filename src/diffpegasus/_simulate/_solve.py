@@ -1,4 +1,4 @@
-"""One diffrax solve per flight, sampled at the log rate, with noise and truth.
+"""One Tsit5 solve per flight, sampled at the log rate, with noise and truth.
 
 `simulate(config, key)` is a pure function of a [`PegasusConfig`][] (a PyTree), so a
 batch of configurations simulates in one call with `simulate_batch` (`jax.vmap`).
@@ -167,9 +167,9 @@ def simulate(
     - `key`: PRNG key for the sensor noise (default `jax.random.key(0)`).
     - `noise`: `False` gives the noise-free measurements (biases still apply).
 
-    **Returns:** a [`Flight`][] sampled at `config.sample_rate`. One diffrax solve with
-    Tsit5 at the fixed step `config.dt`, compiled once for every configuration of the
-    same length, rate and step ([`canonical`][]).
+    **Returns:** a [`Flight`][] sampled at `config.sample_rate`: diffrax's Tsit5 at
+    the fixed step `config.dt`, compiled once for every configuration of the same
+    length, rate and step ([`canonical`][]).
     """
     if key is None:
         key = jax.random.key(0)
