@@ -468,18 +468,19 @@ def oem_setup(
             ]
         )
 
-        def departs(name, extra=None):
-            return departs_from_trend(y[:, OUTPUTS.index(name)], tau, w, extra)
-
         # alpha departs from its line where the vane sees it or where the loads it
         # drives do (at high dynamic pressure the accelerometers resolve alpha
         # changes far below the vane's noise)
-        alpha = departs("alpha")
         seen = {"CXa": ("ax", "az"), "CZa": ("ax", "az"), "CMa": ("qdot",)}
+        loads = {c for name in terms for c in seen[name]}
+        departs = {
+            c: departs_from_trend(y[:, OUTPUTS.index(c)], tau, w, known) for c in loads
+        }
+        alpha = departs_from_trend(y[:, OUTPUTS.index("alpha")], tau, w)
         for i, name in enumerate(terms):
             free = alpha.copy()
             for channel in seen[name]:
-                free |= departs(channel, known)
+                free |= departs[channel]
             held[:, 6 + k + i] = ~free
     setup = OEMSetup(
         problem,
