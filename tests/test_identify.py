@@ -157,6 +157,20 @@ def test_two_manoeuvres_reach_the_optimum_of_an_independent_implementation(two, 
         )
 
 
+def test_no_iterations_evaluates_the_start(two):
+    # max_iter=0: the engine's loop makes only its first pass, the start's
+    # evaluation; its R must be the start's residual mean squares in the numpy model
+    p0 = np.array([START[k] for k in START])
+    fit = dp.fit(MODEL, two, max_iter=0, throw=False)
+    e = np.concatenate([r.measured - _numpy_outputs(r, p0, 0.0) for r in two])
+    r_ref = np.mean(e**2, axis=0)
+    assert fit.iterations == 0
+    np.testing.assert_array_equal(fit.params, p0)
+    # the same RK4 in JAX and numpy: rounding only (measured 1e-15)
+    np.testing.assert_allclose(fit.R, r_ref, rtol=1e-10)
+    np.testing.assert_allclose(fit.cost, np.prod(r_ref), rtol=1e-10)
+
+
 def test_two_records_beat_either_alone(two):
     both = dp.fit(MODEL, two, biases=("az",))
     one = dp.fit(MODEL, two[:1], biases=("az",))
@@ -561,7 +575,7 @@ def test_user_mistakes_in_model_files_and_maps_are_one_line(two, tmp_path):
     a, b = tmp_path / "a" / "run.csv", tmp_path / "b" / "run.csv"
     a.write_bytes(data.read_bytes())
     b.write_bytes(data.read_bytes())
-    res = run(MODEL_FILE + "x0 = {str(%r): (0.1, 0.0)}\n" % str(a), good, a, b)
+    res = run(MODEL_FILE + f"x0 = {{str({str(a)!r}): (0.1, 0.0)}}\n", good, a, b)
     assert res.exit_code == 0, res.output
     report = json.loads(res.stdout.strip().splitlines()[-1])
     assert report["records"] == [str(a), str(b)]

@@ -10,9 +10,10 @@ Unknowns, in one flat vector `z = [nodes (S nx), theta (P), biases (R nb)]`:
 A segment's output residuals depend only on its own node, `theta` and its record's
 biases, and a continuity defect `(x_end(s) - node(s + 1)) / (scale tol)` only on two
 neighbouring nodes of the same record and `theta`. So each segment's Jacobian is
-computed exactly (forward mode through its diffrax RK4 solve) with `nx + P + nb`
-tangents in one vmapped call, and the normal equations are assembled from the blocks
-by index maps. R is diagonal, re-estimated every iteration (the standard relaxation
+computed exactly (forward mode through its RK4 scan) with `nx + P + nb` tangents
+in one vmapped call, and the normal equations are assembled from the blocks by index
+maps. Every point the iteration tries is evaluated with its Jacobian, so the compiled
+program holds the model once. R is diagonal, re-estimated every iteration (the standard relaxation
 of the det(R) cost); the step is Levenberg-Marquardt with damping raised tenfold until
 the weighted cost falls and lowered tenfold after a success; the iteration stops when
 det(R) changes by less than `rtol` relatively.
@@ -252,12 +253,24 @@ def residuals_at(model, layout: AbstractLayout, z, nx, p):
     return e, d, ys
 
 
-def linearise(model, layout: AbstractLayout, z, nx, p, r):
-    """Normal matrix and gradient of the R-weighted least squares at `z`, with the
-    whitened output Jacobian `(S, length, outputs, local)`, whitened output
-    residuals, output residuals `(S, length, outputs)`, defects and model outputs.
-    One forward-mode pass per segment, in its local unknowns only, gives both the
-    values and the Jacobian."""
+class Evaluation(eqx.Module):
+    """The model at one point `z` of the unknowns: output residuals `e` `(S, length,
+    outputs)` (0 at padding), continuity defects `d` `(S - 1, states)` (0 where
+    segments do not link), model outputs `ys` `(S, length, outputs)`, and their
+    Jacobians in each segment's local unknowns: `jy` `(S, length, outputs, local)`
+    of the outputs, `jx` `(S, states, local)` of the segment's end state."""
+
+    e: Float[Array, "segments length outputs"]
+    d: Float[Array, "links states"]
+    ys: Float[Array, "segments length outputs"]
+    jy: Float[Array, "segments length outputs local"]
+    jx: Float[Array, "segments states local"]
+
+
+def evaluate(model, layout: AbstractLayout, z, nx, p) -> Evaluation:
+    """Residuals, defects, model outputs and their Jacobians at `z`: one
+    forward-mode pass per segment, in its local unknowns only, gives both the values
+    and the Jacobian."""
     local = layout.local_columns(nx, p)
     node_cols = layout.node_columns(nx, p)
 
@@ -272,28 +285,52 @@ def linearise(model, layout: AbstractLayout, z, nx, p, r):
     e = jnp.where(layout.valid[..., None], layout.measured - ys, 0.0)
     d = (ends[:-1] - z[node_cols[1:]]) / layout.scale[None, :]
     d = jnp.where(layout.link[:, None], d, 0.0)
+    return Evaluation(e=e, d=d, ys=ys, jy=jy, jx=jx)
+
+
+def assemble(layout: AbstractLayout, ev: Evaluation, n, nx, p, r):
+    """Normal matrix `(n, n)` (`n` unknowns) and gradient of the R-weighted least
+    squares from an [`Evaluation`][], with the whitened output Jacobian `(S, length,
+    outputs, local)` and whitened output residuals `(S, length, outputs)`."""
+    local = layout.local_columns(nx, p)
+    node_cols = layout.node_columns(nx, p)
     w = 1.0 / jnp.sqrt(r)
     # residual = measured - model: its Jacobian is minus the model's; padded samples
     # are masked with where (their values may be non-finite, and 0 * nan is nan)
-    jyw = jnp.where(layout.valid[..., None, None], -jy * w[None, None, :, None], 0.0)
-    ew = e * w[None, None, :]
-    n = z.shape[0]
+    jyw = jnp.where(
+        layout.valid[..., None, None], -ev.jy * w[None, None, :, None], 0.0
+    )
+    ew = ev.e * w[None, None, :]
     h, g = jnp.zeros((n, n)), jnp.zeros(n)
     k = local.shape[1]
     n_seg = layout.n_segments
     h, g = _scatter(h, g, local, jyw.reshape(n_seg, -1, k), ew.reshape(n_seg, -1))
     if n_seg > 1:
         link = layout.link[:, None, None]
-        jd = jnp.where(link, jx[:-1] / layout.scale[None, :, None], 0.0)
+        jd = jnp.where(link, ev.jx[:-1] / layout.scale[None, :, None], 0.0)
         minus = jnp.where(link, -jnp.eye(nx)[None] / layout.scale[None, :, None], 0.0)
         h, g = _scatter(
             h,
             g,
             jnp.concatenate([local[:-1], node_cols[1:]], axis=1),
             jnp.concatenate([jd, minus], axis=2),
-            d,
+            ev.d,
         )
-    return h, g, jyw, ew, e, d, ys
+    return h, g, jyw, ew
+
+
+def linearise(model, layout: AbstractLayout, z, nx, p, r):
+    """Normal matrix and gradient of the R-weighted least squares at `z`, with the
+    whitened output Jacobian `(S, length, outputs, local)`, whitened output
+    residuals, output residuals `(S, length, outputs)`, defects and model outputs
+    ([`evaluate`][] then [`assemble`][])."""
+    ev = evaluate(model, layout, z, nx, p)
+    h, g, jyw, ew = assemble(layout, ev, z.shape[0], nx, p, r)
+    return h, g, jyw, ew, ev.e, ev.d, ev.ys
+
+
+def _cost(ev: Evaluation, r):
+    return jnp.sum(ev.e**2 / r[None, None, :]) + jnp.sum(ev.d**2)
 
 
 def weighted_cost(model, layout, z, nx, p, r):
@@ -354,62 +391,60 @@ def solve(
     batches it over layouts of one shape. `coloured=False` skips the coloured-
     residual covariance of the unknowns after the first `S nx` (`corrected` is then
     0; a layout whose unknowns are ordered otherwise corrects its own, from
-    `jacobian` and `whitened`)."""
+    `jacobian` and `whitened`).
+
+    One loop, one model evaluation per pass: every point tried (the start, each
+    Levenberg-Marquardt trial) is evaluated with its Jacobian ([`evaluate`][]), so
+    an accepted trial's evaluation is the next iteration's linearisation and the
+    program holds a single copy of the model (it compiles in half the time of a
+    loop with a separate residual pass for trials; a rejected trial costs a
+    Jacobian instead of a residual, which the damping makes rare)."""
     free = layout.free_columns(free_params, nx, p)
+    n, n_out = z0.shape[0], layout.measured.shape[-1]
 
-    def body(carry):
-        z, r, cost_prev, it, _, damping, _, _, _ = carry
-        lin = linearise(model, layout, z, nx, p, r)
-        h, g, _, _, e, d, _ = lin
-        j0 = jnp.sum(e**2 / r[None, None, :]) + jnp.sum(d**2)
+    # carry: z (the current point) and its evaluation, r, det(R) at z, iterations,
+    # done, the damping of this pass's trial, whether this pass evaluates the start,
+    # broken (non-finite normal equations at z)
+    def body(c):
+        z, ev, r, cost, it, done, lam, start, broken = c
+        h, g, _, _ = assemble(layout, ev, n, nx, p, r)
+        broken = ~(jnp.all(jnp.isfinite(h)) & jnp.all(jnp.isfinite(g))) & ~start
+        trial = jnp.where(start, z, z + lm_step(h, g, free, lam))
+        ev_t = evaluate(model, layout, trial, nx, p)
+        r_t = channel_variance(layout, ev_t.e)
+        accepted = start | (_cost(ev_t, r) < _cost(ev, r))
+        # no decrease at the largest damping: the minimum if the normal equations
+        # are finite, a failure (e.g. a diverged segment) if not
+        exhausted = ~accepted & (lam >= 1e8)
+        cost_t = jnp.prod(r_t)
+        small = jnp.abs(cost - cost_t) <= rtol * jnp.abs(cost_t)
+        z, r = jnp.where(accepted, trial, z), jnp.where(accepted, r_t, r)
+        ev = jax.tree.map(lambda a, b: jnp.where(accepted, a, b), ev_t, ev)
+        counted = (accepted & ~start) | exhausted
+        done = ((small | exhausted) & ~start) | broken
+        broken = broken | (start & ~jnp.all(jnp.isfinite(r_t)))
+        # damping: tenfold up after a rejected trial, tenfold down after a success
+        lam_up = jnp.maximum(10.0 * lam, 1e-8)
+        lam = jnp.where(accepted, jnp.where(start, lam, lam / 10.0), lam_up)
+        cost = jnp.where(accepted, cost_t, cost)
+        return z, ev, r, cost, it + counted, done, lam, False, broken
 
-        def trial(lam):
-            new = z + lm_step(h, g, free, lam)
-            return (new, *weighted_cost(model, layout, new, nx, p, r))
-
-        def increase(c):
-            lam = jnp.maximum(10.0 * c[0], 1e-8)
-            return (lam, *trial(lam))
-
-        damping, new, j1, e1, d1, ys1 = jax.lax.while_loop(
-            lambda c: ~(c[2] < j0) & (c[0] < 1e8), increase, (damping, *trial(damping))
-        )
-        accepted = j1 < j0
-        new = jnp.where(accepted, new, z)
-        r_new = jnp.where(accepted, channel_variance(layout, e1), r)
-        cost = jnp.prod(r_new)
-        small = jnp.abs(cost_prev - cost) <= rtol * jnp.abs(cost)
-        # no decrease at any damping: the minimum if the normal equations are
-        # finite, a failure (e.g. a diverged segment) if not
-        broken = ~(jnp.all(jnp.isfinite(h)) & jnp.all(jnp.isfinite(g)))
-        done = small | ~accepted | broken
-        after = (
-            jnp.where(accepted, d1, d),
-            jnp.where(accepted, ys1, lin[6]),
-        )
-        return new, r_new, cost, it + 1, done, damping / 10.0, broken, lin[:4], after
-
-    # The loop carries the last linearisation (at the point the last step started
-    # from: at convergence the step is negligible) so that the statistics below need
-    # no second copy of the Jacobian program: it compiles once.
-    _, e0, d0, ys0 = weighted_cost(
-        model, layout, z0, nx, p, jnp.ones(layout.measured.shape[-1])
-    )
-    r0 = channel_variance(layout, e0)
-    n = z0.shape[0]
     k = layout.local_columns(nx, p).shape[1]
-    lin0 = (
-        jnp.zeros((n, n)),
-        jnp.zeros(n),
-        jnp.zeros((*layout.measured.shape, k)),
-        jnp.zeros(layout.measured.shape),
+    shape, n_seg = layout.measured.shape, layout.n_segments
+    ev0 = Evaluation(
+        e=jnp.zeros(shape),
+        d=jnp.zeros((n_seg - 1, nx)),
+        ys=jnp.zeros(shape),
+        jy=jnp.zeros((*shape, k)),
+        jx=jnp.zeros((n_seg, nx, k)),
     )
-    init = (z0, r0, jnp.prod(r0), jnp.array(0), jnp.array(False), jnp.array(0.0))
-    init = (*init, ~jnp.all(jnp.isfinite(r0)), lin0, (d0, ys0))
-    z, r, cost, iterations, done, _, broken, lin, (d, ys) = jax.lax.while_loop(
-        lambda c: (c[3] < max_iter) & ~c[4] & ~c[6], body, init
+    init = (z0, ev0, jnp.ones(n_out), jnp.array(jnp.inf), jnp.array(0))
+    init = (*init, jnp.array(False), jnp.array(0.0), jnp.array(True), jnp.array(False))
+    z, ev, r, cost, iterations, done, _, _, broken = jax.lax.while_loop(
+        lambda c: ((c[4] < max_iter) | c[7]) & ~c[5] & ~c[8], body, init
     )
-    h, _, jyw, ew = lin
+    h, _, jyw, ew = assemble(layout, ev, n, nx, p, r)
+    d, ys = ev.d, ev.ys
     m = free.astype(h.dtype)
     hm = h * m[:, None] * m[None, :] + jnp.diag(1.0 - m)
     cov = jnp.linalg.inv(hm) * m[:, None] * m[None, :]
