@@ -22,16 +22,16 @@ def score_candidates(
     """The ranking of held parameters `candidates` at the fit `result`, decided by
     the same rule as the Pegasus workflow's diagnosis ([`DecisionRule`][]).
 
-    Each row: `parameter`, `effect` (the library effect's name, the part before
-    the dot, or the parameter of a bare model), `cost_reduction` (predicted
-    fraction of det(R) removed by the one Gauss-Newton step freeing it: the share
-    of the misfit, reported, not decided on), `statistic` (chi-square, 1 degree of
-    freedom, variance with the residuals' colour), `p_value` (Bonferroni-corrected
-    over the candidates), `estimate` and `stderr` (after that step), `significant`
-    (p below `level` and statistic above the penalty `min_statistic`; an
-    `actuator_delay` instead needs an estimate of at least half a sample
-    interval), `resolution_limit` (a delay below half a sample interval: where the
-    input's steps fall between samples, not physics) and `hard_to_tell_from`
+    Each row: `parameter`, `effect` (the library effect's name, the part before the dot,
+    or the parameter of a bare model), `cost_reduction` (predicted fraction of det(R)
+    removed by the one Gauss-Newton step freeing it: the share of the misfit, reported,
+    not decided on), `statistic` (chi-square, 1 degree of freedom, variance with the
+    residuals' colour and their covariance between outputs), `p_value`
+    (Bonferroni-corrected over the candidates), `estimate` and `stderr` (after that
+    step), `significant` (p below `level` and statistic above the penalty
+    `min_statistic`; an `actuator_delay` instead needs an estimate of at least half a
+    sample interval), `resolution_limit` (a delay below half a sample interval: where
+    the input's steps fall between samples, not physics) and `hard_to_tell_from`
     (candidates whose sensitivities correlate above 0.9 once the free unknowns are
     projected out). Best (largest cost reduction) first.
     """

@@ -3,14 +3,14 @@
 [`score_candidates`][] / [`diagnose_model`][] (`diagnose --vehicle/--model`).
 
 A candidate is **significant** when (1) its score statistic (chi-square, 1 degree of
-freedom, with a variance that includes the residuals' colour, so a baseline's own
-coloured structural misfit counts as noise) gives a Bonferroni-corrected p-value
-below `significance`, and (2) the statistic exceeds the penalty `min_statistic`,
-set above what the baseline's structural misfit alone reaches on clean flights
-(measured on two independent simulators; see the README, "Trust on data we did
-not make"). The predicted fall of det(R) (`cost_reduction`, the candidate's share
-of the misfit) is reported beside it but does not decide: how much of det(R) an
-effect removes depends on the log's noise level.
+freedom, with a variance that includes the residuals' colour and their covariance
+between outputs, so a baseline's own structural misfit counts as noise, once) gives a
+Bonferroni-corrected p-value below `significance`, and (2) the statistic exceeds the
+penalty `min_statistic`, set above what the baseline's structural misfit alone reaches
+on clean flights (measured on two independent simulators; see the README, "Trust on data
+we did not make"). The predicted fall of det(R) (`cost_reduction`, the candidate's share
+of the misfit) is reported beside it but does not decide: how much of det(R) an effect
+removes depends on the log's noise level.
 
 An actuator delay is judged by the log's resolution instead of the penalty: it is
 significant when its p-value passes and its estimate is at least half a log sample
@@ -29,7 +29,7 @@ DELAY_EFFECT = "actuator_delay"
 class DecisionRule:
     """`significance`: family-wise level of the Bonferroni-corrected score test;
     `min_statistic`: the penalty (coloured score statistic a candidate must exceed;
-    150, above the largest measured on clean flights, see the module)."""
+    150, above the largest measured on clean flights, 102, see the module)."""
 
     significance: float = 0.01
     min_statistic: float = 150.0

@@ -238,16 +238,17 @@ def diagnose(
     one Gauss-Newton step in each (score test with exact Jacobians), and decide
     which are significant.
 
-    The decision uses the score statistic, whose variance includes the residuals'
-    colour (Morelli-Klein, from the residuals the step would leave), so a baseline's
-    own smooth structural misfit counts as coloured noise, not as evidence. A
-    candidate is **significant** when (1) its Bonferroni-corrected p-value is below
-    `settings.significance` and (2) its statistic exceeds `settings.min_statistic`,
-    a penalty measured on clean flights of two independent simulators (with
-    thousands of samples a baseline's structural error alone gives statistics up
-    to about 100 there). The predicted share of det(R) it removes
-    (`cost_reduction`) is reported beside it but is not part of the decision: how
-    much of the misfit an effect removes depends on the noise level of the log.
+    The decision uses the score statistic, whose variance includes the residuals' colour
+    and their covariance between outputs (from the residuals the step would leave; see
+    [`score_variance`][]), so a baseline's own smooth structural misfit, which shows in
+    several outputs at once, counts as coloured noise once, not as evidence. A candidate
+    is **significant** when (1) its Bonferroni-corrected p-value is below
+    `settings.significance` and (2) its statistic exceeds `settings.min_statistic`, a
+    penalty measured on clean flights of two independent simulators (a baseline's
+    structural error alone gives statistics up to about 100 there, at 50 Hz to 1 kHz).
+    The predicted share of det(R) it removes (`cost_reduction`) is reported beside it
+    but is not part of the decision: how much of the misfit an effect removes depends on
+    the noise level of the log.
     An actuator delay is judged by the log's resolution instead of the penalty:
     significant when the p-value passes and its estimate is at least half a log
     sample interval (a lead is not physical); a smaller one is reported as
