@@ -111,7 +111,12 @@ def test_sharded_oem_equals_unsharded(campaign):
     flights = dp.simulate_batch(SMALL.config, keys[idx], mc._take(pert, idx))
     lse = np.load(out / "chunks" / "lse" / "0000.npz")["values"]
     setups = [
-        dp.oem_setup(dp.flight_to_log(mc._take(flights, i)), decimate=1, lse=lse[i])[0]
+        dp.oem_setup(
+            dp.flight_to_log(mc._take(flights, i)),
+            decimate=1,
+            lse=lse[i],
+            parameters=mc.ESTIMATOR_SETTINGS["oem"]["parameters"],
+        )[0]
         for i in range(2)
     ]
     stacked = jax.tree_util.tree_map(lambda *x: jnp.stack(x), *setups)
