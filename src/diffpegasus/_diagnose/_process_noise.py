@@ -40,6 +40,7 @@ import scipy.stats
 
 from .._estimate._filter_error import FilterErrorFit, fit_filter_error
 from .._estimate._fit import Fit
+from .._estimate._score import score_variance
 
 
 PROCESS_NOISE = "process_noise"
@@ -104,21 +105,11 @@ def likelihood_ratio(oem: Fit, fem: FilterErrorFit) -> tuple[float, float]:
     return lr, 1.0 - ratio
 
 
-def _coloured(col, vw):
-    """Morelli-Klein variance of a score from Jacobian rows `col` and residuals
-    `vw`, both `(samples, outputs)`: sum over lags of the residuals' and the rows'
-    autocorrelations, per output (FFT)."""
-    n = col.shape[0]
-    m = 2 * n
-    a = np.fft.fft(col, n=m, axis=0)
-    v = np.fft.fft(vw, n=m, axis=0)
-    return float(np.real(np.sum(np.abs(v) ** 2 / n * np.abs(a) ** 2)) / m)
-
-
 def score_at_filter_error(fem: FilterErrorFit, candidates: Sequence[str]) -> list[dict]:
     """Score test of held parameters `candidates` at the filter-error fit `fem`, on
     its innovations: per candidate its `statistic` (chi-square, 1 dof; variance
-    with the innovations' remaining colour, Morelli-Klein), raw `p_value`, the one
+    with the innovations' remaining colour and covariance between outputs, as the
+    output-error score's, [`score_variance`][]), raw `p_value`, the one
     Gauss-Newton step's `estimate` and `stderr`, with every free parameter and
     process-noise intensity re-adjusted (projected out). Same order as
     `candidates`."""
@@ -161,7 +152,7 @@ def score_at_filter_error(fem: FilterErrorFit, candidates: Sequence[str]) -> lis
             continue
         step = -slope / s
         col = rows @ d
-        var = max(_coloured(col, e + step * col), s)
+        var = max(float(score_variance(col, e + step * col)), s)
         stat = slope**2 / var
         out.append(
             {
