@@ -166,7 +166,7 @@ def estimate_oem_command(
             "window), the others linear; constant per window (the thesis's "
             "model); multiple shooting only"
         ),
-    ] = "linear",
+    ] = "hybrid",
     min_qbar: Annotated[
         float,
         typer.Option(

@@ -437,7 +437,7 @@ def oem_setup(
     single: bool = False,
     min_qbar: float = 2000.0,
     lse=None,
-    parameters: str = "linear",
+    parameters: str = "hybrid",
 ) -> tuple[OEMSetup, np.ndarray]:
     """The OEM problem of a log with its starting values (see [`estimate_oem`][]
     for the arguments; `parameters` as there, single shooting takes `constant`);
@@ -571,7 +571,7 @@ def estimate_oem(
     decimate: int = 5,
     start: str = "lse",
     axes: str = "body",
-    parameters: str = "linear",
+    parameters: str = "hybrid",
     min_qbar: float = 2000.0,
     rtol: float = 1e-5,
     max_iter: int = 30,
@@ -591,7 +591,8 @@ def estimate_oem(
     - `start`: starting values, `lse`, `database` or `truth10`.
     - `axes`: estimate body-axis (`body`, the thesis's choice) or lift/drag (`wind`)
       derivatives; results are reported in lift/drag form either way.
-    - `parameters` (multiple shooting): `linear` (derivatives continuous and
+    - `parameters` (multiple shooting; default `hybrid`, the one whose standard
+      errors cover over the Monte Carlo campaign): `linear` (derivatives continuous and
       linear in time between window boundaries; a window's estimate is their mean
       over the window), `window` (per window the six derivatives and how the alpha
       derivatives change inside it, with time and with alpha, see [`make_model`][];
