@@ -336,7 +336,7 @@ def compare(name, ours, sc, se, ours_params, scipy_params):
 def windowed(logs, gflops):
     rows = []
     for i, log in enumerate(logs):
-        setup = dp.oem_setup(log)[0]
+        setup = dp.oem_setup(log, parameters="linear")[0]
         prob = setup.problem
 
         def ours_fit(setup=setup):

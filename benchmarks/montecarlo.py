@@ -93,7 +93,7 @@ def main():
     whole = float(sum(times["total_s"].values()))
     result = {
         "what": "100 flights x 80.3 s at 1 kHz; LSE, NN+LSE (LM-trained), OEM "
-        "(multiple shooting, linear windowed derivatives, 200 Hz)",
+        "(multiple shooting, hybrid windowed derivatives, 200 Hz)",
         "devices": len(jax.devices()),
         "cpu_count": os.cpu_count(),
         "campaign_s": {

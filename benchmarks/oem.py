@@ -57,10 +57,10 @@ def main():
             for i in range(args.batch)
         )
     ]
-    _, first = timed(lambda: dp.estimate_oem(logs[0]).values)
-    _, single_run = timed(lambda: dp.estimate_oem(logs[0]).values)
+    _, first = timed(lambda: dp.estimate_oem(logs[0], parameters="linear").values)
+    _, single_run = timed(lambda: dp.estimate_oem(logs[0], parameters="linear").values)
 
-    setups = [dp.oem_setup(log)[0] for log in logs]
+    setups = [dp.oem_setup(log, parameters="linear")[0] for log in logs]
     stacked = jax.tree_util.tree_map(lambda *x: jnp.stack(x), *setups)
 
     def batch_fn(batch):
