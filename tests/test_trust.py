@@ -230,12 +230,22 @@ def test_score_variance_counts_covariance_between_outputs():
     n = 40
     rows = rng.normal(size=(n, 3))
     resid = rng.normal(size=(n, 3))
-    # the definition, lag by lag: (1/n) sum_lag (sum_o sum_t e[t, o] j[t + lag, o])^2
-    direct = 0.0
+    # the definition, lag by lag: (1/n) sum_lag (sum_o sum_t e[t, o] j[t + lag, o])^2,
+    # never below the outputs' own terms (1/n) sum_lag sum_o (sum_t ...)^2
+    joint, own = 0.0, 0.0
     for lag in range(-(n - 1), n):
         lo, hi = max(0, -lag), min(n, n - lag)
-        direct += np.sum(resid[lo:hi] * rows[lo + lag : hi + lag]) ** 2
-    assert float(score_variance(rows, resid)) == pytest.approx(direct / n, rel=1e-10)
+        per_output = np.sum(resid[lo:hi] * rows[lo + lag : hi + lag], axis=0)
+        joint += np.sum(per_output) ** 2
+        own += np.sum(per_output**2)
+    assert float(score_variance(rows, resid)) == pytest.approx(
+        max(joint, own) / n, rel=1e-10
+    )
+    # evidence that cancels between outputs is not credited below their own terms
+    flipped = resid * np.array([1.0, -1.0, 1.0])
+    assert float(score_variance(rows[:, [0, 0, 0]], flipped[:, [0, 0, 0]])) >= float(
+        score_variance(rows[:, :1], resid[:, :1])
+    )
     # one misfit seen the same way in two outputs: their evidence is one piece, so
     # the variance is that of the sum (4x one output's), not the sum of each
     # output's own (2x)

@@ -35,6 +35,7 @@ turbulence (process noise), not by a missing term; use the filter-error estimate
 import dataclasses
 from collections.abc import Mapping, Sequence
 
+import jax.numpy as jnp
 import numpy as np
 import scipy.stats
 
@@ -152,7 +153,9 @@ def score_at_filter_error(fem: FilterErrorFit, candidates: Sequence[str]) -> lis
             continue
         step = -slope / s
         col = rows @ d
-        var = max(float(score_variance(col, e + step * col)), s)
+        var = max(
+            float(score_variance(jnp.asarray(col), jnp.asarray(e + step * col))), s
+        )
         stat = slope**2 / var
         out.append(
             {
