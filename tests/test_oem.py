@@ -387,10 +387,12 @@ def test_held_window_term_converges_and_is_reported(collinear):
     assert np.max(np.abs(z)) < 3.5, z
     assert np.all(np.isfinite(np.asarray(fit.correlation)))
     # with the term free in window 2 the normal equations are singular there: the
-    # covariance is unusable (measured: zero standard errors, correlations 1e149, inf)
+    # covariance is unusable (measured: zero standard errors, standard errors 1e15,
+    # correlations 1e149 or inf depending on rounding), no valid correlation matrix
     loose = dp.fit_windowed_oem(prob, theta0, nodes0, linear=mixed, rtol=1e-9)
     assert not np.any(np.asarray(loose.held))
-    assert not np.all(np.isfinite(np.asarray(loose.correlation)))
+    corr = np.asarray(loose.correlation)
+    assert not np.all(np.isfinite(corr)) or np.max(np.abs(corr)) > 1.5
 
 
 def test_departs_from_trend_only_above_the_noise():

@@ -414,58 +414,82 @@ def solve(
     0; a layout whose unknowns are ordered otherwise corrects its own, from
     `jacobian` and `whitened`).
 
-    One loop, one model evaluation per pass: every point tried (the start, each
-    Levenberg-Marquardt trial) is evaluated with its Jacobian ([`evaluate`][]), so
-    an accepted trial's evaluation is the next iteration's linearisation and the
-    program holds a single copy of the model (it compiles in half the time of a
-    loop with a separate residual pass for trials; a rejected trial costs a
-    Jacobian instead of a residual, which the damping makes rare)."""
+    The program holds the model twice: once with its Jacobian ([`evaluate`][], at
+    the point an iteration starts from) and once without (`weighted_cost`, the
+    damping's trials, the cheap evaluation a rejected trial costs). The start's R
+    comes from the first Jacobian pass's residuals rather than from a third copy."""
     free = layout.free_columns(free_params, nx, p)
     n, n_out = z0.shape[0], layout.measured.shape[-1]
 
-    # carry: z (the current point) and its evaluation, r, det(R) at z, iterations,
-    # done, the damping of this pass's trial, whether this pass evaluates the start,
-    # broken (non-finite normal equations at z)
-    def body(c):
-        z, ev, r, cost, it, done, lam, start, broken = c
-        h, g, _, _ = assemble(layout, ev, n, nx, p, r)
-        broken = ~(jnp.all(jnp.isfinite(h)) & jnp.all(jnp.isfinite(g))) & ~start
-        trial = jnp.where(start, z, z + lm_step(h, g, free, lam))
-        ev_t = evaluate(model, layout, trial, nx, p)
-        r_t = channel_variance(layout, ev_t.e)
-        accepted = start | (_cost(ev_t, r) < _cost(ev, r))
-        # no decrease at the largest damping: the minimum if the normal equations
-        # are finite, a failure (e.g. a diverged segment) if not
-        exhausted = ~accepted & (lam >= 1e8)
-        cost_t = jnp.prod(r_t)
-        small = jnp.abs(cost - cost_t) <= rtol * jnp.abs(cost_t)
-        z, r = jnp.where(accepted, trial, z), jnp.where(accepted, r_t, r)
-        ev = jax.tree.map(lambda a, b: jnp.where(accepted, a, b), ev_t, ev)
-        counted = (accepted & ~start) | exhausted
-        done = ((small | exhausted) & ~start) | broken
-        broken = broken | (start & ~jnp.all(jnp.isfinite(r_t)))
-        # damping: tenfold up after a rejected trial, tenfold down after a success
-        lam_up = jnp.maximum(10.0 * lam, 1e-8)
-        lam = jnp.where(accepted, jnp.where(start, lam, lam / 10.0), lam_up)
-        cost = jnp.where(accepted, cost_t, cost)
-        return z, ev, r, cost, it + counted, done, lam, False, broken
+    def body(carry):
+        z, r, cost_prev, it, _, damping, _, _, _, first = carry
+        ev = evaluate(model, layout, z, nx, p)
+        r = jnp.where(first, channel_variance(layout, ev.e), r)
+        cost_prev = jnp.where(first, jnp.prod(r), cost_prev)
+        h, g, jyw, ew = assemble(layout, ev, n, nx, p, r)
+        j0 = _cost(ev, r)
+        # max_iter = 0: the start is evaluated (R, outputs, statistics), not moved
+        active = it < max_iter
 
-    k = layout.local_columns(nx, p).shape[1]
+        def trial(c):
+            lam = jnp.where(c[1], jnp.maximum(10.0 * c[0], 1e-8), c[0])
+            new = z + lm_step(h, g, free, lam)
+            return (
+                lam,
+                jnp.array(True),
+                new,
+                *weighted_cost(model, layout, new, nx, p, r),
+            )
+
+        def again(c):
+            lam, tried, _, j1 = c[:4]
+            return active & (~tried | (~(j1 < j0) & (lam < 1e8)))
+
+        start = (damping, jnp.array(False), z, jnp.array(jnp.inf), ev.e, ev.d, ev.ys)
+        damping, _, new, j1, e1, d1, ys1 = jax.lax.while_loop(again, trial, start)
+        accepted = j1 < j0
+        new = jnp.where(accepted, new, z)
+        r_new = jnp.where(accepted, channel_variance(layout, e1), r)
+        cost = jnp.prod(r_new)
+        # det(R) = 0: a channel reproduced to the last bit (noise-free data), nothing
+        # left to fit, and its weight would be infinite in the next linearisation
+        small = (jnp.abs(cost_prev - cost) <= rtol * jnp.abs(cost)) | (cost == 0)
+        # no decrease at any damping: the minimum if the normal equations are
+        # finite, a failure (e.g. a diverged segment) if not
+        broken = ~(jnp.all(jnp.isfinite(h)) & jnp.all(jnp.isfinite(g)))
+        broken = broken | ~jnp.all(jnp.isfinite(r))
+        done = small | ~accepted | broken
+        after = (
+            jnp.where(accepted, d1, ev.d),
+            jnp.where(accepted, ys1, ev.ys),
+        )
+        lin = (h, g, jyw, ew)
+        return (
+            new,
+            r_new,
+            cost,
+            it + active,
+            done,
+            damping / 10.0,
+            broken,
+            lin,
+            after,
+            False,
+        )
+
+    # The loop carries the last linearisation (at the point the last step started
+    # from: at convergence the step is negligible) so that the statistics below need
+    # no other copy of the Jacobian program.
     shape, n_seg = layout.measured.shape, layout.n_segments
-    ev0 = Evaluation(
-        e=jnp.zeros(shape),
-        d=jnp.zeros((n_seg - 1, nx)),
-        ys=jnp.zeros(shape),
-        jy=jnp.zeros((*shape, k)),
-        jx=jnp.zeros((n_seg, nx, k)),
+    k = layout.local_columns(nx, p).shape[1]
+    lin0 = (jnp.zeros((n, n)), jnp.zeros(n), jnp.zeros((*shape, k)), jnp.zeros(shape))
+    after0 = (jnp.zeros((n_seg - 1, nx)), jnp.zeros(shape))
+    init = (z0, jnp.ones(n_out), jnp.array(jnp.inf), jnp.array(0), jnp.array(False))
+    init = (*init, jnp.array(0.0), jnp.array(False), lin0, after0, jnp.array(True))
+    z, r, cost, iterations, done, _, broken, lin, (d, ys), _ = jax.lax.while_loop(
+        lambda c: ((c[3] < max_iter) | c[9]) & ~c[4] & ~c[6], body, init
     )
-    init = (z0, ev0, jnp.ones(n_out), jnp.array(jnp.inf), jnp.array(0))
-    init = (*init, jnp.array(False), jnp.array(0.0), jnp.array(True), jnp.array(False))
-    z, ev, r, cost, iterations, done, _, _, broken = jax.lax.while_loop(
-        lambda c: ((c[4] < max_iter) | c[7]) & ~c[5] & ~c[8], body, init
-    )
-    h, _, jyw, ew = assemble(layout, ev, n, nx, p, r)
-    d, ys = ev.d, ev.ys
+    h, _, jyw, ew = lin
     m = free.astype(h.dtype)
     hm = h * m[:, None] * m[None, :] + jnp.diag(1.0 - m)
     cov = jnp.linalg.inv(hm) * m[:, None] * m[None, :]
