@@ -12,8 +12,7 @@ biases, and a continuity defect `(x_end(s) - node(s + 1)) / (scale tol)` only on
 neighbouring nodes of the same record and `theta`. So each segment's Jacobian is
 computed exactly (forward mode through its RK4 scan) with `nx + P + nb` tangents
 in one vmapped call, and the normal equations are assembled from the blocks by index
-maps. Every point the iteration tries is evaluated with its Jacobian, so the compiled
-program holds the model once. R is diagonal, re-estimated every iteration (the standard relaxation
+maps. R is diagonal, re-estimated every iteration (the standard relaxation
 of the det(R) cost); the step is Levenberg-Marquardt with damping raised tenfold until
 the weighted cost falls and lowered tenfold after a success; the iteration stops when
 det(R) changes by less than `rtol` relatively.
