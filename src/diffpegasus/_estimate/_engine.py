@@ -349,15 +349,16 @@ def linearise(model, layout: AbstractLayout, z, nx, p, r):
     return h, g, jyw, ew, ev.e, ev.d, ev.ys
 
 
-def _cost(ev: Evaluation, r):
-    return jnp.sum(ev.e**2 / r[None, None, :]) + jnp.sum(ev.d**2)
+def _cost(e, d, r):
+    # the R-weighted least-squares cost of output residuals `e` and defects `d`
+    return jnp.sum(e**2 / r[None, None, :]) + jnp.sum(d**2)
 
 
 def weighted_cost(model, layout, z, nx, p, r):
     """The R-weighted least-squares cost at `z`, with the output residuals, defects
     and model outputs."""
     e, d, ys = residuals_at(model, layout, z, nx, p)
-    return jnp.sum(e**2 / r[None, None, :]) + jnp.sum(d**2), e, d, ys
+    return _cost(e, d, r), e, d, ys
 
 
 def lm_step(h, g, free, damping):
@@ -426,7 +427,7 @@ def solve(
         r = jnp.where(first, channel_variance(layout, ev.e), r)
         cost_prev = jnp.where(first, jnp.prod(r), cost_prev)
         h, g, jyw, ew = assemble(layout, ev, n, nx, p, r)
-        j0 = _cost(ev, r)
+        j0 = _cost(ev.e, ev.d, r)
         # max_iter = 0: the start is evaluated (R, outputs, statistics), not moved
         active = it < max_iter
 

@@ -37,6 +37,7 @@ class ScoreTest(eqx.Module):
     correlation: Float[Array, "k k"]
 
 
+@jax.jit
 def score_variance(
     rows: Float[Array, "samples outputs"],
     residuals: Float[Array, "samples outputs"],
