@@ -328,8 +328,8 @@ def pegasus_design(
         to_lift_drag,
     )
     from .._vehicle._pegasus._aerodynamics import load_database
-    from ._sensors import DEFAULT_SIGMA, SensorModel
-    from ._solve import elevator_command, flight_to_log, PegasusConfig, simulate
+    from .._simulate._sensors import DEFAULT_SIGMA, SensorModel
+    from .._simulate._solve import elevator_command, flight_to_log, PegasusConfig, simulate
 
     config = PegasusConfig(
         elevator=elevator_command("none"),
