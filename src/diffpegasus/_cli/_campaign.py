@@ -155,8 +155,8 @@ def design_input(
     limits: design.json, design_inputs.png, design_stderr.png."""
     import numpy as np
 
-    from .._report._plotting import plot_design
     from .._design._optimal import Limits, pegasus_design, run_design
+    from .._report._plotting import plot_design
     from .._vehicle._pegasus._aerodynamics import DERIVATIVE_NAMES
 
     if criterion not in ("D", "A"):
