@@ -8,13 +8,21 @@ model or the diagnosis (0.3 s of imports on a 2-core machine, against a 1.2 s fi
 import importlib
 import importlib.util
 import sys
+import warnings
 
 
-def attach(package: str, public: dict[str, tuple[str, ...]]):
+def attach(
+    package: str,
+    public: dict[str, tuple[str, ...]],
+    moved: dict[str, str] | None = None,
+):
     """`(__getattr__, __dir__, __all__)` for the package named `package` whose
     public names live in its submodules: `public` maps a submodule (relative to the
     package, e.g. `"_fit"` or `"_vehicle._atmosphere"`) to the names it provides
     (`"public=name"` where the package renames one).
+    `moved` maps names that left this namespace to where they live now (a dotted
+    path below the package, e.g. `"pegasus.simulate"`): they still resolve, for one
+    release, with a `DeprecationWarning`, and are not listed.
     A submodule that is not a public name is still an attribute once asked for
     (`package._fit`), as with an eager `__init__`."""
     where = {}
@@ -22,6 +30,7 @@ def attach(package: str, public: dict[str, tuple[str, ...]]):
         for entry in names:
             name, _, source = entry.partition("=")
             where[name] = (module, source or name)
+    moved = moved or {}
 
     def __getattr__(name):
         if name in where:
@@ -29,6 +38,14 @@ def attach(package: str, public: dict[str, tuple[str, ...]]):
             value = getattr(importlib.import_module(f".{module}", package), source)
             setattr(sys.modules[package], name, value)  # later lookups skip this
             return value
+        if name in moved:
+            module, _, source = moved[name].rpartition(".")
+            warnings.warn(
+                f"{package}.{name} is now {package}.{moved[name]}",
+                DeprecationWarning,
+                stacklevel=2,
+            )
+            return getattr(importlib.import_module(f".{module}", package), source)
         if not name.startswith("__") and importlib.util.find_spec(f"{package}.{name}"):
             return importlib.import_module(f".{name}", package)
         raise AttributeError(f"module {package!r} has no attribute {name!r}")
