@@ -20,125 +20,19 @@ only the modules it runs: `import diffpegasus` costs JAX's import and little mor
 
 import jax as _jax
 
-from ._lazy import attach as _attach
+from ._lazy import attach_stub as _attach_stub
 
 
 _jax.config.update("jax_enable_x64", True)
 
 __version__ = "0.1.0"
 
-# loaded on first use: the module (relative to the package) of each public name
-__getattr__, __dir__, __all__ = _attach(
+# the public names are listed once, in `__init__.pyi` (which type checkers read), and
+# load on first use; names moved to a namespace of their own resolve here for one
+# release
+__getattr__, __dir__, __all__ = _attach_stub(
     __name__,
-    {
-        "_campaign._sharding": (
-            "map_over_devices",
-            "shard_batch",
-        ),
-        "_diagnose": (
-            "diagnose_model",
-            "score_candidates",
-        ),
-        "_errors": ("LogError",),
-        "_estimate": (
-            "equation_error",
-            "EquationErrorFit",
-            "FilterErrorFit",
-            "Fit",
-            "fit",
-            "fit_filter_error",
-            "format_parameter_table",
-            "load_model_file",
-            "ModelSpec",
-            "MultipleShooting",
-            "parameter_table",
-            "RESULTS",
-            "simulate_model",
-            "SingleShooting",
-        ),
-        "_inputs": (
-            "AbstractInput",
-            "doublet",
-            "excitation",
-            "Multisine",
-            "NoInput",
-            "PulseTrain",
-            "Ramp",
-            "Schedule",
-            "schroeder_multisine",
-            "Sequence",
-            "Sine",
-            "Step",
-            "Sum",
-            "three_two_one_one",
-        ),
-        "_log._asc": ("read_asc",),
-        "_log._columns": (
-            "load_columns",
-            "load_record",
-        ),
-        "_log._format": (
-            "FlightLog",
-            "read_log",
-            "validate_channels",
-            "write_log",
-        ),
-        "_model": (
-            "Model",
-            "Record",
-        ),
-        "_rk4": ("RK4",),
-        "_vehicle": (
-            "AbstractAerodynamics",
-            "AbstractAtmosphere",
-            "AbstractMassProperties",
-            "AbstractPropulsion",
-            "ConstantAtmosphere",
-            "ConstantMass",
-            "FlightVehicle",
-            "Geometry",
-            "hfb320_model",
-            "LoggedThrust",
-            "StandardAtmosphere",
-            "vehicle_model",
-            "vehicle_spec",
-        ),
-        "_vehicle._atmosphere": (
-            "Atmosphere",
-            "isa",
-        ),
-        "_vehicle._effects": (
-            "AbstractEffect",
-            "effect_names",
-            "EFFECTS",
-            "FlightCondition",
-            "make_effect",
-            "parse_assignment",
-        ),
-        "_vehicle._flight": (
-            "moment_about_cg",
-            "pitch_plane",
-            "pitch_plane_rates",
-            "PitchPlane",
-        ),
-        "_vehicle._gravity": ("gravity",),
-        "_vehicle._sixdof": (
-            "Aircraft",
-            "body_to_earth",
-            "business_jet",
-            "Controls",
-            "euler_rates",
-            "inertia_tensor",
-            "linearise",
-            "rigid_body_rates",
-            "simulate_sixdof",
-            "sixdof_evaluate",
-            "sixdof_rates",
-            "Trim",
-            "trim",
-        ),
-    },
-    # moved to a namespace of their own; resolvable here for one release
+    __file__,
     moved={
         "AeroCoefficients": "pegasus.AeroCoefficients",
         "AeroDatabase": "pegasus.AeroDatabase",
