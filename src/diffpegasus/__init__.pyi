@@ -34,6 +34,7 @@ from ._estimate._fit import (
     fit as fit,
     MultipleShooting as MultipleShooting,
     SingleShooting as SingleShooting,
+    simulate as simulate_model,
 )
 from ._estimate._modelfile import (
     load_model_file as load_model_file,
