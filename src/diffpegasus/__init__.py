@@ -53,7 +53,6 @@ __getattr__, __dir__, __all__ = _attach(
             "lse_arrays",
             "lse_batch",
             "MeasuredCoefficients",
-            "Model",
             "ModelSpec",
             "MultipleShooting",
             "node_times",
@@ -62,7 +61,6 @@ __getattr__, __dir__, __all__ = _attach(
             "OEMSetup",
             "parameter_table",
             "reconstruct_coefficients",
-            "Record",
             "RESULTS",
             "save_network",
             "score_test",
@@ -89,12 +87,11 @@ __getattr__, __dir__, __all__ = _attach(
         ),
         "_log._format": (
             "FlightLog",
-            "LogError",
             "read_log",
             "validate_channels",
             "write_log",
         ),
-        "_simulate._inputs": (
+        "_inputs": (
             "AbstractInput",
             "doublet",
             "excitation",
@@ -216,6 +213,11 @@ __getattr__, __dir__, __all__ = _attach(
             "Trim",
             "trim",
         ),
-        "_estimate._rk4": ("RK4",),
+        "_rk4": ("RK4",),
+        "_model": (
+            "Model",
+            "Record",
+        ),
+        "_errors": ("LogError",),
     },
 )

@@ -156,7 +156,7 @@ def design_input(
     import numpy as np
 
     from .._report._plotting import plot_design
-    from .._simulate._design import Limits, pegasus_design, run_design
+    from .._design._optimal import Limits, pegasus_design, run_design
     from .._vehicle._pegasus._aerodynamics import DERIVATIVE_NAMES
 
     if criterion not in ("D", "A"):

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from .._log._format import LogError
+from .._errors import LogError
 
 
 app = typer.Typer(

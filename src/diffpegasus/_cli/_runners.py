@@ -9,11 +9,11 @@ import numpy as np
 
 from .._diagnose._candidates import diagnosis_message, score_candidates
 from .._diagnose._rule import DecisionRule
+from .._errors import LogError
 from .._estimate._fit import Fit, fit
-from .._estimate._model import Record
 from .._estimate._modelfile import ModelSpec
 from .._log._columns import load_columns, load_record
-from .._log._format import LogError
+from .._model import Record
 
 
 def _say(message: str) -> None:

@@ -30,9 +30,9 @@ import pathlib
 import runpy
 import traceback
 
-from .._log._format import LogError
+from .._errors import LogError
+from .._model import Model
 from ._fit import MultipleShooting, SingleShooting
-from ._model import Model
 
 
 @dataclasses.dataclass(frozen=True)

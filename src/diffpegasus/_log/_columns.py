@@ -31,8 +31,8 @@ import tomllib
 
 import numpy as np
 
-from .._estimate._model import Model, Record
-from ._format import LogError
+from .._errors import LogError
+from .._model import Model, Record
 
 
 G0 = 9.80665

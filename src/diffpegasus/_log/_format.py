@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from .._errors import LogError as LogError
 from .._vehicle._pegasus._aerodynamics import DERIVATIVE_NAMES
 from ._checks import check_physics, num, PlausibilityError
 from ._sidecar import check_sidecar
@@ -62,10 +63,6 @@ _POSITIVE = ("V", "mass", "Iyy")
 # Measured on this machine: 2 million rows of the 18 standard channels (694 MB at 17
 # digits) read in about 20 s and 0.8 GB; beyond this size a log is refused up front.
 MAX_LOG_BYTES = 4 * 2**30
-
-
-class LogError(ValueError):
-    """A flight log that cannot be used, with a one-line explanation."""
 
 
 @dataclasses.dataclass(frozen=True)

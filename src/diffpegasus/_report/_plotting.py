@@ -140,7 +140,7 @@ def plot_design(design, result: dict, out) -> None:
     input (`design_stderr.png`)."""
     import pathlib
 
-    from .._simulate._design import simulate_outputs
+    from .._design._optimal import simulate_outputs
     from .._vehicle._pegasus._aerodynamics import DERIVATIVE_NAMES
 
     out = pathlib.Path(out)

@@ -23,8 +23,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._estimate._engine import rk4_scan
-from .._simulate._inputs import AbstractInput, NoInput
+from .._inputs import AbstractInput, NoInput
+from .._rk4 import rk4_scan
 
 
 G = 9.80665  # m/s^2
