@@ -21,6 +21,8 @@ _K_NOISE = 5.0
 # Under one canopy the descent rate scales with 1/sqrt(density): at most ~25 %
 # slower from 5 km to the ground; a main canopy slows the descent 2-5 times.
 _DEPLOY_RATIO = 0.6
+# No canopy lets a rocket down slower than 1 m/s: below it the rocket is not descending
+_MIN_DESCENT = 1.0
 
 
 def robust_sigma(x: np.ndarray) -> float:
@@ -142,7 +144,7 @@ def burnout_from_accel(t: np.ndarray, sf: np.ndarray, t_lift: float) -> float | 
     return float(t[i - 1] + (t[i] - t[i - 1]) * a / (a - b)) if a > 0 else float(t[i])
 
 
-def _spline(t, h, most: int = 600):
+def _spline(t, h, most: int = 120):
     """A cubic smoothing spline whose smoothing generalised cross-validation
     chooses, through at most `most` points (longer series are averaged in bins of
     equal count first: the GCV search costs time in proportion to the points)."""
@@ -166,13 +168,13 @@ def apogee(t: np.ndarray, h: np.ndarray, t_lift: float) -> tuple[float, float]:
     tw, hw = t[lo:hi] - t[i], h[lo:hi]
     if len(tw) < 3:
         return float(t[i]), float(h[i])
-    # h + g t^2 / 2 = H + g ta^2 / 2 - g ta t: a straight line in t
+    # h + g t^2 / 2 = (H - g ta^2 / 2) + g ta t: a straight line in t
     a = np.column_stack([np.ones_like(tw), tw])
     (c0, c1), *_ = np.linalg.lstsq(a, hw + 0.5 * G0 * tw**2, rcond=None)
-    ta = -c1 / G0
+    ta = c1 / G0
     if not (tw[0] <= ta <= tw[-1]):
         return float(t[i]), float(h[i])
-    return float(t[i] + ta), float(c0 - 0.5 * G0 * ta**2)
+    return float(t[i] + ta), float(c0 + 0.5 * G0 * ta**2)
 
 
 def burnout_from_altitude(
@@ -184,7 +186,7 @@ def burnout_from_altitude(
     if sel.size < 8:
         return float("nan"), float("nan")
     s = _spline(t[sel], h[sel])
-    fine = np.linspace(t[sel[0]], t[sel[-1]], 20 * min(sel.size, 600))
+    fine = np.linspace(t[sel[0]], t[sel[-1]], 20 * min(sel.size, 120))
     v = s.derivative()(fine)
     k = int(np.argmax(v))
     return float(fine[k]), float(v[k])
@@ -198,35 +200,50 @@ def _median3(h):
 
 
 def _two_lines(t, h):
-    """Best single breakpoint of two straight lines (least squares, each side fitted
-    on its own): (index, slope before, slope after), from cumulative sums."""
+    """Best break of a continuous two-line fit `a + b t + c (t - t_k)_+` (least
+    squares, every sample a candidate break, from cumulative sums): (index, slope
+    before, slope after)."""
     n = len(t)
     if n < 12:
         return None
     t = t - t.mean()
     h = h - h.mean()
-    cums = [np.concatenate([[0.0], np.cumsum(v)]) for v in (np.ones(n), t, h, t * t, t * h, h * h)]
     k = np.arange(5, n - 5)
+    tk = t[k]
 
-    def fit(lo, hi):
-        m, st, sh, stt, sth, shh = (c[hi] - c[lo] for c in cums)
-        var = stt - st * st / m
-        cov = sth - st * sh / m
-        slope = np.where(var > 0, cov / np.where(var > 0, var, 1.0), 0.0)
-        return slope, np.maximum((shh - sh * sh / m) - slope * cov, 0.0)
+    def suffix(v):  # sum over i >= k
+        c = np.concatenate([np.cumsum(v[::-1])[::-1], [0.0]])
+        return c[k]
 
-    s1, e1 = fit(np.zeros_like(k), k)
-    s2, e2 = fit(k, np.full_like(k, n))
-    j = int(np.argmin(e1 + e2))
-    return int(k[j]), float(s1[j]), float(s2[j])
+    s1, st, stt, sh, sth = (suffix(v) for v in (np.ones(n), t, t * t, h, t * h))
+    # sums over the hinge u = (t - tk)_+
+    su = st - tk * s1
+    suu = stt - 2 * tk * st + tk**2 * s1
+    stu = stt - tk * st
+    shu = sth - tk * sh
+    m = np.empty((len(k), 3, 3))
+    m[:, 0, 0], m[:, 0, 1], m[:, 1, 1] = n, t.sum(), (t * t).sum()
+    m[:, 0, 2] = m[:, 2, 0] = su
+    m[:, 1, 2] = m[:, 2, 1] = stu
+    m[:, 1, 0] = m[:, 0, 1]
+    m[:, 2, 2] = suu
+    rhs = np.stack([np.full(len(k), h.sum()), np.full(len(k), (t * h).sum()), shu], 1)
+    ok = np.linalg.det(m) > 0
+    coef = np.zeros((len(k), 3))
+    coef[ok] = np.linalg.solve(m[ok], rhs[ok][..., None])[..., 0]
+    # SSE = h.h - coef . rhs
+    sse = np.where(ok, (h * h).sum() - np.einsum("ij,ij->i", coef, rhs), np.inf)
+    j = int(np.argmin(sse))
+    return int(k[j]), float(coef[j, 1]), float(coef[j, 1] + coef[j, 2])
 
 
 def descent_changes(
     t: np.ndarray, h: np.ndarray, t_apogee: float, h_apogee: float
 ) -> list[tuple[float, float, float]]:
     """Where the descent rate drops by more than `_DEPLOY_RATIO`: [(time, rate
-    before, rate after)], m/s positive down, by binary segmentation (the best split
-    of two straight lines, then each side again, three levels deep)."""
+    before, rate after)], m/s positive down, by binary segmentation (the best break
+    of a continuous two-line fit, then each side again, three levels deep), each
+    break then fitted again between its neighbours."""
     sel = np.flatnonzero((t > t_apogee) & (h < h_apogee - 0.03 * abs(h_apogee)))
     if sel.size < 12:
         return []
@@ -241,13 +258,24 @@ def descent_changes(
             return
         k, s1, s2 = r
         k += a
-        if -s1 > 0 and -s2 < _DEPLOY_RATIO * -s1 and tt[b - 1] - tt[k] >= 1.0:
+        if -s1 > _MIN_DESCENT and -s2 < _DEPLOY_RATIO * -s1 and tt[b - 1] - tt[k] >= 1.0:
             found.append((float(tt[k]), -s1, -s2))
         search(a, k, depth - 1)
         search(k, b, depth - 1)
 
     search(0, len(tt), 3)
-    return sorted(found)
+    found.sort()
+    # each break again between its neighbours, free of the other changes' bends
+    cuts = [0] + [int(np.searchsorted(tt, f[0])) for f in found] + [len(tt)]
+    refined = []
+    for i in range(1, len(cuts) - 1):
+        a, b = cuts[i - 1], cuts[i + 1]
+        r = _two_lines(tt[a:b], hh[a:b]) if b - a >= 12 else None
+        if r is not None and -r[1] > _MIN_DESCENT and -r[2] < _DEPLOY_RATIO * -r[1]:
+            refined.append((float(tt[a + r[0]]), -r[1], -r[2]))
+        else:
+            refined.append(found[i - 1])
+    return refined
 
 
 def shocks(

@@ -323,9 +323,10 @@ def _streams(files, root, column_map, messages) -> list[StreamSpec]:
         beside = root / "columns.json"
         column_map = beside if beside.is_file() else shipped_map(root.name)
     if column_map is not None:
-        data, where_root = load_map(column_map)
+        data, map_folder = load_map(column_map)
         where = str(column_map) if not isinstance(column_map, dict) else "column map"
-        return streams_from_map(data, where, where_root or root, files)
+        # a map's file names are relative to the rocket.toml, else to the map
+        return streams_from_map(data, where, root or map_folder, files)
     out = []
     for f in files:
         found, layout = detect_streams(f)
