@@ -218,8 +218,8 @@ def _fix_hint(alternative: str) -> str:
 
 def check_accel_axial(s: Series, pad: np.ndarray, messages: list[str]) -> None:
     """An axial accelerometer's unit and gravity convention against its pad
-    reading (g times the sine of the rail's elevation, 0.6-1.15 g for rails 40-90
-    degrees up, gravity included) or, without pad samples, its boost (thrust beats
+    reading (g times the sine of the rail's elevation, 0.6-1 g for rails 37-90
+    degrees up, gravity included; 5 % more for a sensor's bias) or, without pad samples, its boost (thrust beats
     weight: above 1 g; below 60 g for a rocket that carries a flight computer). The
     series is converted to specific force with gravity included."""
     c = s.spec
@@ -236,7 +236,9 @@ def check_accel_axial(s: Series, pad: np.ndarray, messages: list[str]) -> None:
             for u, f in units
             for g in gravities
         ]
-        fits = [o for o in options if 0.6 * G0 <= o[3] <= 1.15 * G0]
+        fits = [o for o in options if 0.6 * G0 <= o[3] <= 1.05 * G0]
+        # what the map or the format said, as much of it as the reading allows
+        fits.sort(key=lambda o: (o[2] != c.gravity, o[1] != c.factor))
         if not fits:
             raise LogError(
                 f"{s.where}, row {row}: reads {raw:.4g} {c.unit or 'm/s^2'} on the "
