@@ -34,8 +34,9 @@ def contained(path: str, what: str):
     argv, stdin = sys.argv, sys.stdin
     sys.argv, sys.stdin = [str(path)], io.StringIO("")
     try:
-        with contextlib.redirect_stdout(sys.stderr), contextlib.redirect_stderr(
-            captured
+        with (
+            contextlib.redirect_stdout(sys.stderr),
+            contextlib.redirect_stderr(captured),
         ):
             yield
         failed = False

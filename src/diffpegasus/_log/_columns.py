@@ -229,11 +229,7 @@ def _resolve(table: Table, columns: dict[str, Column], channels) -> dict[str, Co
             raise LogError(
                 f"{where}: the file has {near[0]!r} (column names are "
                 f"case-sensitive); map the channel to {near[0]!r}"
-                + (
-                    f", and check that its unit is {col.unit!r}"
-                    if col.unit
-                    else ""
-                )
+                + (f", and check that its unit is {col.unit!r}" if col.unit else "")
             )
         if found:
             raise LogError(
@@ -387,7 +383,11 @@ def load_record(
     n = len(next(iter(data.values()))) if data else 0
     channels = {ch: _channel(table, data, col, n) for ch, col in resolved.items()}
     t = channels[time]
-    inputs = np.column_stack([channels[n_] for n_ in model.inputs]) if model.inputs else np.zeros((n, 0))
+    inputs = (
+        np.column_stack([channels[n_] for n_ in model.inputs])
+        if model.inputs
+        else np.zeros((n, 0))
+    )
     measured = np.column_stack([channels[n_] for n_ in model.outputs])
     _check_record(path, channels, model, resolved, time)
     # the unit-mistake checks of flight logs, on whatever channels the model has

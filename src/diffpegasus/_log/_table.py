@@ -118,7 +118,9 @@ class Table:
             if data is None:
                 return self._read_carefully(wanted, index, drop_text=columns is None)
         except OSError as e:
-            raise LogError(f"{self.path}: cannot read the file ({e.strerror})") from None
+            raise LogError(
+                f"{self.path}: cannot read the file ({e.strerror})"
+            ) from None
         except UnicodeDecodeError as e:
             raise LogError(
                 f"{self.path}: not UTF-8 text (a byte {e.object[e.start]:#04x} past "
@@ -193,9 +195,9 @@ def _decimal_comma_line(line: str) -> bool:
     """Whether `line` is numbers with decimal commas separated by blanks, ';' or
     tabs ("0,00;-2,5" or "0,00 -2,5"), which a comma-separated reader would split."""
     cells = [c for c in re.split(r"[;\s]+", line.strip()) if c]
-    return (
-        len(cells) > 1 or ";" in line
-    ) and any(_DECIMAL_COMMA.match(c) for c in cells)
+    return (len(cells) > 1 or ";" in line) and any(
+        _DECIMAL_COMMA.match(c) for c in cells
+    )
 
 
 def open_table(path: str | os.PathLike) -> Table:
