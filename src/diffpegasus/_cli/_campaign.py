@@ -6,6 +6,7 @@ from typing import Annotated
 
 import typer
 
+from .._files import write_text
 from ._common import (
     _fail,
     app,
@@ -203,7 +204,7 @@ def design_input(
     result = run_design(design, limits, kind=criterion, steps=steps)
     plot_design(design, result, out)
     report = _design_report(result, criterion, limits, (start, start + length))
-    (out / "design.json").write_text(json.dumps(report, indent=2))
+    write_text(out / "design.json", json.dumps(report, indent=2))
     typer.echo(
         f"predicted standard errors, 1/deg (criterion {criterion}, lower is better):"
     )

@@ -327,7 +327,9 @@ def _banner(report: pathlib.Path, message: str) -> None:
     estimates."""
     try:
         if report.exists():
-            report.write_text(f"> **{message}**\n\n{report.read_text()}")
+            from .._files import write_text
+
+            write_text(report, f"> **{message}**\n\n{report.read_text()}")
     except OSError as e:
         _fail(_os_error(e))
 

@@ -12,6 +12,7 @@ from .._diagnose._rule import DecisionRule
 from .._errors import LogError
 from .._estimate._fit import Fit, fit
 from .._estimate._modelfile import ModelSpec
+from .._files import save_figure
 from .._log._columns import load_columns, load_record
 from .._model import Record
 
@@ -343,7 +344,7 @@ def plot_fit(result: Fit, out: pathlib.Path) -> list[pathlib.Path]:
         fig.suptitle(f"{rec.name}: output-error fit, det(R) = {result.cost:.4e}")
         fig.tight_layout()
         path = out / f"fit_{i + 1}_{pathlib.Path(rec.name).stem}.png"
-        fig.savefig(path, dpi=100)
+        save_figure(fig, path, dpi=100)
         plt.close(fig)
         paths.append(path)
     return paths
