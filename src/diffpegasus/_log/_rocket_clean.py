@@ -132,7 +132,13 @@ def clean_stream(
     same = np.concatenate([[False], np.diff(t) == 0])
     if same.any():
         equal = np.concatenate(
-            [[False], np.all((raw[1:] == raw[:-1]) | (np.isnan(raw[1:]) & np.isnan(raw[:-1])), axis=1)]
+            [
+                [False],
+                np.all(
+                    (raw[1:] == raw[:-1]) | (np.isnan(raw[1:]) & np.isnan(raw[:-1])),
+                    axis=1,
+                ),
+            ]
         )
         exact = int(np.count_nonzero(same & equal))
         clash = int(np.count_nonzero(same & ~equal))
@@ -165,7 +171,9 @@ def clean_stream(
                 'it "unit": "ms" in the column map)'
             )
         t = t * 1e-3
-        messages.append(f"{where_t}: no unit given and {span:.6g} s is no flight: read as ms")
+        messages.append(
+            f"{where_t}: no unit given and {span:.6g} s is no flight: read as ms"
+        )
     out: dict[str, Series] = {}
     for k, c in enumerate(names):
         v = raw[:, k] * c.factor + c.offset
@@ -212,8 +220,9 @@ def _drop_held_fixes(out: dict[str, Series], messages: list[str]) -> None:
 
 # --- units ---------------------------------------------------------------------------
 
+
 def _fix_hint(alternative: str) -> str:
-    return f'(give it {alternative} in the column map)'
+    return f"(give it {alternative} in the column map)"
 
 
 def check_accel_axial(s: Series, pad: np.ndarray, messages: list[str]) -> None:
@@ -228,7 +237,11 @@ def check_accel_axial(s: Series, pad: np.ndarray, messages: list[str]) -> None:
         raw = float(np.median(s.v[pad])) / c.factor
         row = s.rows[pad[len(pad) // 2]]
         units = [(c.unit or "m/s^2", c.factor)] if c.unit_from else []
-        units += [(u, f) for u, f in (("m/s^2", 1.0), ("g", G0)) if f != c.factor or not c.unit_from]
+        units += [
+            (u, f)
+            for u, f in (("m/s^2", 1.0), ("g", G0))
+            if f != c.factor or not c.unit_from
+        ]
         gravities = [c.gravity] if c.gravity else []
         gravities += [g for g in ("included", "removed") if g != c.gravity]
         options = [
@@ -268,7 +281,11 @@ def check_accel_axial(s: Series, pad: np.ndarray, messages: list[str]) -> None:
             messages.append(
                 f"{s.where}: reads {raw:.3g} on the pad"
                 + (f": taken as {' and '.join(said)}" if said else "")
-                + ("; 1 g removed by the log, g0 added back" if grav == "removed" else "")
+                + (
+                    "; 1 g removed by the log, g0 added back"
+                    if grav == "removed"
+                    else ""
+                )
             )
         return
     # no pad: the boost decides the unit; gravity from the map or the format
@@ -312,9 +329,12 @@ def check_pressure(s: Series, pad: np.ndarray, messages: list[str]) -> None:
         unit = None
     row = s.rows[sel[len(sel) // 2]]
     if unit is None or s.spec.unit_from:
-        what = f"the column looks like {unit} " + _fix_hint(
-            f'"unit": "{unit.lower() if unit != "mbar" else "hpa"}"'
-        ) if unit else "no unit makes it a pressure near the ground"
+        what = (
+            f"the column looks like {unit} "
+            + _fix_hint(f'"unit": "{unit.lower() if unit != "mbar" else "hpa"}"')
+            if unit
+            else "no unit makes it a pressure near the ground"
+        )
         raise LogError(
             f"{s.where}, row {row}: pad pressure {raw:.6g} {s.spec.unit or 'Pa'} is "
             f"not 30-110 kPa; {what}"
@@ -324,7 +344,11 @@ def check_pressure(s: Series, pad: np.ndarray, messages: list[str]) -> None:
 
 
 def check_altitude_unit(
-    s: Series, t_burnout: float, h_burnout: float, t_apogee: float, h_apogee: float,
+    s: Series,
+    t_burnout: float,
+    h_burnout: float,
+    t_apogee: float,
+    h_apogee: float,
     messages: list[str],
 ) -> float:
     """The coast from burnout to apogee decides metres against feet: against gravity
@@ -346,7 +370,8 @@ def check_altitude_unit(
         (u, f) for u, f in (("m", 1.0), ("ft", 0.3048)) if 0.8 <= raw_ratio * f <= 2.5
     ]
     verdict = (
-        f"the column looks like {better[0][0]} " + _fix_hint(f'"unit": "{better[0][0]}"')
+        f"the column looks like {better[0][0]} "
+        + _fix_hint(f'"unit": "{better[0][0]}"')
         if better
         else "check its unit and scale"
     )
@@ -363,9 +388,7 @@ def check_altitude_unit(
     return factor
 
 
-def check_imu(
-    series: dict[str, Series], pad_of, messages: list[str]
-) -> None:
+def check_imu(series: dict[str, Series], pad_of, messages: list[str]) -> None:
     """3-axis accelerometers must read |a| near 1 g on the pad, gyros less than 20
     deg/s (a still rocket; MEMS biases are a few deg/s): channels that do not are
     dropped with a message (a board that logs its IMU columns but never filled
@@ -430,7 +453,11 @@ def impossible_tail(
 
     def allowed(good, i):
         dt = t[i] - t[good]
-        return np.sqrt(2 * G0 * np.maximum(top - h[good], 0.0)) * dt + 0.5 * G0 * dt**2 + margin
+        return (
+            np.sqrt(2 * G0 * np.maximum(top - h[good], 0.0)) * dt
+            + 0.5 * G0 * dt**2
+            + margin
+        )
 
     prev, this = after[:-1], after[1:]
     suspects = this[h[prev] - h[this] > allowed(prev, this)]
