@@ -127,12 +127,13 @@ def _fit_model(
 @app.command()
 def vehicles(as_json: JsonOption = False):
     """List the built-in vehicles (use with --vehicle)."""
-    from .._vehicle import VEHICLES
+    from .._vehicle import vehicle_descriptions
 
+    descriptions = vehicle_descriptions()
     if as_json:
-        _json_out(VEHICLES)
+        _json_out(descriptions)
         return
-    for name, text in VEHICLES.items():
+    for name, text in descriptions.items():
         typer.echo(f"{name:15s} {text}")
 
 
