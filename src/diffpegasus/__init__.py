@@ -141,6 +141,7 @@ __getattr__, __dir__, __all__ = _attach(
             "LATERAL_OUTPUTS",
             "lateral_record",
             "LATERAL_START",
+            "LoggedMass",
             "LoggedThrust",
             "read_lateral_asc",
             "SIXDOF_LATERAL_EFFECTS",
@@ -150,6 +151,8 @@ __getattr__, __dir__, __all__ = _attach(
             "SIXDOF_LATERAL_STATES",
             "StandardAtmosphere",
             "vehicle_model",
+            "MachSplineAerodynamics",
+            "vehicle_entry",
             "vehicle_spec",
         ),
         "_vehicle._atmosphere": (

@@ -63,7 +63,7 @@ EstimateVehicleOption = Annotated[
     typer.Option(
         "--vehicle",
         help="Vehicle whose reference area and length scale the coefficients "
-        "(built-in name or a FILE.py defining `vehicle`); default: the log's sidecar",
+        "(built-in name or a FILE.py defining `vehicle`)",
     ),
 ]
 ModelOption = Annotated[
@@ -80,15 +80,31 @@ FixOption = Annotated[
 ]
 
 
-# Options shared by the discrepancy commands.
+# Tuning options of a vehicle's model (its registry entry's fields; a vehicle
+# without the field refuses the option).
 KnotsOption = Annotated[
-    int, typer.Option(help="Mach spline functions per coefficient term")
+    int | None,
+    typer.Option(help="Mach spline functions per coefficient term (pegasus: 6)"),
 ]
 AlphaOrderOption = Annotated[
-    int, typer.Option(help="Highest power of alpha in the baseline coefficients")
+    int | None,
+    typer.Option(
+        help="Highest power of alpha in the baseline coefficients (pegasus: 3)"
+    ),
 ]
-RateOption = Annotated[float, typer.Option(help="Model sample rate, Hz")]
-NodeOption = Annotated[float, typer.Option(help="Shooting nodes every S s")]
+RateOption = Annotated[
+    float | None, typer.Option(help="Model sample rate, Hz (pegasus: 50)")
+]
+NodeOption = Annotated[
+    float | None, typer.Option(help="Shooting nodes every S s (pegasus: 1)")
+]
+MaxIterOption = Annotated[
+    int,
+    typer.Option(
+        help="Iteration budget of the fit (a fit that has not converged by then "
+        "says so and reports nothing)"
+    ),
+]
 AddOption = Annotated[
     list[str] | None,
     typer.Option("--add", help="Effect to estimate (repeatable), e.g. pitch_damping"),
@@ -111,16 +127,16 @@ ProcessNoiseOption = Annotated[
 ]
 
 
-def _settings(knots, alpha_order, rate, node_interval):
-    from .._diagnose import Settings
+def _entry(vehicle: str, model=None, **tuning):
+    """The registry entry of `--model FILE` or `--vehicle NAME|FILE`, with the
+    tuning options given (one error line for an option the vehicle does not
+    take)."""
+    from .._vehicle._registry import vehicle_entry
 
-    if knots < 4:
-        _fail(f"--knots must be at least 4, got {knots}")
-    if alpha_order < 1:
-        _fail(f"--alpha-order must be at least 1, got {alpha_order}")
-    return Settings(
-        knots=knots, alpha_order=alpha_order, rate=rate, node_interval=node_interval
-    )
+    try:
+        return vehicle_entry(str(model or vehicle), **tuning)
+    except LogError as e:
+        _fail(str(e))
 
 
 def _read(log: pathlib.Path, resample: bool):
@@ -129,15 +145,6 @@ def _read(log: pathlib.Path, resample: bool):
     try:
         return read_log(log, resample=resample)
     except LogError as e:
-        _fail(str(e))
-
-
-def _check_addable(names, settings):
-    from .._diagnose._workflow import check_addable
-
-    try:
-        check_addable(names, settings)
-    except ValueError as e:
         _fail(str(e))
 
 
@@ -218,29 +225,17 @@ def out_problem(path: pathlib.Path, kind: str) -> str | None:
     return None
 
 
-def vehicle_geometry(name_or_file: str) -> tuple[float, float] | None:
-    """Reference area (m^2) and length (m) of a vehicle: `None` for Pegasus (the
-    log's own sidecar, else Pegasus's values, as always)."""
-    if name_or_file == "pegasus":
-        return None
-    if name_or_file == "hfb320":
-        from .._vehicle._hfb320 import HFB320
-
-        vehicle = HFB320
-    else:
-        from .._vehicle._registry import vehicle_spec
-
-        try:
-            vehicle = vehicle_spec(name_or_file).vehicle
-        except LogError as e:
-            _fail(str(e))
-        if vehicle is None:
-            _fail(
-                f"--vehicle {name_or_file}: estimate needs the vehicle's reference "
-                "area and length, i.e. a file defining `vehicle = dp.FlightVehicle"
-                "(...)`; a bare `model` has no geometry"
-            )
-    return float(vehicle.geometry.s_ref), float(vehicle.geometry.c_ref)
+def vehicle_geometry(name_or_file: str) -> tuple[float, float]:
+    """Reference area (m^2) and length (m) of a vehicle: they belong to the
+    vehicle (its registry entry), not to a log."""
+    geometry = _entry(name_or_file).geometry()
+    if geometry is None:
+        _fail(
+            f"--vehicle {name_or_file}: estimate needs the vehicle's reference "
+            "area and length, i.e. a file defining `vehicle = dp.FlightVehicle"
+            "(...)`; a bare `model` has no geometry"
+        )
+    return geometry
 
 
 def with_vehicle(flight, name_or_file: str):
@@ -248,10 +243,7 @@ def with_vehicle(flight, name_or_file: str):
     it differs from the log's sidecar."""
     import dataclasses
 
-    geometry = vehicle_geometry(name_or_file)
-    if geometry is None:
-        return flight
-    s_ref, c_ref = geometry
+    s_ref, c_ref = vehicle_geometry(name_or_file)
     if "S_ref" in flight.metadata and (
         abs(flight.s_ref - s_ref) > 1e-9 * s_ref
         or abs(flight.c_ref - c_ref) > 1e-9 * c_ref

@@ -116,7 +116,9 @@ class MachSplineAerodynamics(AbstractAerodynamics):
 
     def __check_init__(self):
         if self.knots < 4:
-            raise ValueError(f"knots must be at least 4 (cubic spline), got {self.knots}")
+            raise ValueError(
+                f"knots must be at least 4 (cubic spline), got {self.knots}"
+            )
 
     @property
     def terms(self) -> tuple[str, ...]:
@@ -179,7 +181,9 @@ def fit_mach_spline(
             "the log's Mach number does not vary enough for "
             f"{part.knots} spline knots; use fewer"
         )
-    a = part.regressors(np.asarray(mach, float), np.asarray(alpha), np.asarray(de), breaks)
+    a = part.regressors(
+        np.asarray(mach, float), np.asarray(alpha), np.asarray(de), breaks
+    )
     values = np.concatenate(
         [np.linalg.lstsq(a, np.asarray(y), rcond=None)[0] for y in coefficients]
     )

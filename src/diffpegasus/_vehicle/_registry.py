@@ -179,7 +179,9 @@ class ModelFileEntry(AbstractModelEntry):
         from ._simulate_file import simulate_model_file
 
         if perturb:
-            raise LogError(f"{self.path}: --perturb needs a vehicle's Monte Carlo model")
+            raise LogError(
+                f"{self.path}: --perturb needs a vehicle's Monte Carlo model"
+            )
         return simulate_model_file(
             self.spec(add=tuple(h.partition("=")[0].strip() for h in hidden)),
             seed=seed,

@@ -105,7 +105,9 @@ class PegasusEntry(AbstractVehicleEntry):
 
     def __check_init__(self):
         if self.knots < 4:
-            raise LogError(f"--knots must be at least 4 (cubic spline), got {self.knots}")
+            raise LogError(
+                f"--knots must be at least 4 (cubic spline), got {self.knots}"
+            )
         if self.knot_placement not in ("quantile", "blend"):
             raise LogError("--knot-placement must be quantile or blend")
         if not self.rate > 0 or not self.node_interval > 0:
@@ -252,7 +254,7 @@ class PegasusEntry(AbstractVehicleEntry):
         out = {}
         for name, values in log.channels.items():
             if name == "t":
-                out[name] = np.asarray(values, float)[:: step]
+                out[name] = np.asarray(values, float)[::step]
             else:
                 out[name], _ = block_means(values, step)
         return out
