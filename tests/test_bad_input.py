@@ -405,7 +405,8 @@ def test_write_error_after_the_checks_is_one_line(tmp_path, monkeypatch):
 
     monkeypatch.setattr(log_module, "write_log", refuse)
     monkeypatch.setattr(
-        "diffpegasus._cli._simulate._simulate_to_log", lambda *a, **k: object()
+        "diffpegasus._vehicle._pegasus._simulator.simulate_pegasus_log",
+        lambda *a, **k: object(),
     )
     _assert_one_error(
         runner.invoke(app, ["simulate", "--out", str(tmp_path / "f.csv")]),
@@ -501,7 +502,7 @@ def test_oem_with_some_failed_windows_nulls_them(tmp_path, monkeypatch):
 def test_compare_that_did_not_converge_reports_no_derivatives(tmp_path, monkeypatch):
     import diffpegasus._diagnose as discrepancy
 
-    def failed(log, settings, out):
+    def failed(entry, log, out, **kwargs):
         (out / "compare.md").write_text("# compare\n| CLa | 4.1 |\n")
         return {
             "cost": 1.0,

@@ -152,10 +152,11 @@ def test_method_fem_says_where_it_does_not_apply(tmp_path):
         ]
     )
     assert res.exit_code != 0 and "not a state of hfb320" in res.output
+    # every vehicle takes the same path: the launch vehicle's log is read first
     res = _cli(["fit", tmp_path / "x.csv", "--method", "fem", "--add", "pitch_damping"])
-    assert res.exit_code != 0 and "--vehicle NAME or --model FILE" in res.output
+    assert res.exit_code == 2 and "x.csv" in res.output
     res = _cli(["compare", tmp_path / "x.csv", "--method", "fem"])
-    assert res.exit_code != 0 and "--vehicle NAME or --model FILE" in res.output
+    assert res.exit_code == 2 and "x.csv" in res.output
 
 
 def test_simulate_seed_draws_the_turbulence(tmp_path, monkeypatch):
@@ -222,9 +223,11 @@ def test_simulate_seed_draws_the_turbulence(tmp_path, monkeypatch):
 
     monkeypatch.setattr(solve, "simulate", capture)
     with pytest.raises(RuntimeError, match="captured"):
-        from diffpegasus._cli._simulate import _simulate_to_log
+        from diffpegasus._vehicle import vehicle_entry
 
-        _simulate_to_log(7, "pulse", ["turbulence=1.5"], False, 1.0, 50.0, False)
+        vehicle_entry("pegasus").simulate(
+            seed=7, hidden=["turbulence=1.5"], duration=1.0, sample_rate=50.0
+        )
     (turb,) = seen["effects"]
     assert turb.seed == 7 and turb.sigma == 1.5
 

@@ -34,7 +34,6 @@ from ._estimate._fit import (
     fit as fit,
     MultipleShooting as MultipleShooting,
     SingleShooting as SingleShooting,
-    simulate as simulate_model,
 )
 from ._estimate._modelfile import (
     load_model_file as load_model_file,
@@ -104,6 +103,7 @@ from ._vehicle._gravity import (
 from ._vehicle._hfb320 import (
     hfb320_model as hfb320_model,
 )
+from ._vehicle._mach_spline import MachSplineAerodynamics as MachSplineAerodynamics
 from ._vehicle._parts import (
     AbstractAerodynamics as AbstractAerodynamics,
     AbstractAtmosphere as AbstractAtmosphere,
@@ -113,6 +113,7 @@ from ._vehicle._parts import (
     ConstantMass as ConstantMass,
     FlightVehicle as FlightVehicle,
     Geometry as Geometry,
+    LoggedMass as LoggedMass,
     LoggedThrust as LoggedThrust,
     StandardAtmosphere as StandardAtmosphere,
     vehicle_model as vehicle_model,

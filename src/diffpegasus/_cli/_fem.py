@@ -155,6 +155,7 @@ def run_model_fem(
     holds=(),
     process_noise=(),
     channels: bool = True,
+    records=None,
 ) -> dict:
     """Fit `spec`'s model to `files` by the filter-error method (process noise on
     `--process-noise` states, else the spec's), as the library's
@@ -174,7 +175,8 @@ def run_model_fem(
             "model file asks for biases, estimated initial states or multiple "
             "shooting (use --method oem)"
         )
-    records = load_records(spec, files, columns)
+    if records is None:
+        records = load_records(spec, files, columns)
     _say(
         f"fitting {spec.name} ({sum(spec.model.free)} free parameters, process noise "
         f"on {', '.join(noise)}) to {len(records)} record(s) by filter error"

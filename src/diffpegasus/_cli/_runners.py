@@ -364,9 +364,20 @@ def excitation_note(model, records) -> str | None:
     return None
 
 
-def _fit_spec(spec, files, columns, holds, initial_state, biases, shooting):
+def _fit_spec(
+    spec,
+    files,
+    columns,
+    holds,
+    initial_state,
+    biases,
+    shooting,
+    records=None,
+    max_iter=200,
+):
     spec = parse_holds(list(holds), spec)
-    records = load_records(spec, files, columns)
+    if records is None:
+        records = load_records(spec, files, columns)
     interval = getattr(shooting or spec.shooting, "interval", None)
     if interval is not None:
         for rec, f in zip(records, files, strict=True):
@@ -387,6 +398,7 @@ def _fit_spec(spec, files, columns, holds, initial_state, biases, shooting):
             shooting=shooting or spec.shooting,
             initial_state=initial_state or spec.initial_state,
             biases=spec.biases if biases is None else biases,
+            max_iter=max_iter,
             throw=False,
         )
     except ValueError as e:
@@ -404,6 +416,8 @@ def run_model_diagnose(
     biases=None,
     shooting=None,
     process_noise: tuple[str, ...] | None = None,
+    records=None,
+    max_iter: int = 200,
 ) -> dict:
     """Fit `spec`'s model with its candidates held, then rank the candidates by
     score test; the JSON-ready report (`ranking`, `significant`, `message`). With
@@ -414,7 +428,15 @@ def run_model_diagnose(
             "parameters in `candidates`)"
         )
     spec, result = _fit_spec(
-        spec, files, columns, holds, initial_state, biases, shooting
+        spec,
+        files,
+        columns,
+        holds,
+        initial_state,
+        biases,
+        shooting,
+        records,
+        max_iter,
     )
     report = {"fit": fit_report(result, spec), "ranking": [], "significant": []}
     if not result.converged and not (process_noise and np.isfinite(result.cost)):
@@ -460,10 +482,21 @@ def run_model_fit(
     biases: tuple[str, ...] | None = None,
     shooting=None,
     out: pathlib.Path | None = None,
+    records=None,
+    max_iter: int = 200,
 ) -> dict:
-    """Fit `spec`'s model to `files` (one manoeuvre each); the JSON-ready report."""
+    """Fit `spec`'s model to `files` (one manoeuvre each, or the `records` a
+    vehicle's entry built from them); the JSON-ready report."""
     spec, result = _fit_spec(
-        spec, files, columns, holds, initial_state, biases, shooting
+        spec,
+        files,
+        columns,
+        holds,
+        initial_state,
+        biases,
+        shooting,
+        records,
+        max_iter,
     )
     report = fit_report(result, spec)
     if not result.converged and (note := excitation_note(spec.model, result.records)):

@@ -60,7 +60,7 @@ from ._rocket_events import (
     robust_sigma,
     shocks,
 )
-from ._rocket_maps import detect_streams, load_map, StreamSpec, streams_from_map
+from ._rocket_maps import detect_streams, load_map, streams_from_map, StreamSpec
 from ._rocket_read import Header, read_columns
 
 
