@@ -33,6 +33,7 @@ from ._estimate._fit import (
     Fit as Fit,
     fit as fit,
     MultipleShooting as MultipleShooting,
+    simulate_model as simulate_model,
     SingleShooting as SingleShooting,
 )
 from ._estimate._modelfile import (
