@@ -54,6 +54,15 @@ def _localise_markdown(loc: dict) -> str:
     return "\n".join(lines)
 
 
+def _fitting(log, which: str = ""):
+    """What to print once a log has been read and its fit begins."""
+
+    def say(model) -> None:
+        _say(f"fitting the {which}model to {_name(log)} (compiles on first use)...")
+
+    return say
+
+
 def run_compare(
     entry,
     log,
@@ -64,8 +73,12 @@ def run_compare(
     """Fit `entry`'s model (unless `base` is given) to `log` (a path or a
     [`FlightLog`][]) and report how well it matches the measurements."""
     if base is None:
-        _say(f"fitting the model to {_name(log)} (compiles on first use)...")
-        base = fit_log(entry, log, max_iter=max_iter)
+        base = fit_log(
+            entry,
+            log,
+            max_iter=max_iter,
+            say=_fitting(log, ""),
+        )
     metrics = fit_metrics(base)
     loc = localise(base)
     derivs = derivative_table(base)
@@ -121,8 +134,8 @@ def run_diagnose(
     if base is None:
         from ._candidates import diagnose_model
 
-        _say(f"fitting the model to {_name(log)} (compiles on first use)...")
         spec, records = entry.problem([log], add=tuple(add), candidates=True)
+        _fitting(log)(spec.model)
         fitted, ranking = diagnose_model(
             spec.model,
             records,
@@ -175,8 +188,12 @@ def run_fit(
     """Fit without and with the effects `add`; before/after metrics and the effects'
     estimates, and the refit."""
     if before is None:
-        _say(f"fitting the baseline model to {_name(log)} (compiles on first use)...")
-        before = fit_log(entry, log, max_iter=max_iter)
+        before = fit_log(
+            entry,
+            log,
+            max_iter=max_iter,
+            say=_fitting(log, "baseline "),
+        )
     _say(f"refitting with {', '.join(add)}...")
     after = fit_log(entry, log, tuple(add), start=before, max_iter=max_iter)
     m_before, m_after = fit_metrics(before), fit_metrics(after)

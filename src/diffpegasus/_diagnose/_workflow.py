@@ -109,12 +109,16 @@ def fit_log(
     *,
     start: FlightFit | None = None,
     max_iter: int = MAX_ITER,
+    say=None,
 ) -> FlightFit:
     """Fit `entry`'s model (a vehicle's registry entry) to one log with the
     library effects `add` estimated and the vehicle's other candidates held at
-    zero; `start`: a previous fit whose estimates start this one."""
+    zero; `start`: a previous fit whose estimates start this one; `say(text)`: told
+    when the log has been read and the fit begins."""
     add = tuple(add)
     spec, records = entry.problem([log], add=add, candidates=True)
+    if say is not None:
+        say(spec.model)
     model = spec.model
     if start is not None:
         model = model.replace(start=start.result.estimates())
