@@ -96,8 +96,9 @@ AddOption = Annotated[
 MethodOption = Annotated[
     str,
     typer.Option(
-        help="oem (output error) or fem (filter error: process noise such as "
-        "turbulence, estimated with the parameters; --vehicle/--model only)"
+        help="oem (output error), fem (filter error: process noise such as "
+        "turbulence, estimated with the parameters; --vehicle/--model only), eqe "
+        "(equation error, `fit` only) or another registered estimator"
     ),
 ]
 ProcessNoiseOption = Annotated[

@@ -9,7 +9,7 @@ import numpy as np
 
 from .._diagnose._candidates import diagnosis_message, score_candidates
 from .._diagnose._rule import DecisionRule
-from .._estimate._fit import Fit, fit
+from .._estimate._fit import Fit, output_error
 from .._estimate._model import Record
 from .._estimate._modelfile import ModelSpec
 from .._log._columns import load_columns, load_record
@@ -293,7 +293,9 @@ def plot_fit(result: Fit, out: pathlib.Path) -> list[pathlib.Path]:
     return paths
 
 
-def _fit_spec(spec, files, columns, holds, initial_state, biases, shooting):
+def _fit_spec(
+    spec, files, columns, holds, initial_state, biases, shooting, max_iter=None
+):
     spec = parse_holds(list(holds), spec)
     records = load_records(spec, files, columns)
     _say(
@@ -301,13 +303,15 @@ def _fit_spec(spec, files, columns, holds, initial_state, biases, shooting):
         f"{len(records)} record(s) by output error"
     )
     try:
-        result = fit(
+        result = output_error(
             spec.model,
             records,
             shooting=shooting or spec.shooting,
             initial_state=initial_state or spec.initial_state,
             biases=spec.biases if biases is None else biases,
+            max_iter=max_iter,
             throw=False,
+            progress=sys.stderr.isatty(),
         )
     except ValueError as e:
         raise LogError(str(e)) from None
@@ -378,10 +382,11 @@ def run_model_fit(
     biases: tuple[str, ...] | None = None,
     shooting=None,
     out: pathlib.Path | None = None,
+    max_iter: int | None = None,
 ) -> dict:
     """Fit `spec`'s model to `files` (one manoeuvre each); the JSON-ready report."""
     spec, result = _fit_spec(
-        spec, files, columns, holds, initial_state, biases, shooting
+        spec, files, columns, holds, initial_state, biases, shooting, max_iter
     )
     report = fit_report(result, spec)
     if result.converged:

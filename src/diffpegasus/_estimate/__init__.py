@@ -32,6 +32,11 @@ __getattr__, __dir__, __all__ = attach(
             "FilterError",
             "OutputError",
         ),
+        "_solver": (
+            "BlockLevenbergMarquardt",
+            "output_error_residuals",
+            "OutputErrorProblem",
+        ),
         "_filter_error": (
             "FilterErrorFit",
             "fit_filter_error",

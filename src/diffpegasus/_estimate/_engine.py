@@ -439,7 +439,7 @@ def _print_progress(it, cost, change, damping, defect):
 
 
 @functools.partial(
-    jax.jit, static_argnames=("model", "max_iter", "nx", "p", "coloured", "progress")
+    jax.jit, static_argnames=("model", "nx", "p", "coloured", "progress")
 )
 def solve(
     model,
@@ -513,7 +513,9 @@ def solve(
         change = jnp.abs(cost_prev - cost) / jnp.abs(cost)
         if progress:
             defect = jnp.max(jnp.abs(jnp.where(accepted, d1, ev.d)), initial=0.0)
-            jax.debug.callback(_print_progress, it + active, cost, change, damping, defect)
+            jax.debug.callback(
+                _print_progress, it + active, cost, change, damping, defect
+            )
         after = (
             jnp.where(accepted, d1, ev.d),
             jnp.where(accepted, ys1, ev.ys),
@@ -543,10 +545,57 @@ def solve(
     init = (z0, jnp.ones(n_out), jnp.array(jnp.inf), jnp.array(0), jnp.array(False))
     init = (*init, jnp.array(0.0), jnp.array(False), lin0, after0, jnp.array(True))
     init = (*init, jnp.array(jnp.inf))
-    z, r, cost, iterations, done, _, broken, lin, (d, ys), _, change = jax.lax.while_loop(
-        lambda c: ((c[3] < max_iter) | c[9]) & ~c[4] & ~c[6], body, init
+    z, r, cost, iterations, done, _, broken, lin, (d, ys), _, change = (
+        jax.lax.while_loop(
+            lambda c: ((c[3] < max_iter) | c[9]) & ~c[4] & ~c[6], body, init
+        )
     )
     h, _, jyw, ew = lin
+    return finish(
+        layout,
+        z,
+        r,
+        cost,
+        iterations,
+        done,
+        broken,
+        h,
+        jyw,
+        ew,
+        d,
+        ys,
+        free,
+        nx=nx,
+        p=p,
+        coloured=coloured,
+        change=change,
+    )
+
+
+def finish(
+    layout,
+    z,
+    r,
+    cost,
+    iterations,
+    done,
+    broken,
+    h,
+    jyw,
+    ew,
+    d,
+    ys,
+    free,
+    *,
+    nx,
+    p,
+    coloured,
+    change,
+) -> Solution:
+    """The [`Solution`][] of a finished iteration: the covariances from the last
+    normal matrix `h` and whitened Jacobian `jyw` and residuals `ew`, the largest
+    defect of `d`, the result code (shared by [`solve`][] and the optimistix
+    solver's loop)."""
     m = free.astype(h.dtype)
     hm = h * m[:, None] * m[None, :] + jnp.diag(1.0 - m)
     cov = jnp.linalg.inv(hm) * m[:, None] * m[None, :]
@@ -637,7 +686,11 @@ def _unexcited(information, free, names) -> list[str]:
         return []
     h = information[np.ix_(idx, idx)]
     diag = np.diag(h)
-    out = [names[i] for i, d in zip(idx, diag) if d <= 0 and names[i] is not None]
+    out = [
+        names[i]
+        for i, d in zip(idx, diag, strict=True)
+        if d <= 0 and names[i] is not None
+    ]
     live = diag > 0
     if np.sum(live) > 1:
         d = np.sqrt(diag[live])

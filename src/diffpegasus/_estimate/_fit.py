@@ -304,9 +304,12 @@ def output_error(
     max_iter: int | None = None,
     throw: bool = True,
     progress: bool = False,
+    solver=None,
 ) -> Fit:
     """The output-error fit behind [`OutputError`][] and [`fit`][] (arguments as
-    [`fit`][]'s; `progress` prints one line per iteration)."""
+    [`fit`][]'s; `progress` prints one line per iteration; `solver` a
+    [`BlockLevenbergMarquardt`][] runs the iteration through optimistix instead
+    of the engine's own loop)."""
     records = (records,) if isinstance(records, Record) else tuple(records)
     shooting = SingleShooting() if shooting is None else shooting
     if not records:
@@ -331,23 +334,26 @@ def output_error(
         model, records, shooting, initial_state, biases, _state_scale(model, nodes0)
     )
     z0 = np.concatenate([nodes0.reshape(-1), start, np.zeros(len(records) * nb)])
-    # through the cache's kept programs: a later process skips tracing
-    sol = kept_call(
-        solve,
-        {
-            "model": model.structure(),
-            "nx": nx,
-            "p": p,
-            "max_iter": MAX_ITER if max_iter is None else int(max_iter),
-            "progress": bool(progress),
-        },
-        {
-            "layout": lay,
-            "z0": np.asarray(z0, float),
-            "free_params": np.asarray(model.free),
-            "rtol": np.asarray(rtol, float),
-        },
-    )
+    static = {
+        "model": model.structure(),
+        "nx": nx,
+        "p": p,
+    }
+    dynamic = {
+        # traced: every bound shares one compiled program
+        "max_iter": np.asarray(MAX_ITER if max_iter is None else int(max_iter)),
+        "layout": lay,
+        "z0": np.asarray(z0, float),
+        "free_params": np.asarray(model.free),
+        "rtol": np.asarray(rtol, float),
+    }
+    if solver is None:
+        # through the cache's kept programs: a later process skips tracing
+        sol = kept_call(solve, {**static, "progress": bool(progress)}, dynamic)
+    else:
+        from ._solver import solve_with_optimistix
+
+        sol = solve_with_optimistix(**static, **dynamic, solver=solver)
     sol = jax.tree.map(np.asarray, sol)
     ns = lay.n_segments * nx
     var = np.clip(np.diag(sol.covariance), 0.0, None)
