@@ -68,13 +68,13 @@ def test_cli_filter_error_fit_reproduces_the_library_and_fvsysid():
         ),
         x0=X0,
     )
-    lib = dp.fit_filter_error(
+    # the one entry, the command line's computation: process noise on the four
+    # state equations, started from an output-error fit (intensities scaled to its
+    # residuals, not the book's start values)
+    lib = dp.estimate(
         hfb320_model(),
         rec,
-        process_noise=PROCESS_NOISE,
-        full_R=False,
-        rtol=1e-6,
-        max_iter=60,
+        dp.FilterError(process_noise=tuple(PROCESS_NOISE)),
         throw=False,
     )
     assert report["method"] == "fem" and report["converged"] and lib.converged
@@ -93,9 +93,9 @@ def test_cli_filter_error_fit_reproduces_the_library_and_fvsysid():
     assert report["kc"][next(iter(report["kc"]))]["alpha"] == pytest.approx(
         1.0, abs=2e-3
     )
-    # against FVSysID's ml_fem: measured within 1.1 of our standard errors (CMq
-    # -34.86 vs -34.71); F within 6% (measured 0.2-5.8%): discrete vs continuous
-    # Riccati equation and linearisation point
+    # against FVSysID's ml_fem: measured within 1.1 of our standard errors (CMa
+    # -0.980 vs -0.968, 1.07); F within 6% (measured 0.3-5.7%): discrete vs
+    # continuous Riccati equation and linearisation point
     for name, book in BOOK_FEM.items():
         assert abs(report["estimates"][name] - book) < 1.2 * report["stderr"][name], (
             name

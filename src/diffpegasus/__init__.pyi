@@ -25,6 +25,11 @@ from ._estimate._equation_error import (
     equation_error as equation_error,
     EquationErrorFit as EquationErrorFit,
 )
+from ._estimate._estimator import (
+    AbstractEstimator as AbstractEstimator,
+    AbstractFit as AbstractFit,
+    estimate as estimate,
+)
 from ._estimate._filter_error import (
     FilterErrorFit as FilterErrorFit,
     fit_filter_error as fit_filter_error,
@@ -36,6 +41,11 @@ from ._estimate._fit import (
     simulate_model as simulate_model,
     SingleShooting as SingleShooting,
 )
+from ._estimate._methods import (
+    EquationError as EquationError,
+    FilterError as FilterError,
+    OutputError as OutputError,
+)
 from ._estimate._modelfile import (
     load_model_file as load_model_file,
     ModelSpec as ModelSpec,
@@ -43,6 +53,11 @@ from ._estimate._modelfile import (
 from ._estimate._oem import (
     format_parameter_table as format_parameter_table,
     parameter_table as parameter_table,
+)
+from ._estimate._solver import (
+    BlockLevenbergMarquardt as BlockLevenbergMarquardt,
+    output_error_residuals as output_error_residuals,
+    OutputErrorProblem as OutputErrorProblem,
 )
 from ._inputs import (
     AbstractInput as AbstractInput,

@@ -273,10 +273,10 @@ NodeOption = Annotated[
     typer.Option(help="Shooting nodes every S s (pegasus: 1)", callback=positive),
 ]
 MaxIterOption = Annotated[
-    int,
+    int | None,
     typer.Option(
-        help="Iteration budget of the fit (a fit that has not converged by then "
-        "says so and reports nothing)",
+        help="Iteration bound of the fit (default: iterate until the cost settles, "
+        "up to 500; a fit that stops short says why)",
         callback=at_least_one,
     ),
 ]
@@ -287,8 +287,9 @@ AddOption = Annotated[
 MethodOption = Annotated[
     str,
     typer.Option(
-        help="oem (output error) or fem (filter error: process noise such as "
-        "turbulence, estimated with the parameters; --vehicle/--model only)"
+        help="oem (output error), fem (filter error: process noise such as "
+        "turbulence, estimated with the parameters; --vehicle/--model only), eqe "
+        "(equation error, `fit` only) or another registered estimator"
     ),
 ]
 ProcessNoiseOption = Annotated[

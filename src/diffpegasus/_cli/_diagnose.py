@@ -65,7 +65,7 @@ def compare(
     resample: ResampleOption = False,
     method: MethodOption = "oem",
     process_noise: ProcessNoiseOption = None,
-    max_iter: MaxIterOption = 200,
+    max_iter: MaxIterOption = None,
 ):
     """Fit the vehicle's model by output error and show where it fails:
     per-channel metrics, whiteness, misfit by flight regime, fitted derivatives
@@ -205,7 +205,7 @@ def diagnose(
             "alpha, theta, q; `none` skips it)"
         ),
     ] = None,
-    max_iter: MaxIterOption = 200,
+    max_iter: MaxIterOption = None,
 ):
     """Rank the vehicle's candidate effects by how much of the misfit each would
     explain (score test with exact Jacobians); say when none is significant.

@@ -50,7 +50,7 @@ def _fit_model(
     show_channels=False,
     method="oem",
     process_noise=(),
-    max_iter=200,
+    max_iter=None,
 ):
     """Fit `entry`'s model (a vehicle's registry entry) to `logs` (one manoeuvre
     each) by output or filter error; print or `--json` the report."""
@@ -76,6 +76,13 @@ def _fit_model(
             )
     elif process_noise:
         _fail("--process-noise goes with --method fem")
+    if method not in ("oem", "fem") and (
+        bias or initial_state or shooting_interval is not None or out is not None
+    ):
+        _fail(
+            f"--method {method} runs with its default settings: --bias, "
+            "--initial-state, --shooting-interval and --out go with --method oem"
+        )
 
     if initial_state not in (None, "fixed", "estimated"):
         _fail(f"--initial-state must be fixed or estimated, got {initial_state!r}")
@@ -95,7 +102,10 @@ def _fit_model(
                 holds=fix or (),
                 process_noise=process_noise,
                 records=records,
+                max_iter=max_iter,
             )
+        elif method != "oem":
+            report = _run_registered(spec, logs, columns, fix or (), method, max_iter)
         else:
             report = run_model_fit(
                 spec,
@@ -118,14 +128,88 @@ def _fit_model(
     if as_json:
         _json_out(report)
     else:
-        typer.echo(
-            format_fem_table(report) if method == "fem" else format_table(report)
-        )
+        if method == "fem":
+            typer.echo(format_fem_table(report))
+        elif method == "oem":
+            typer.echo(format_table(report))
+        else:
+            typer.echo(_format_registered(report))
         if show_channels and "channels" in report:
             typer.echo(format_channels(report["channels"]))
     if not report["converged"]:
         typer.echo(f"error: {', '.join(map(str, logs))}: {report['message']}", err=True)
         raise typer.Exit(code=FIT_FAILED)
+
+
+def _run_registered(spec, logs, columns, holds, method, max_iter) -> dict:
+    """Any registered estimator with its default settings: the report of the
+    fields every result has ([`AbstractFit`][])."""
+    import sys
+
+    import numpy as np
+
+    from .._estimate._estimator import estimate
+    from .._estimate._methods import ESTIMATORS
+    from ._runners import load_records, num, parse_holds
+
+    spec = parse_holds(list(holds), spec)
+    records = load_records(spec, logs, columns)
+    try:
+        result = estimate(
+            spec.model,
+            records,
+            ESTIMATORS[method](),
+            max_iter=max_iter,
+            throw=False,
+            progress=sys.stderr.isatty(),
+        )
+    except ValueError as e:
+        raise LogError(str(e)) from None
+    ok = result.converged
+    names = spec.model.parameters
+    hidden = set(spec.candidates)
+    shown = [i for i, n in enumerate(names) if n not in hidden]
+    return {
+        "method": method,
+        "converged": ok,
+        "message": result.message,
+        "cost": num(result.cost),
+        "iterations": int(result.iterations),
+        "estimates": {names[i]: num(result.params[i]) if ok else None for i in shown},
+        "stderr": {
+            names[i]: num(result.stderr_corrected[i]) if ok and result.free[i] else None
+            for i in shown
+        },
+        "stderr_crb": {
+            names[i]: num(result.stderr[i]) if ok and result.free[i] else None
+            for i in shown
+        },
+        "fixed": [names[i] for i in shown if not result.free[i]],
+        "high_correlations": [
+            {"a": a, "b": b, "correlation": c}
+            for a, b, c in (result.high_correlations() if ok else [])
+            if a not in hidden and b not in hidden and np.isfinite(c)
+        ],
+    }
+
+
+def _format_registered(report: dict) -> str:
+    lines = [f"{'parameter':>12s} {'estimate':>14s} {'std. error':>12s}"]
+    for name, est in report["estimates"].items():
+        sd = report["stderr"][name]
+        if est is None:
+            lines.append(f"{name:>12s} {'-':>14s}")
+        elif sd is None:
+            lines.append(f"{name:>12s} {est:14.6g} {'(held)':>12s}")
+        else:
+            lines.append(f"{name:>12s} {est:14.6g} {sd:12.4g}")
+    lines.append(
+        f"{report['method']}: cost {report['cost']:.6e}   iterations: "
+        f"{report['iterations']}"
+    )
+    for c in report["high_correlations"]:
+        lines.append(f"correlation {c['a']} / {c['b']}: {c['correlation']:+.3f}")
+    return "\n".join(lines)
 
 
 @app.command()
@@ -176,7 +260,7 @@ def fit(
     resample: ResampleOption = False,
     method: MethodOption = "oem",
     process_noise: ProcessNoiseOption = None,
-    max_iter: MaxIterOption = 200,
+    max_iter: MaxIterOption = None,
 ):
     """Fit a vehicle's or model file's parameters to one or several logs (output
     error: estimates, standard errors, correlations, cost; --method fem: filter

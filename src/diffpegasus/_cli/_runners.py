@@ -10,7 +10,7 @@ import numpy as np
 from .._diagnose._candidates import diagnosis_message, score_candidates
 from .._diagnose._rule import DecisionRule
 from .._errors import LogError
-from .._estimate._fit import Fit, fit
+from .._estimate._fit import Fit, output_error
 from .._estimate._modelfile import ModelSpec
 from .._files import save_figure
 from .._log._columns import load_columns, load_record
@@ -373,7 +373,7 @@ def _fit_spec(
     biases,
     shooting,
     records=None,
-    max_iter=200,
+    max_iter=None,
 ):
     spec = parse_holds(list(holds), spec)
     if records is None:
@@ -392,7 +392,7 @@ def _fit_spec(
         f"{len(records)} record(s) by output error"
     )
     try:
-        result = fit(
+        result = output_error(
             spec.model,
             records,
             shooting=shooting or spec.shooting,
@@ -400,6 +400,7 @@ def _fit_spec(
             biases=spec.biases if biases is None else biases,
             max_iter=max_iter,
             throw=False,
+            progress=sys.stderr.isatty(),
         )
     except ValueError as e:
         raise LogError(str(e)) from None
@@ -483,7 +484,7 @@ def run_model_fit(
     shooting=None,
     out: pathlib.Path | None = None,
     records=None,
-    max_iter: int = 200,
+    max_iter: int | None = None,
 ) -> dict:
     """Fit `spec`'s model to `files` (one manoeuvre each, or the `records` a
     vehicle's entry built from them); the JSON-ready report."""

@@ -68,7 +68,7 @@ def run_compare(
     log,
     out: pathlib.Path | None,
     base: FlightFit | None = None,
-    max_iter: int = MAX_ITER,
+    max_iter: int | None = MAX_ITER,
 ) -> tuple[dict, FlightFit]:
     """Fit `entry`'s model (unless `base` is given) to `log` (a path or a
     [`FlightLog`][]) and report how well it matches the measurements."""
@@ -125,7 +125,7 @@ def run_diagnose(
     add: tuple[str, ...] = (),
     base: FlightFit | None = None,
     process_noise=None,
-    max_iter: int = MAX_ITER,
+    max_iter: int | None = MAX_ITER,
 ) -> tuple[dict, FlightFit]:
     """Fit (with the effects `add`; unless `base` is given), then rank the
     vehicle's other candidate effects ([`diagnose_model`][] without a `base`);
@@ -183,7 +183,7 @@ def run_fit(
     add: tuple[str, ...],
     out: pathlib.Path | None,
     before: FlightFit | None = None,
-    max_iter: int = MAX_ITER,
+    max_iter: int | None = MAX_ITER,
 ) -> tuple[dict, FlightFit]:
     """Fit without and with the effects `add`; before/after metrics and the effects'
     estimates, and the refit."""

@@ -21,9 +21,9 @@ from ._metrics import binned_misfit, channel_metrics, residual_noise_sigma
 from ._rule import DecisionRule
 
 
-# A fit runs to convergence: this is a budget, not a cap a fit is expected to meet
-# (the launch vehicle's baselines converge in 4-10 iterations at 50 Hz).
-MAX_ITER = 200
+# A fit runs to convergence: None is the engine's adaptive budget (it stops when the
+# cost settles; the launch vehicle's baselines converge in 4-10 iterations at 50 Hz)
+MAX_ITER = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -108,7 +108,7 @@ def fit_log(
     add: Sequence[str] = (),
     *,
     start: FlightFit | None = None,
-    max_iter: int = MAX_ITER,
+    max_iter: int | None = MAX_ITER,
     say=None,
 ) -> FlightFit:
     """Fit `entry`'s model (a vehicle's registry entry) to one log with the
