@@ -118,9 +118,17 @@ def test_code_blocks_run(page, tmp_path, monkeypatch):
 FORBIDDEN = [
     (re.compile(r"\b[Ii]ssues? #?\d+|\(#\d+\)|\B#\d{1,3}\b"), "an issue number"),
     (re.compile(r"\bsession\b", re.I), "a work session"),
-    (re.compile(r"/work/|\.\./shared|\bshared/data\b|\bnotes/"), "a path outside the repository"),
+    (
+        re.compile(r"/work/|\.\./shared|\bshared/data\b|\bnotes/"),
+        "a path outside the repository",
+    ),
     (re.compile(r"\bSPEC\b"), "the internal specification"),
-    (re.compile(r"\b(?<![.\d])(?=[0-9a-f]*[a-f])(?=[0-9a-f]*\d)[0-9a-f]{7,40}\b(?![-+]\d)"), "a commit hash"),
+    (
+        re.compile(
+            r"\b(?<![.\d])(?=[0-9a-f]*[a-f])(?=[0-9a-f]*\d)[0-9a-f]{7,40}\b(?![-+]\d)"
+        ),
+        "a commit hash",
+    ),
     (re.compile(r"\bload \d+(\.\d+)?-\d"), "an edit note about machine load"),
 ]
 
@@ -141,7 +149,16 @@ def test_the_site_builds_strict(tmp_path):
     env["PYTHONPATH"] = str(ROOT / "src") + os.pathsep + env.get("PYTHONPATH", "")
     env["NO_MKDOCS_2_WARNING"] = "1"
     done = subprocess.run(
-        [sys.executable, "-m", "mkdocs", "build", "--strict", "-q", "-d", str(tmp_path / "site")],
+        [
+            sys.executable,
+            "-m",
+            "mkdocs",
+            "build",
+            "--strict",
+            "-q",
+            "-d",
+            str(tmp_path / "site"),
+        ],
         cwd=ROOT,
         env=env,
         capture_output=True,

@@ -17,15 +17,15 @@ import types
 
 
 MARKER = "<!-- api-reference -->"
-TITLES = {
+TITLES = {  # in the order of the pipeline: vehicle -> simulate -> log -> estimate ...
     "_model": "Models and records",
-    "_errors": "Errors",
-    "_inputs": "Inputs",
-    "_rk4": "Integration",
-    "_estimate": "Estimation",
     "_vehicle": "Vehicles and effects",
+    "_inputs": "Inputs",
     "_simulate": "Simulation",
+    "_rk4": "Integration",
     "_log": "Logs and files",
+    "_errors": "Errors",
+    "_estimate": "Estimation",
     "_diagnose": "Finding missing terms",
     "_campaign": "Campaigns",
     "_report": "Reports",
@@ -173,7 +173,10 @@ def _section(pkg, prefix: str, modules, level: int) -> list[str]:
             _entry(f"{prefix}.{name}", located, level + 1)
         )
     out = []
-    for title in sorted(groups):
+    order = list(TITLES.values())
+    for title in sorted(
+        groups, key=lambda g: (order.index(g) if g in order else 99, g)
+    ):
         out += [f"{'#' * level} {title}", "", *groups[title]]
     return out, namespaces
 
