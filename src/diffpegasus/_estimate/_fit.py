@@ -9,8 +9,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._cache import kept_call
+from .._model import Model, Record
 from ._engine import Layout, RESULTS, solve
-from ._model import Model, Record
 
 
 class SingleShooting(eqx.Module):

@@ -28,7 +28,7 @@ import pathlib
 
 import numpy as np
 
-from ._format import LogError
+from .._errors import LogError
 
 
 SUFFIXES = (".mat", ".h5", ".hdf5", ".he5")
@@ -187,3 +187,40 @@ def _table(path: pathlib.Path, variables: dict) -> MatrixTable:
         for k in range(signals[matrices[0]].shape[1]):
             columns[str(k + 1)] = columns[f"{matrices[0]}[{k + 1}]"]
     return MatrixTable(path, columns, not_columns)
+
+
+class MatrixFileTable:
+    """A `.mat` or HDF5 file with the interface of a text table's layout
+    (`path`, `names`, `listing()`, `read(columns)`), so column maps read it with the
+    same resolution, unit and plausibility checks as a CSV file."""
+
+    kind = "matrix"
+    numbered = False
+
+    def __init__(self, path: pathlib.Path, data: MatrixTable):
+        self.path = path
+        # variables that are no column are listed too: asked for, they say why
+        self.names = (
+            *data,
+            *(n for n in data.not_columns if not dict.__contains__(data, n)),
+        )
+        self._data = data
+
+    @classmethod
+    def open(cls, path) -> "MatrixFileTable":
+        path = pathlib.Path(path)
+        return cls(path, read_matrix_file(path))
+
+    def listing(self) -> str:
+        return ", ".join(self.names)
+
+    def read(self, columns=None) -> dict[str, np.ndarray]:
+        """The named columns (default: every column) as float64 arrays."""
+        if columns is None:
+            return {n: self._data[n] for n in self._data}
+        out = {}
+        for name in dict.fromkeys(columns):
+            if name not in self._data:  # a variable that is no column says why
+                raise LogError(f"{self.path}: no variable {name!r}")
+            out[name] = self._data[name]
+        return out
