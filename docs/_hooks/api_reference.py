@@ -66,9 +66,30 @@ def _where(name, obj, modules, package):
     return module, attr
 
 
+def _static(module: str, attr: str) -> bool:
+    """Whether a static reader (griffe) finds `attr` in `module`'s source: a
+    top-level class, function or assignment of that name."""
+    source = inspect.getsource(importlib.import_module(module))
+    head = re.escape(attr.split(".")[0])
+    return bool(re.search(rf"^(class|def)\s+{head}\b|^{head}\s*[:=]", source, re.M))
+
+
 def _entry(public: str, located, level: int) -> list[str]:
     module, attr = located
     short = public.rsplit(".", 1)[-1]
+    if not _static(module, attr):
+        # made at run time (e.g. a class built on first use): its docstring only
+        obj = getattr(importlib.import_module(module), attr.split(".")[0])
+        doc = inspect.getdoc(obj) or ""
+        anchor = f"[](){{#{short}}} " if _claim(short) else ""
+        return [
+            f"{'#' * level} {public}",
+            "",
+            f"{anchor}`{module}.{attr}`",
+            "",
+            doc,
+            "",
+        ]
     # the docstrings cross-reference names bare (`[Model][]`, `[Fit.table][]`):
     # anchor the name and a class's members here
     anchors = [short]
@@ -187,6 +208,14 @@ def api_reference() -> str:
     _CLAIMED.clear()
     modules = _all_modules(diffpegasus)
     out, namespaces = _section(diffpegasus, "dp", modules, 2)
+    # the public namespaces: modules of the package without a leading underscore
+    listed = {name for name, _ in namespaces}
+    for info in pkgutil.iter_modules(diffpegasus.__path__):
+        if info.name.startswith("_") or info.name in listed:
+            continue
+        module = importlib.import_module(f"diffpegasus.{info.name}")
+        if getattr(module, "__all__", None):
+            namespaces.append((info.name, module))
     for name, module in namespaces:
         out += [f"## `dp.{name}`", ""]
         if module.__doc__:
