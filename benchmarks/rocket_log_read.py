@@ -28,6 +28,15 @@ HERE = pathlib.Path(__file__).resolve().parent
 G0 = 9.80665
 
 
+# the columns of a TeleMetrum's AltOS CSV export (version 6)
+ALTOS_COLUMNS = (
+    "#version serial flight call time state state_name acceleration pressure altitude "
+    "height speed temperature drogue_voltage main_voltage battery_voltage connected "
+    "locked nsat latitude longitude altitude year month day hour minute second "
+    "pad_dist pad_range pad_az pad_el pdop hdop vdop"
+).split() + [f"sat{k:02d}" for k in range(1, 33)]
+
+
 def trajectory(t):
     """A plain flight: 4 s boost at 8 g, coast, drogue at apogee (25 m/s), main at
     300 m (6 m/s); altitude (m), axial specific force (m/s^2, gravity included)."""
@@ -59,8 +68,7 @@ def write_logs(folder: pathlib.Path) -> tuple[pathlib.Path, pathlib.Path]:
     h_noisy = h + rng.normal(0, 0.5, ROWS)
     a_noisy = a + rng.normal(0, 0.3, ROWS)
     p = 101325.0 * (1 - 2.25577e-5 * h_noisy) ** 5.25588
-    source = HERE.parent / "tests" / "data" / "rocket_logs" / "altos_header.txt"
-    header = source.read_text().strip()
+    header = ",".join(ALTOS_COLUMNS)
     tail = (
         ", 33.9, 0.00, 0.00, 3.87, 1, 1, 11,  32.9395046,-106.9114515,  1390.0, "
         "2022,  6, 24, 15, 17, 16,        0,        0,   0,   0,   1.4,"
