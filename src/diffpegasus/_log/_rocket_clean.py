@@ -41,26 +41,32 @@ class Series:
 
 
 def _seg_rates(t: np.ndarray) -> list[tuple[float, float]]:
-    """Sample-rate segments [(start time, median step)]. A running median of the
-    steps (21 samples) put in half-octave bins marks where the rate changes; a run
-    shorter than 20 samples, or one whose steps are not mostly (half) its own step
-    within 10 % (gaps of a telemetry link, not a new rate), joins the run before."""
+    """Sample-rate segments [(start time, median step)]. The steps' medians over
+    blocks of 20 or more samples (at most 2000 blocks), in half-octave bins, mark
+    where the rate changes; a run whose steps are not mostly (half) its own step
+    within 25 % or the time's resolution (gaps of a telemetry link: 2 steps and
+    more, not a new rate) joins the run before, and neighbours within a factor 1.5
+    merge; each change is then placed to the sample within its blocks."""
     dt = np.diff(t)
-    if dt.size < 42:
+    if dt.size < 40:
         return [(float(t[0]), float(np.median(dt)) if dt.size else 0.0)]
-    step = float(np.median(dt))
-    if np.all(np.abs(dt - step) <= 0.1 * step):
-        return [(float(t[0]), step)]
-    med = scipy.ndimage.median_filter(dt, 21, mode="nearest")
-    level = np.round(2 * np.log2(med))
-    starts = np.concatenate([[0], np.flatnonzero(np.diff(level)) + 1])
+    distinct = np.unique(dt)
+    resolution = float(np.min(np.diff(distinct))) if distinct.size > 1 else 0.0
+
+    def regular(seg):
+        step = float(np.median(seg))
+        return np.mean(np.abs(seg - step) <= max(0.25 * step, resolution)) >= 0.5
+
+    if regular(dt) and np.ptp(dt) <= max(0.1 * np.median(dt), resolution):
+        return [(float(t[0]), float(np.median(dt)))]
+    block = max(20, -(-dt.size // 2000))
+    edges = np.arange(0, dt.size, block)
+    level = np.array([np.round(2 * np.log2(np.median(dt[e : e + block]))) for e in edges])
+    starts = edges[np.concatenate([[0], np.flatnonzero(np.diff(level)) + 1])]
     bounds = list(zip(starts, [*starts[1:], dt.size], strict=True))
     kept: list[list[int]] = []
     for a, b in bounds:
-        seg = dt[a:b]
-        step = float(np.median(seg))
-        regular = np.mean(np.abs(seg - step) <= 0.1 * step) >= 0.5
-        if kept and (b - a < 20 or not regular):
+        if kept and not regular(dt[a:b]):
             kept[-1][1] = b
         else:
             kept.append([a, b])
@@ -72,7 +78,15 @@ def _seg_rates(t: np.ndarray) -> list[tuple[float, float]]:
                 merged[-1][1] = b
                 continue
         merged.append([a, b])
-    return [(float(t[a]), float(np.median(dt[a:b]))) for a, b in merged]
+    steps = [float(np.median(dt[a:b])) for a, b in merged]
+    starts = [0]
+    for j in range(1, len(merged)):
+        lo, hi = max(merged[j][0] - block, 0), min(merged[j][0] + block, dt.size)
+        w = np.log(dt[lo:hi])
+        left = np.concatenate([[0.0], np.cumsum(np.abs(w - np.log(steps[j - 1])))])
+        right = np.concatenate([np.cumsum(np.abs(w - np.log(steps[j]))[::-1])[::-1], [0.0]])
+        starts.append(lo + int(np.argmin(left + right)))
+    return [(float(t[a]), step) for a, step in zip(starts, steps, strict=True)]
 
 
 def timing_messages(t: np.ndarray, where: str) -> list[str]:
