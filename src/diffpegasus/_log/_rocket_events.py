@@ -65,7 +65,7 @@ def liftoff_from_altitude(
     above = np.flatnonzero(h - h0 > 0.01 * climb)
     end = int(above[0]) if above.size else len(h) - 1
     end = min(len(h), max(end + 1, 8))
-    tw, hw = t[:end], h[:end]
+    tw, hw = _binned(t[:end], h[:end], 2000)
 
     def sse(t0, fix_pad):
         s = np.maximum(tw - t0, 0.0) ** 2
