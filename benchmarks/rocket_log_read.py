@@ -83,7 +83,9 @@ def write_logs(folder: pathlib.Path) -> tuple[pathlib.Path, pathlib.Path]:
             lines = [
                 f"6, 5115, 1,VA3NPN, {ti:9.4f}, 3,   boost, {ai - G0:7.2f}, "
                 f"{pi:9.2f}, {hi + 1320:8.2f}, {hi:8.2f}, {0.0:7.2f}{tail}\n"
-                for ti, ai, pi, hi in zip(t[sl], a_noisy[sl], p[sl], h_noisy[sl])
+                for ti, ai, pi, hi in zip(
+                    t[sl], a_noisy[sl], p[sl], h_noisy[sl], strict=False
+                )
             ]
             f.writelines(lines)
     alt = folder / "altimeter.csv"
@@ -93,7 +95,7 @@ def write_logs(folder: pathlib.Path) -> tuple[pathlib.Path, pathlib.Path]:
             sl = slice(k, k + 100_000)
             f.writelines(
                 f"{ti:.5f},{hi / 0.3048:.2f},{ai / G0:.4f}\n"
-                for ti, hi, ai in zip(t[sl], h_noisy[sl], a_noisy[sl])
+                for ti, hi, ai in zip(t[sl], h_noisy[sl], a_noisy[sl], strict=False)
             )
     return altos, alt
 

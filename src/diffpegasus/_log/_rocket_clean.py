@@ -14,7 +14,6 @@ import dataclasses
 import pathlib
 
 import numpy as np
-import scipy.ndimage
 
 from .._errors import LogError
 from ._rocket_events import G0, quantum, robust_sigma
@@ -61,7 +60,9 @@ def _seg_rates(t: np.ndarray) -> list[tuple[float, float]]:
         return [(float(t[0]), float(np.median(dt)))]
     block = max(20, -(-dt.size // 2000))
     edges = np.arange(0, dt.size, block)
-    level = np.array([np.round(2 * np.log2(np.median(dt[e : e + block]))) for e in edges])
+    level = np.array(
+        [np.round(2 * np.log2(np.median(dt[e : e + block]))) for e in edges]
+    )
     starts = edges[np.concatenate([[0], np.flatnonzero(np.diff(level)) + 1])]
     bounds = list(zip(starts, [*starts[1:], dt.size], strict=True))
     kept: list[list[int]] = []
@@ -84,7 +85,9 @@ def _seg_rates(t: np.ndarray) -> list[tuple[float, float]]:
         lo, hi = max(merged[j][0] - block, 0), min(merged[j][0] + block, dt.size)
         w = np.log(dt[lo:hi])
         left = np.concatenate([[0.0], np.cumsum(np.abs(w - np.log(steps[j - 1])))])
-        right = np.concatenate([np.cumsum(np.abs(w - np.log(steps[j]))[::-1])[::-1], [0.0]])
+        right = np.concatenate(
+            [np.cumsum(np.abs(w - np.log(steps[j]))[::-1])[::-1], [0.0]]
+        )
         starts.append(lo + int(np.argmin(left + right)))
     return [(float(t[a]), step) for a, step in zip(starts, steps, strict=True)]
 
@@ -148,7 +151,13 @@ def clean_stream(
     same = np.concatenate([[False], np.diff(t) == 0])
     if same.any():
         equal = np.concatenate(
-            [[False], np.all((raw[1:] == raw[:-1]) | (np.isnan(raw[1:]) & np.isnan(raw[:-1])), axis=1)]
+            [
+                [False],
+                np.all(
+                    (raw[1:] == raw[:-1]) | (np.isnan(raw[1:]) & np.isnan(raw[:-1])),
+                    axis=1,
+                ),
+            ]
         )
         exact = int(np.count_nonzero(same & equal))
         clash = int(np.count_nonzero(same & ~equal))
@@ -181,7 +190,9 @@ def clean_stream(
                 'it "unit": "ms" in the column map)'
             )
         t = t * 1e-3
-        messages.append(f"{where_t}: no unit given and {span:.6g} s is no flight: read as ms")
+        messages.append(
+            f"{where_t}: no unit given and {span:.6g} s is no flight: read as ms"
+        )
     out: dict[str, Series] = {}
     for k, c in enumerate(names):
         v = raw[:, k] * c.factor + c.offset
@@ -228,8 +239,9 @@ def _drop_held_fixes(out: dict[str, Series], messages: list[str]) -> None:
 
 # --- units ---------------------------------------------------------------------------
 
+
 def _fix_hint(alternative: str) -> str:
-    return f'(give it {alternative} in the column map)'
+    return f"(give it {alternative} in the column map)"
 
 
 def check_accel_axial(s: Series, pad: np.ndarray, messages: list[str]) -> None:
@@ -244,7 +256,11 @@ def check_accel_axial(s: Series, pad: np.ndarray, messages: list[str]) -> None:
         raw = float(np.median(s.v[pad])) / c.factor
         row = s.rows[pad[len(pad) // 2]]
         units = [(c.unit or "m/s^2", c.factor)] if c.unit_from else []
-        units += [(u, f) for u, f in (("m/s^2", 1.0), ("g", G0)) if f != c.factor or not c.unit_from]
+        units += [
+            (u, f)
+            for u, f in (("m/s^2", 1.0), ("g", G0))
+            if f != c.factor or not c.unit_from
+        ]
         gravities = [c.gravity] if c.gravity else []
         gravities += [g for g in ("included", "removed") if g != c.gravity]
         options = [
@@ -284,7 +300,11 @@ def check_accel_axial(s: Series, pad: np.ndarray, messages: list[str]) -> None:
             messages.append(
                 f"{s.where}: reads {raw:.3g} on the pad"
                 + (f": taken as {' and '.join(said)}" if said else "")
-                + ("; 1 g removed by the log, g0 added back" if grav == "removed" else "")
+                + (
+                    "; 1 g removed by the log, g0 added back"
+                    if grav == "removed"
+                    else ""
+                )
             )
         return
     # no pad: the boost decides the unit; gravity from the map or the format
@@ -321,26 +341,34 @@ def check_pressure(s: Series, pad: np.ndarray, messages: list[str]) -> None:
     if 30e3 <= p <= 110e3:
         return
     raw = p / s.spec.factor
-    for unit, factor in (("Pa", 1.0), ("hPa", 100.0), ("kPa", 1e3), ("mbar", 100.0)):
-        if 30e3 <= raw * factor <= 110e3:
-            break
-    else:
-        unit = None
+    fits = [
+        (unit, factor)
+        for unit, factor in (("Pa", 1.0), ("hPa", 100.0), ("kPa", 1e3))
+        if 30e3 <= raw * factor <= 110e3
+    ]
     row = s.rows[sel[len(sel) // 2]]
-    if unit is None or s.spec.unit_from:
-        what = f"the column looks like {unit} " + _fix_hint(
-            f'"unit": "{unit.lower() if unit != "mbar" else "hpa"}"'
-        ) if unit else "no unit makes it a pressure near the ground"
+    if not fits or s.spec.unit_from:
+        what = (
+            f"the column looks like {fits[0][0]} "
+            + _fix_hint(f'"unit": "{fits[0][0]}"')
+            if fits
+            else "no unit makes it a pressure near the ground"
+        )
         raise LogError(
             f"{s.where}, row {row}: pad pressure {raw:.6g} {s.spec.unit or 'Pa'} is "
             f"not 30-110 kPa; {what}"
         )
+    unit, factor = fits[0]
     s.v = s.v / s.spec.factor * factor
     messages.append(f"{s.where}: pad pressure {raw:.6g}: read as {unit}")
 
 
 def check_altitude_unit(
-    s: Series, t_burnout: float, h_burnout: float, t_apogee: float, h_apogee: float,
+    s: Series,
+    t_burnout: float,
+    h_burnout: float,
+    t_apogee: float,
+    h_apogee: float,
     messages: list[str],
 ) -> float:
     """The coast from burnout to apogee decides metres against feet: against gravity
@@ -362,7 +390,8 @@ def check_altitude_unit(
         (u, f) for u, f in (("m", 1.0), ("ft", 0.3048)) if 0.8 <= raw_ratio * f <= 2.5
     ]
     verdict = (
-        f"the column looks like {better[0][0]} " + _fix_hint(f'"unit": "{better[0][0]}"')
+        f"the column looks like {better[0][0]} "
+        + _fix_hint(f'"unit": "{better[0][0]}"')
         if better
         else "check its unit and scale"
     )
@@ -379,9 +408,7 @@ def check_altitude_unit(
     return factor
 
 
-def check_imu(
-    series: dict[str, Series], pad_of, messages: list[str]
-) -> None:
+def check_imu(series: dict[str, Series], pad_of, messages: list[str]) -> None:
     """3-axis accelerometers must read |a| near 1 g on the pad, gyros less than 20
     deg/s (a still rocket; MEMS biases are a few deg/s): channels that do not are
     dropped with a message (a board that logs its IMU columns but never filled
@@ -390,7 +417,9 @@ def check_imu(
     if len(acc) == 3:
         pads = [pad_of(series[n]) for n in acc]
         if all(p.size >= 5 for p in pads):
-            m = np.array([np.median(series[n].v[p]) for n, p in zip(acc, pads)])
+            m = np.array(
+                [np.median(series[n].v[p]) for n, p in zip(acc, pads, strict=False)]
+            )
             norm = float(np.linalg.norm(m))
             if not 0.7 * G0 <= norm <= 1.3 * G0:
                 s = series[acc[0]]
@@ -446,7 +475,11 @@ def impossible_tail(
 
     def allowed(good, i):
         dt = t[i] - t[good]
-        return np.sqrt(2 * G0 * np.maximum(top - h[good], 0.0)) * dt + 0.5 * G0 * dt**2 + margin
+        return (
+            np.sqrt(2 * G0 * np.maximum(top - h[good], 0.0)) * dt
+            + 0.5 * G0 * dt**2
+            + margin
+        )
 
     prev, this = after[:-1], after[1:]
     suspects = this[h[prev] - h[this] > allowed(prev, this)]

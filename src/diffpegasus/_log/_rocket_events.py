@@ -268,7 +268,11 @@ def descent_changes(
             return
         k, s1, s2 = r
         k += a
-        if -s1 > _MIN_DESCENT and -s2 < _DEPLOY_RATIO * -s1 and tt[b - 1] - tt[k] >= 1.0:
+        if (
+            -s1 > _MIN_DESCENT
+            and -s2 < _DEPLOY_RATIO * -s1
+            and tt[b - 1] - tt[k] >= 1.0
+        ):
             found.append((float(tt[k]), -s1, -s2))
         search(a, k, depth - 1)
         search(k, b, depth - 1)
@@ -287,9 +291,7 @@ def descent_changes(
     return refined
 
 
-def shocks(
-    t: np.ndarray, x: np.ndarray, t_from: float
-) -> list[float]:
+def shocks(t: np.ndarray, x: np.ndarray, t_from: float) -> list[float]:
     """Times after `t_from` where an accelerometer jumps from its running median by
     more than 10 of its own noise and more than 2 g: opening shocks. One time per
     burst (samples within 1 s are one burst)."""

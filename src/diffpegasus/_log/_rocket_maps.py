@@ -99,14 +99,14 @@ def channel_spec(
     gravity = extra.get("gravity")
     if gravity not in (None, "included", "removed"):
         raise LogError(
-            f"{where}: channel {name!r}: gravity must be \"included\" (reads +1 g on "
-            f"the pad) or \"removed\" (reads 0 on the pad), got {gravity!r}"
+            f'{where}: channel {name!r}: gravity must be "included" (reads +1 g on '
+            f'the pad) or "removed" (reads 0 on the pad), got {gravity!r}'
         )
     filtered = extra.get("filtered", False)
     if not isinstance(filtered, bool):
         raise LogError(f"{where}: channel {name!r}: filtered must be true or false")
     if extra.get("axis") not in (None, "auto"):
-        raise LogError(f"{where}: channel {name!r}: axis can only be \"auto\"")
+        raise LogError(f'{where}: channel {name!r}: axis can only be "auto"')
     if extra.get("axis") == "auto":
         return ChannelSpec(name, "", 1.0, gravity="included", axis_auto=True)
     unit = base.get("unit", "")
@@ -155,7 +155,9 @@ def load_map(source: Any) -> tuple[dict, pathlib.Path | None]:
     except OSError as e:
         raise LogError(f"{path}: cannot read the column map ({e.strerror})") from None
     try:
-        data = tomllib.loads(text) if path.suffix.lower() == ".toml" else json.loads(text)
+        data = (
+            tomllib.loads(text) if path.suffix.lower() == ".toml" else json.loads(text)
+        )
     except (ValueError, tomllib.TOMLDecodeError) as e:
         raise LogError(f"{path}: not a valid column map ({e})") from None
     if not isinstance(data, dict):
@@ -280,24 +282,28 @@ def detect_streams(file: pathlib.Path) -> tuple[list[StreamSpec], str]:
     names = header.names
     where = f"{file} (layout from its header)"
     if names[:2] == ["version", "serial"] and "time" in names:
-        spec = {
-            n: v for n, v in _ALTOS.items() if v["column"] in names
-        }
-        chans = tuple(channel_spec(n, v, where, header, "format") for n, v in spec.items())
-        time = channel_spec("time", {"column": "time", "unit": "s"}, where, header, "format")
-        return [StreamSpec(file, time, chans, clock=file.name, label=file.stem)], "AltOS"
+        spec = {n: v for n, v in _ALTOS.items() if v["column"] in names}
+        chans = tuple(
+            channel_spec(n, v, where, header, "format") for n, v in spec.items()
+        )
+        time = channel_spec(
+            "time", {"column": "time", "unit": "s"}, where, header, "format"
+        )
+        return [
+            StreamSpec(file, time, chans, clock=file.name, label=file.stem)
+        ], "AltOS"
     cats_only = {"Ax", "P", "filteredAltitudeAGL", "filtered_altitude_AGL", "height"}
     if "ts" in names and cats_only & set(names):
-        spec = {
-            n.rstrip("_"): v for n, v in _CATS.items() if v["column"] in names
-        }
+        spec = {n.rstrip("_"): v for n, v in _CATS.items() if v["column"] in names}
         if {"accel_x", "accel_y", "accel_z"} <= set(spec):
             spec["accel_axial"] = {"axis": "auto"}
         if spec:
             chans = tuple(
                 channel_spec(n, v, where, header, "format") for n, v in spec.items()
             )
-            time = channel_spec("time", {"column": "ts", "unit": "s"}, where, header, "format")
+            time = channel_spec(
+                "time", {"column": "ts", "unit": "s"}, where, header, "format"
+            )
             return [StreamSpec(file, time, chans, label=file.stem)], "CATS"
     times = [j for j, n in enumerate(names) if _is_time(n)]
     if not times:
@@ -322,7 +328,8 @@ def detect_streams(file: pathlib.Path) -> tuple[list[StreamSpec], str]:
                     prior = taken.get(channel)
                     # two columns of one quantity (alt in ft and in m): keep the SI one
                     if prior is None or (
-                        _bracket_unit(prior["column"]) not in ("m", "m/s", "pa", "m/s^2")
+                        _bracket_unit(prior["column"])
+                        not in ("m", "m/s", "pa", "m/s^2")
                         and _bracket_unit(col) in ("m", "m/s", "pa", "m/s^2")
                     ):
                         taken[channel] = entry
@@ -332,7 +339,10 @@ def detect_streams(file: pathlib.Path) -> tuple[list[StreamSpec], str]:
         time_unit = _bracket_unit(names[j])
         time = channel_spec(
             "time",
-            {"column": names[j], **({"unit": time_unit} if time_unit in ("s", "ms") else {})},
+            {
+                "column": names[j],
+                **({"unit": time_unit} if time_unit in ("s", "ms") else {}),
+            },
             where,
             None,
         )

@@ -78,9 +78,7 @@ class Header:
         raise KeyError(column)
 
 
-def read_columns(
-    header: Header, columns: list[int]
-) -> tuple[np.ndarray, list[str]]:
+def read_columns(header: Header, columns: list[int]) -> tuple[np.ndarray, list[str]]:
     """The float values of `columns` (0-based), shape `(rows, len(columns))`; empty
     cells are nan. Returns the array and messages about rows dropped."""
     path = header.path
@@ -120,7 +118,11 @@ def _read_carefully(header: Header, columns: list[int]):
             problem = None
             values = []
             if len(line) < width and len(line) <= max(columns):
-                problem = (r, header.names[min(len(line), width - 1)], "(row ends early)")
+                problem = (
+                    r,
+                    header.names[min(len(line), width - 1)],
+                    "(row ends early)",
+                )
             else:
                 for j in columns:
                     cell = line[j].strip()
@@ -144,7 +146,9 @@ def _read_carefully(header: Header, columns: list[int]):
     if not rows:
         if bad:
             r0, col, value = bad[0]
-            raise LogError(f"{path}: column {col!r}, row {r0}: {value!r} is not a number")
+            raise LogError(
+                f"{path}: column {col!r}, row {r0}: {value!r} is not a number"
+            )
         raise LogError(f"{path}: the file has a header but no data rows")
     messages = []
     if bad:

@@ -60,7 +60,7 @@ from ._rocket_events import (
     robust_sigma,
     shocks,
 )
-from ._rocket_maps import detect_streams, load_map, StreamSpec, streams_from_map
+from ._rocket_maps import detect_streams, load_map, streams_from_map, StreamSpec
 from ._rocket_read import Header, read_columns
 
 
@@ -211,11 +211,20 @@ def read_rocket_log(
         cols = {header.names[j]: k for k, j in enumerate(wanted)}
         for s in mine:
             # map entries may name a column by number or in another case
-            named = {c.column: cols[header.names[header.index(c.column)]] for c in (s.time, *s.channels) if not c.axis_auto}
+            named = {
+                c.column: cols[header.names[header.index(c.column)]]
+                for c in (s.time, *s.channels)
+                if not c.axis_auto
+            }
             chans, notes = clean_stream(s, data, named)
             messages += notes
             series_by_stream.append(chans)
-    order = [s for f in dict.fromkeys(s.file for s in streams) for s in streams if s.file == f]
+    order = [
+        s
+        for f in dict.fromkeys(s.file for s in streams)
+        for s in streams
+        if s.file == f
+    ]
     clocks: dict[str, list[tuple[StreamSpec, dict[str, Series]]]] = {}
     for spec, chans in zip(order, series_by_stream, strict=True):
         clocks.setdefault(spec.clock, []).append((spec, chans))
@@ -226,7 +235,7 @@ def read_rocket_log(
     primary = True
     for members in clocks.values():
         flat: dict[str, Series] = {}
-        for spec, chans in members:
+        for _, chans in members:
             for name, s in chans.items():
                 prior = flat.get(name)
                 if prior is None or (prior.spec.filtered and not s.spec.filtered):
@@ -361,7 +370,11 @@ def _one_clock(flat: dict[str, Series], auto: bool, messages: list[str]):
         th = hh = None
     t_lift, late, how = None, False, ""
     if th is not None:
-        top = float(np.max(np.convolve(hh, np.ones(3) / 3, "same")[1:-1])) if len(hh) > 3 else float(hh.max())
+        top = (
+            float(np.max(np.convolve(hh, np.ones(3) / 3, "same")[1:-1]))
+            if len(hh) > 3
+            else float(hh.max())
+        )
         t_lift, late, how = liftoff_from_altitude(th, hh, top)
     if auto and "accel_axial" not in flat and t_lift is not None:
         _auto_axis(flat, t_lift, messages)
@@ -388,7 +401,11 @@ def _one_clock(flat: dict[str, Series], auto: bool, messages: list[str]):
         check_accel_axial(acc, pad_of(acc), messages)
         if acc.spec.filtered:
             zero = np.flatnonzero(acc.v != acc.v[-1])
-            if acc.v[-1] == (G0 if acc.spec.gravity == "removed" else 0.0) and zero.size and zero[-1] < len(acc.v) - 10:
+            if (
+                acc.v[-1] == (G0 if acc.spec.gravity == "removed" else 0.0)
+                and zero.size
+                and zero[-1] < len(acc.v) - 10
+            ):
                 cut = int(zero[-1]) + 1
                 messages.append(
                     f"{acc.where}: held at exactly {acc.v[-1] - G0 * (acc.spec.gravity == 'removed'):g} "
@@ -472,7 +489,9 @@ def _one_clock(flat: dict[str, Series], auto: bool, messages: list[str]):
         factor = check_altitude_unit(alt, t_bo, h_bo, t_apo, h_apo, messages)
         if factor != 1.0:
             hh = alt.v
-            events["apogee"] = dataclasses.replace(events["apogee"], value=h_apo * factor)
+            events["apogee"] = dataclasses.replace(
+                events["apogee"], value=h_apo * factor
+            )
             h_apo *= factor
     _deployments(events, flat, th, hh, t_lift, t_apo, h_apo, pulses, messages)
     return t_lift, events, pad
@@ -483,7 +502,7 @@ def _auto_axis(flat, t_lift, messages):
     if any(a is None for a in acc):
         return
     best, sign, name = 0.0, 1.0, ""
-    for n, a in zip(("accel_x", "accel_y", "accel_z"), acc):
+    for n, a in zip(("accel_x", "accel_y", "accel_z"), acc, strict=False):
         sel = (a.t >= t_lift) & (a.t <= t_lift + 1.0)
         if sel.any():
             m = float(np.median(a.v[sel]))
@@ -492,7 +511,9 @@ def _auto_axis(flat, t_lift, messages):
     if not name:
         return
     a = flat[name]
-    spec = dataclasses.replace(a.spec, name="accel_axial", factor=a.spec.factor * sign, gravity="included")
+    spec = dataclasses.replace(
+        a.spec, name="accel_axial", factor=a.spec.factor * sign, gravity="included"
+    )
     flat["accel_axial"] = Series(a.t, a.v * sign, a.rows, spec, a.file)
     messages.append(
         f"{a.where}: accel_axial is {'-' if sign < 0 else '+'}{name}, the axis that "
