@@ -11,6 +11,7 @@ column, row and value: time running backwards, and a unit the data contradict.
 """
 
 import dataclasses
+import json
 import pathlib
 
 import numpy as np
@@ -288,10 +289,10 @@ def check_accel_axial(s: Series, pad: np.ndarray, messages: list[str]) -> None:
                     if grav == "included"
                     else "about 0: 1 g is removed"
                 )
-            fix = {"unit": unit, "gravity": grav}
+            fix = json.dumps({"unit": unit, "gravity": grav})
             raise LogError(
                 f"{s.where}, row {row}: reads {raw:.4g} on the pad, {what} "
-                f"(give it {fix} in the column map)".replace("'", '"')
+                f"(give it {fix} in the column map)"
             )
         s.v = s.v / c.factor * factor + (G0 if grav == "removed" else 0.0)
         said = [f"unit {unit}"] if not declared_unit else []
