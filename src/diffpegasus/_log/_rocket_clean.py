@@ -245,7 +245,9 @@ def _fix_hint(alternative: str) -> str:
     return f"(give it {alternative} in the column map)"
 
 
-def check_accel_axial(s: Series, pad: np.ndarray, messages: list[str]) -> None:
+def check_accel_axial(
+    s: Series, pad: np.ndarray, near_top: np.ndarray, messages: list[str]
+) -> None:
     """An axial accelerometer's unit and gravity convention against its pad
     reading (g times the sine of the rail's elevation, 0.6-1 g for rails 37-90
     degrees up, gravity included; 5 % more for a sensor's bias) or, without pad samples, its boost (thrust beats
@@ -308,7 +310,22 @@ def check_accel_axial(s: Series, pad: np.ndarray, messages: list[str]) -> None:
                 )
             )
         return
-    # no pad: the boost decides the unit; gravity from the map or the format
+    # no pad: the boost decides the unit; gravity from the map or the format, else
+    # from the end of the climb, where drag vanishes: the specific force reads ~0
+    # (gravity included) or ~-1 g (1 g removed)
+    if c.gravity is None and near_top.size >= 5:
+        top = float(np.median(s.v[near_top]))
+        for factor in (c.factor, G0 if c.factor == 1.0 else 1.0):
+            x = top / c.factor * factor
+            if abs(x) < 0.25 * G0 or abs(x + G0) < 0.25 * G0:
+                grav = "included" if abs(x) < 0.25 * G0 else "removed"
+                c = s.spec = dataclasses.replace(c, gravity=grav)
+                removed = grav == "removed"
+                messages.append(
+                    f"{s.where}: no samples on the pad; reads {top / s.spec.factor:.3g} "
+                    f"just before apogee, where drag vanishes: gravity {grav}"
+                )
+                break
     if c.gravity is None:
         raise LogError(
             f"{s.where}: the log has no samples on the pad to tell whether gravity is "

@@ -68,12 +68,36 @@ class StreamSpec:
     label: str = ""
 
 
+_SUFFIXES = {
+    "m_s2": "m/s^2",
+    "m_s_2": "m/s^2",
+    "mps2": "m/s^2",
+    "m_s": "m/s",
+    "mps": "m/s",
+    "ft_s": "ft/s",
+    "deg_s": "deg/s",
+    "rad_s": "rad/s",
+    "hpa": "hpa",
+    "kpa": "kpa",
+    "pa": "pa",
+    "ft": "ft",
+    "m": "m",
+    "g": "g",
+    "ms": "ms",
+    "s": "s",
+    "degc": "degc",
+}
+
+
 def _bracket_unit(name: str) -> str:
     """The unit written in a column name: 'alt(ft)' -> 'ft', 'Altitude (Ft-AGL)' ->
-    'ft', 'velocity[m/s]' -> 'm/s', 'Axial Accel (Gs)' -> 'g'; '' if none known."""
+    'ft', 'velocity[m/s]' -> 'm/s', 'Axial Accel (Gs)' -> 'g', 'accel_m_s2' ->
+    'm/s^2'; '' if none known."""
     m = re.search(r"[\(\[]([^\)\]]*)[\)\]]\s*$", name)
     if not m:
-        return ""
+        # a suffix: altitude_m, accel_m_s2, time_s, pressure_hPa
+        m = re.search(r"_(" + "|".join(_SUFFIXES) + r")$", name.strip().lower())
+        return _SUFFIXES[m.group(1)] if m else ""
     text = m.group(1).strip().lower()
     text = re.sub(r"[-_ ]*(agl|asl|msl)$", "", text)
     text = {"gs": "g", "sec": "s", "secs": "s", "feet": "ft", "meters": "m"}.get(

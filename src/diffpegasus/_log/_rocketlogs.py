@@ -49,6 +49,7 @@ from ._rocket_clean import (
     Series,
 )
 from ._rocket_events import (
+    accel_pad,
     apogee,
     burnout_from_accel,
     burnout_from_altitude,
@@ -304,15 +305,17 @@ def _sources(source) -> tuple[list[pathlib.Path], pathlib.Path | None, list[str]
         except tomllib.TOMLDecodeError as e:
             raise LogError(f"{toml}: not valid TOML ({e})") from None
         log = facts.get("log", {})
-        names = [
+        names = [log["file"]] if isinstance(log.get("file"), str) else []
+        names += [n for n in log.get("files", []) if isinstance(n, str)]
+        names += [
             v["file"]
             for v in log.values()
             if isinstance(v, dict) and isinstance(v.get("file"), str)
         ]
         if not names:
             raise LogError(
-                f"{toml}: [log] names no file; give each log as a table with "
-                '`file = "logs/name.csv"` under [log]'
+                f"{toml}: [log] names no file; give `file = 'logs/name.csv'` (or "
+                "`files = [...]`) under [log], or one table per file with its `file`"
             )
         return [toml.parent / n for n in names], toml.parent, []
     for p in paths:
@@ -391,14 +394,25 @@ def _one_clock(flat: dict[str, Series], auto: bool, messages: list[str]):
                 "times its pad noise, on the rise to the boost"
             )
     if t_lift is None:
-        return None
+        raise LogError(
+            f"{acc.where if acc is not None else 'the log'}: no liftoff: no altitude "
+            "or pressure to see the climb, and the accelerometer has no samples on "
+            "the pad before its boost"
+        )
     pad_of = _pad_of(t_lift)
     if press is not None:
         check_pressure(press, pad_of(press), messages)
     check_imu(flat, pad_of, messages)
     acc = flat.get("accel_axial")
     if acc is not None:
-        check_accel_axial(acc, pad_of(acc), messages)
+        near_top = np.array([], int)
+        if th is not None:
+            # the last tenth of the climb, where drag has all but vanished
+            t_top, _ = apogee(th, hh, t_lift)
+            near_top = np.flatnonzero(
+                (acc.t >= t_top - 0.1 * (t_top - t_lift)) & (acc.t <= t_top)
+            )
+        check_accel_axial(acc, accel_pad(acc.t, acc.v, t_lift), near_top, messages)
         if acc.spec.filtered:
             zero = np.flatnonzero(acc.v != acc.v[-1])
             if (
