@@ -486,8 +486,8 @@ def _one_clock(flat: dict[str, Series], auto: bool, messages: list[str]):
         if t_bo is not None:
             events["burnout"] = Event(
                 t_bo - t_lift,
-                "the axial specific force turns negative after the boost (thrust "
-                "below drag) for five samples",
+                "the axial specific force (running median of three samples) turns "
+                "negative after the boost: thrust below drag",
             )
     if t_bo is None:
         t_bo, v_bo = burnout_from_altitude(th, hh, t_lift, t_apo)
