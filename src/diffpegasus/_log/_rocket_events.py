@@ -10,6 +10,8 @@ drag), apogee the top of a smoothing spline whose smoothing the data choose
 than air density alone can explain, landing where the descent stops.
 """
 
+import dataclasses
+
 import numpy as np
 import scipy.interpolate
 import scipy.ndimage
@@ -27,6 +29,23 @@ _DEPLOY_RATIO = 0.6
 _MOST_DESCENT = 4000
 # No canopy lets a rocket down slower than 1 m/s: below it the rocket is not descending
 _MIN_DESCENT = 1.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Event:
+    """A flight event found in the data.
+
+    **Fields:**
+
+    - `t`: time, s since liftoff (liftoff itself is at 0).
+    - `how`: one sentence saying from which channel and by which rule it was found.
+    - `value`: the quantity that marks it, where one does (apogee altitude in m,
+      burnout speed in m/s, ...), else `nan`.
+    """
+
+    t: float
+    how: str
+    value: float = float("nan")
 
 
 def robust_sigma(x: np.ndarray) -> float:
