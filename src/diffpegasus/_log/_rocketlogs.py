@@ -136,16 +136,20 @@ def read_rocket_log(
 
     **Arguments:**
 
-    - `source`: a `rocket.toml` (its `[log.*]` tables' `file` entries name the logs,
-      relative to it), or one log file, or a list of the log files of one flight.
+    - `source`: a `rocket.toml` (its `[log]` table's `file` or `files`, or the
+      `file` of each `[log.*]` table, name the logs, relative to it), or one log
+      file, or a list of the log files of one flight.
     - `column_map`: which column holds which channel, in the syntax of every column
       map (`{"altitude": {"column": "alt(ft)", "unit": "ft"}}`), as a dict or a
       `.json` / `.toml` file. For several files or several streams in one file it is
       `{"streams": [{"file": "logs/a.csv", "time": "ts", "altitude": ...}, ...]}`.
       An accelerometer's entry may say `"gravity": "included"` or `"removed"`, any
       entry `"filtered": true`. Default: the map next to the `rocket.toml`
-      (`columns.json`), else a shipped one for the flight, else the layout the
-      files' headers show (AltOS, CATS, or column names with units in brackets).
+      (`columns.json`), else a shipped one for the flight's folder, else the layout
+      the files' headers show (AltOS, CATS, or column names with units in brackets
+      or as a suffix: `alt(ft)`, `altitude_m`). A unit the map or header gives is
+      checked against the flight; where none is given, the one that fits is taken,
+      with a message.
 
     **Returns:**
 
