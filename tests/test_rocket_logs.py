@@ -366,6 +366,18 @@ def test_column_map_mistakes_name_the_column(tmp_path):
         match=r"no column 'alt\(km\)' for channel 'altitude' \(columns: t\(s\), alt\(ft\), accel\(g\)\)",
     ):
         read_rocket_log(path, {"time": "t(s)", "altitude": "alt(km)"})
+    with pytest.raises(LogError, match="column map: give a table of channels"):
+        read_rocket_log(path, ["alt(ft)"])
+    # a one-file map without "time" takes the header's one time column
+    log = read_rocket_log(path, {"altitude": "alt(ft)"})
+    assert list(log.channels) == ["altitude"]
+    assert log["altitude"].source.endswith("(ft)")  # the unit from the header
+    empty = tmp_path / "empty.csv"
+    empty.write_text("t(s),alt(ft)\n" + "".join(f"{k / 10},\n" for k in range(50)))
+    with pytest.raises(
+        LogError, match=r"no channel could be read \(.*'alt\(ft\)': no values"
+    ):
+        read_rocket_log(empty)
     with pytest.raises(LogError, match="gravity must be"):
         read_rocket_log(
             path,

@@ -173,6 +173,11 @@ def load_map(source: Any) -> tuple[dict, pathlib.Path | None]:
     its file names are relative to."""
     if isinstance(source, dict):
         return source, None
+    if not isinstance(source, str | pathlib.PurePath):
+        raise LogError(
+            "column map: give a table of channels or the path of a .json / .toml "
+            f"file, got {type(source).__name__}"
+        )
     path = pathlib.Path(source)
     try:
         text = path.read_text(encoding="utf-8-sig")
@@ -201,7 +206,18 @@ def streams_from_map(
                 f"{len(files)} were given; list them as "
                 '{"streams": [{"file": ..., "time": ..., ...}]}'
             )
-        data = {"streams": [{**data, "file": str(files[0])}]}
+        flat = {**data, "file": str(files[0])}
+        if "time" not in flat:
+            header = Header(files[0])
+            times = [n for n in header.names if _is_time(n)]
+            if len(times) != 1:
+                raise LogError(
+                    f'{where}: give the time column as "time" (the header of '
+                    f"{files[0].name} has {len(times) or 'no'} time-like columns: "
+                    f"{', '.join(header.names)})"
+                )
+            flat["time"] = times[0]
+        data = {"streams": [flat]}
     streams = data["streams"]
     if not isinstance(streams, list) or not streams:
         raise LogError(f"{where}: 'streams' must be a list of tables")

@@ -12,6 +12,7 @@ import csv
 import math
 import pathlib
 import re
+import warnings
 
 import numpy as np
 
@@ -84,16 +85,18 @@ def read_columns(header: Header, columns: list[int]) -> tuple[np.ndarray, list[s
     path = header.path
     columns = sorted(set(columns))
     try:
-        data = np.loadtxt(
-            path,
-            delimiter=header.sep,
-            skiprows=header.skip,
-            usecols=columns,
-            dtype=float,
-            comments=None,
-            ndmin=2,
-            encoding="utf-8-sig",
-        )
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # "input contained no data": checked after
+            data = np.loadtxt(
+                path,
+                delimiter=header.sep,
+                skiprows=header.skip,
+                usecols=columns,
+                dtype=float,
+                comments=None,
+                ndmin=2,
+                encoding="utf-8-sig",
+            )
         return data, []
     except (ValueError, IndexError):
         pass

@@ -248,7 +248,10 @@ def read_rocket_log(
                     )
         primary = False
     if not channels:
-        raise LogError(f"{files[0]}: no channel could be read")
+        why = [m for m in messages if "not used" in m]
+        raise LogError(
+            f"{files[0]}: no channel could be read" + (f" ({why[0]})" if why else "")
+        )
     return RocketLog(
         channels,
         events,
