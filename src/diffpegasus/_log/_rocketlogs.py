@@ -223,6 +223,12 @@ def read_rocket_log(
             del flat["accel_axial"]
         found = one_clock(flat, auto, messages)
         if found is None:
+            files_here = ", ".join(sorted({spec.file.name for spec, _ in members}))
+            messages.append(
+                f"{files_here}: nothing on this clock shows liftoff (no altitude, "
+                "pressure or accelerometer): its channels are not used; give its "
+                'streams the "clock" of the computer that wrote them'
+            )
             continue
         t_lift, group_events, group_pad = found
         label = members[0][0].label
