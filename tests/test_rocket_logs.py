@@ -513,3 +513,31 @@ def test_rocketpy_flights(case):
     half = thrust[np.flatnonzero(thrust[:, 1] >= 0.5 * thrust[:, 1].max())[-1], 0]
     burnout = _file_time(log, "burnout")
     assert half <= burnout <= thrust[-1, 0]
+
+
+def test_rocket_toml_names_its_logs_and_maps(tmp_path):
+    """A user's rocket.toml: `[log] file` with a `column_map` inline (in the syntax of
+    every column map: `t` for time, or `{"step": s}` for a file without one), or
+    `[log] column_map` naming a map file."""
+    shutil.copy(FIXTURES / "altimeter.csv", tmp_path / "flight.csv")
+    lines = _lines(FIXTURES / "altimeter.csv")
+    (tmp_path / "alt.csv").write_text(
+        "\n".join(["altitude"] + [x.split(",")[1] for x in lines[1:]]) + "\n"
+    )
+    (tmp_path / "rocket.toml").write_text(
+        'name = "test"\n[log.alt]\nfile = "alt.csv"\n'
+        'column_map = { t = { step = 0.05 }, altitude = { column = "altitude", '
+        'unit = "ft" } }\n'
+    )
+    log = read_rocket_log(tmp_path / "rocket.toml")
+    # the file's first sample is at -0.3 s; with the step the clock starts at 0
+    assert _file_time(log, "apogee") - 0.3 == pytest.approx(truth.T_APOGEE, abs=0.06)
+    (tmp_path / "map.json").write_text(
+        '{"t": "t(s)", "altitude": {"column": "alt(ft)", "unit": "ft"}}'
+    )
+    (tmp_path / "rocket.toml").write_text(
+        '[log]\nfile = "flight.csv"\ncolumn_map = "map.json"\n'
+    )
+    log = read_rocket_log(tmp_path / "rocket.toml")
+    assert list(log.channels) == ["altitude"]
+    assert _file_time(log, "apogee") == pytest.approx(truth.T_APOGEE, abs=0.06)

@@ -130,7 +130,11 @@ def clean_stream(
     file = spec.file
     messages: list[str] = []
     rows = np.arange(1, len(data) + 1)
-    t = data[:, cols[spec.time.column]] * spec.time.factor
+    t = (
+        spec.time.step * np.arange(len(data), dtype=float)
+        if spec.time.step is not None
+        else data[:, cols[spec.time.column]] * spec.time.factor
+    )
     names = [c for c in spec.channels if not c.axis_auto]
     raw = (
         np.column_stack([data[:, cols[c.column]] for c in names])

@@ -57,6 +57,7 @@ class ChannelSpec:
     gravity: str | None = None
     filtered: bool = False
     axis_auto: bool = False
+    step: float | None = None  # time only: samples `step` seconds apart from 0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -206,7 +207,7 @@ def streams_from_map(
                 f"{len(files)} were given; list them as "
                 '{"streams": [{"file": ..., "time": ..., ...}]}'
             )
-        flat = {**data, "file": str(files[0])}
+        flat = _time_key({**data, "file": str(files[0])})
         if "time" not in flat:
             header = Header(files[0])
             times = [n for n in header.names if _is_time(n)]
@@ -224,13 +225,14 @@ def streams_from_map(
     out = []
     for k, s in enumerate(streams, start=1):
         here = f"{where}: stream {k}"
+        s = _time_key(s) if isinstance(s, dict) else s
         if not isinstance(s, dict) or "file" not in s or "time" not in s:
             raise LogError(f"{here}: needs 'file' and 'time'")
         file = pathlib.Path(s["file"])
         if not file.is_absolute() and root is not None:
             file = root / file
         header = Header(file)
-        time = channel_spec("time", s["time"], here, header)
+        time = _time_spec(s["time"], here, header)
         channels = tuple(
             channel_spec(n, v, here, header)
             for n, v in s.items()
@@ -246,6 +248,32 @@ def streams_from_map(
             )
         )
     return out
+
+
+def _time_key(stream: dict) -> dict:
+    """`t`, the time channel's name in every other column map, as `time`."""
+    if "t" in stream and "time" not in stream:
+        stream = {k if k != "t" else "time": v for k, v in stream.items()}
+    return stream
+
+
+def _time_spec(spec: Any, where: str, header: Header) -> ChannelSpec:
+    """The time column, or `{"step": seconds}` for a file with no time column
+    (samples that far apart from 0, as in every column map)."""
+    if isinstance(spec, dict) and "step" in spec:
+        step = spec["step"]
+        if (
+            isinstance(step, bool)
+            or not isinstance(step, int | float)
+            or not step > 0
+            or step == float("inf")
+        ):
+            raise LogError(
+                f"{where}: time: step must be a positive number of seconds, got "
+                f"{step!r}"
+            )
+        return ChannelSpec("time", "", 1.0, unit="s", unit_from="map", step=float(step))
+    return channel_spec("time", spec, where, header)
 
 
 # --- layouts recognised from the header ---------------------------------------------

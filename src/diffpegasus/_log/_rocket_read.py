@@ -47,7 +47,7 @@ class Header:
         except UnicodeDecodeError:
             raise LogError(f"{path}: not a UTF-8 text file") from None
         self.sep = max(_SEPARATORS, key=line.count)
-        if line.count(self.sep) == 0:
+        if line.count(self.sep) == 0 and len(line.split()) > 1:
             raise LogError(
                 f"{path}: the first line has no ',', ';' or tab: not a CSV file "
                 "with a header row"

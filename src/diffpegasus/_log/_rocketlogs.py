@@ -161,8 +161,9 @@ def read_rocket_log(
     that cannot be used (a non-numeric cell mid-file, time running backwards, a
     unit that the data contradict, no column for a channel).
     """
-    files, root, messages = _sources(source)
-    streams = _streams(files, root, column_map, messages)
+    files, root, log_table = _sources(source)
+    messages: list[str] = []
+    streams = _streams(files, root, column_map, log_table, messages)
     series_by_stream: list[dict[str, Series]] = []
     for file in dict.fromkeys(s.file for s in streams):
         header = Header(file)
@@ -172,7 +173,7 @@ def read_rocket_log(
                 header.index(c.column)
                 for s in mine
                 for c in (s.time, *s.channels)
-                if not c.axis_auto
+                if not c.axis_auto and c.step is None
             }
         )
         data, notes = read_columns(header, wanted)
@@ -183,7 +184,7 @@ def read_rocket_log(
             named = {
                 c.column: cols[header.names[header.index(c.column)]]
                 for c in (s.time, *s.channels)
-                if not c.axis_auto
+                if not c.axis_auto and c.step is None
             }
             chans, notes = clean_stream(s, data, named)
             messages += notes
@@ -268,8 +269,9 @@ def read_rocket_log(
     )
 
 
-def _sources(source) -> tuple[list[pathlib.Path], pathlib.Path | None, list[str]]:
-    """The log files of a flight: those a `rocket.toml` names, or those given."""
+def _sources(source) -> tuple[list[pathlib.Path], pathlib.Path | None, dict]:
+    """The log files of a flight: those a `rocket.toml` names, or those given; the
+    folder they are relative to and the `rocket.toml`'s `[log]` table."""
     if isinstance(source, str | os.PathLike):
         source = [source]
     paths = [pathlib.Path(p) for p in source]
@@ -294,11 +296,11 @@ def _sources(source) -> tuple[list[pathlib.Path], pathlib.Path | None, list[str]
                 f"{toml}: [log] names no file; give `file = 'logs/name.csv'` (or "
                 "`files = [...]`) under [log], or one table per file with its `file`"
             )
-        return [toml.parent / n for n in names], toml.parent, []
+        return [toml.parent / n for n in names], toml.parent, log
     for p in paths:
         if not p.is_file():
             raise LogError(f"{p}: no such file")
-    return paths, None, []
+    return paths, None, {}
 
 
 def shipped_map(folder: str) -> pathlib.Path | None:
@@ -307,10 +309,40 @@ def shipped_map(folder: str) -> pathlib.Path | None:
     return path if path.is_file() else None
 
 
-def _streams(files, root, column_map, messages) -> list[StreamSpec]:
+def _streams(files, root, column_map, log_table, messages) -> list[StreamSpec]:
+    """The streams to read: the map given; else, beside a `rocket.toml`, its
+    `[log] column_map`, its per-file `column_map` tables (the other files by their
+    headers), a `columns.json` beside it, the map shipped for its folder; else the
+    layouts the headers show."""
     if column_map is None and root is not None:
-        beside = root / "columns.json"
-        column_map = beside if beside.is_file() else shipped_map(root.name)
+        named = log_table.get("column_map")
+        per_file = {
+            v["file"]: v["column_map"]
+            for v in log_table.values()
+            if isinstance(v, dict) and "file" in v and "column_map" in v
+        }
+        if isinstance(named, str):
+            column_map = root / named
+        elif per_file:
+            out = []
+            for f in files:
+                rel = str(f.relative_to(root)) if f.is_relative_to(root) else str(f)
+                if rel in per_file:
+                    where = f"{root / 'rocket.toml'}: [log] column_map of {rel}"
+                    data, folder = load_map(
+                        per_file[rel]
+                        if isinstance(per_file[rel], dict)
+                        else root / per_file[rel]
+                    )
+                    out += streams_from_map(data, where, folder or root, [f])
+                else:
+                    found, layout = detect_streams(f)
+                    messages.append(f"{f.name}: read as {layout} (no column map given)")
+                    out += found
+            return out
+        else:
+            beside = root / "columns.json"
+            column_map = beside if beside.is_file() else shipped_map(root.name)
     if column_map is not None:
         data, map_folder = load_map(column_map)
         where = str(column_map) if not isinstance(column_map, dict) else "column map"
