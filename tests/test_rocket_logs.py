@@ -541,3 +541,34 @@ def test_rocket_toml_names_its_logs_and_maps(tmp_path):
     log = read_rocket_log(tmp_path / "rocket.toml")
     assert list(log.channels) == ["altitude"]
     assert _file_time(log, "apogee") == pytest.approx(truth.T_APOGEE, abs=0.06)
+
+
+def test_temperature_unit(tmp_path):
+    """A board's temperature with no unit: degC where K would be implausible; a
+    unit the map gives that the reading contradicts is refused."""
+    lines = _lines(FIXTURES / "altimeter.csv")
+    path = tmp_path / "rrc.csv"
+    path.write_text(
+        "\n".join(
+            ["Time (s),Altitude (ft),Temperature"]
+            + [
+                f"{x.split(',')[0]},{x.split(',')[1]},{20 + k % 3}"
+                for k, x in enumerate(lines[1:])
+            ]
+        )
+        + "\n"
+    )
+    log = read_rocket_log(path)
+    assert any("no unit given, read as degC" in m for m in log.messages)
+    assert np.median(log["temperature"].values) == pytest.approx(294.15)
+    with pytest.raises(
+        LogError, match=r"'Temperature', row \d+: temperature 21 K is not 200-350 K"
+    ):
+        read_rocket_log(
+            path,
+            {
+                "time": "Time (s)",
+                "altitude": "Altitude (ft)",
+                "temperature": {"column": "Temperature", "unit": "K"},
+            },
+        )

@@ -6,6 +6,7 @@ files) and hands them here in the files' own seconds.
 """
 
 import dataclasses
+import re
 
 import numpy as np
 
@@ -31,6 +32,7 @@ from ._rocket_units import (
     check_altitude_unit,
     check_imu,
     check_pressure,
+    check_temperature,
 )
 
 
@@ -92,6 +94,8 @@ def one_clock(flat: dict[str, Series], auto: bool, messages: list[str]):
     if press is not None:
         check_pressure(press, pad_of(press), messages)
     check_imu(flat, pad_of, messages)
+    if "temperature" in flat:
+        check_temperature(flat["temperature"], messages)
     acc = flat.get("accel_axial")
     if acc is not None:
         near_top = np.array([], int)
@@ -192,8 +196,10 @@ def one_clock(flat: dict[str, Series], auto: bool, messages: list[str]):
         factor = check_altitude_unit(alt, t_bo, h_bo, t_apo, h_apo, messages)
         if factor != 1.0:
             hh = alt.v
+            top = f"({float(np.max(hh)):.5g} m)"
+            how = re.sub(r"\([^()]* m\)$", top, events["apogee"].how)
             events["apogee"] = dataclasses.replace(
-                events["apogee"], value=h_apo * factor
+                events["apogee"], value=h_apo * factor, how=how
             )
             h_apo *= factor
     _deployments(events, flat, th, hh, t_lift, t_apo, h_apo, pulses, messages)

@@ -247,3 +247,22 @@ def check_imu(series: dict[str, Series], pad_of, messages: list[str]) -> None:
                     f"{float(np.max(np.abs(s.v))):.4g} rad/s is no rocket's rate; the "
                     "column looks like deg/s " + _fix_hint('"unit": "deg/s"')
                 )
+
+
+def check_temperature(s: Series, messages: list[str]) -> None:
+    """A sensor's temperature must lie between 200 and 350 K (-73 to 77 degC, a
+    board in any weather and its own warmth); with no unit given, a reading that
+    lands there in degC is taken as degC."""
+    t = float(np.median(s.v))
+    if 200.0 <= t <= 350.0:
+        return
+    raw = (t - s.spec.offset) / s.spec.factor
+    row = s.rows[len(s.rows) // 2]
+    if not s.spec.unit_from and 200.0 <= raw + 273.15 <= 350.0:
+        s.v = (s.v - s.spec.offset) / s.spec.factor + 273.15
+        messages.append(f"{s.where}: reads {raw:.3g}: no unit given, read as degC")
+        return
+    raise LogError(
+        f"{s.where}, row {row}: temperature {raw:.4g} {s.spec.unit or 'K'} is not "
+        '200-350 K; check its unit (degC is written "unit": "degC")'
+    )
