@@ -88,6 +88,10 @@ from ._log._format import (
     validate_channels as validate_channels,
     write_log as write_log,
 )
+from ._log._rocketlogs import (
+    read_rocket_log as read_rocket_log,
+    RocketLog as RocketLog,
+)
 from ._model import (
     Model as Model,
     Record as Record,
