@@ -33,7 +33,13 @@ __getattr__, __dir__, __all__ = _attach(
             "score_candidates",
         ),
         "_estimate": (
+            "AbstractEstimator",
+            "AbstractFit",
             "CoefficientNetwork",
+            "estimate",
+            "EquationError",
+            "FilterError",
+            "OutputError",
             "equation_error",
             "EquationErrorFit",
             "estimate_lse",

@@ -21,6 +21,17 @@ __getattr__, __dir__, __all__ = attach(
             "equation_error",
             "EquationErrorFit",
         ),
+        "_estimator": (
+            "AbstractEstimator",
+            "AbstractFit",
+            "estimate",
+        ),
+        "_methods": (
+            "EquationError",
+            "ESTIMATORS",
+            "FilterError",
+            "OutputError",
+        ),
         "_filter_error": (
             "FilterErrorFit",
             "fit_filter_error",
