@@ -40,6 +40,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._engine import RESULTS
+from ._estimator import AbstractFit
 from ._fourier import finite_fourier, frequency_grid
 from ._linear import (
     check_linear,
@@ -51,20 +53,20 @@ from ._linear import (
 from ._model import Model, Record
 
 
-class FrequencyFit(eqx.Module):
+class FrequencyFit(AbstractFit):
     """A frequency-domain fit of a linear [`Model`][] to records.
 
     **Fields:**
 
     - `model`, `records`: what was fitted; `method`: `"fdee"` or `"fdoe"`.
     - `params` `(params,)`: estimates (held and not estimable ones at their start).
-    - `estimable` `(params,)`: estimated here (free and acting on the frequency grid:
-      biases and trim constants do not).
+    - `free` `(params,)`: estimated here (free in the model and acting on the
+      frequency grid: biases and trim constants do not).
     - `stderr` `(params,)`: Cramér-Rao standard errors; `stderr_corrected`: the same
       for the residuals' own spectrum (coloured residuals), never below `stderr`;
       NaN where not estimated.
     - `covariance` `(params, params)`: the corrected covariance (zero rows where not
-      estimated).
+      estimated); `correlation` from it.
     - `end_terms` `(records, states)`: `x(T) - x(0)` of every record (state units).
     - `frequencies`: per record, the grid frequencies used, Hz.
     - `measured`, `modelled`: per record `(frequencies, outputs)` complex, the
@@ -72,30 +74,29 @@ class FrequencyFit(eqx.Module):
     - `inputs`: per record `(frequencies, inputs)` complex, the inputs' transforms.
     - `noise`: `(outputs,)` residual power per output (output units times s, squared)
       averaged over the band.
-    - `iterations`, `converged`, `message`.
+    - `cost`: `sum_j log S_j` at the estimate; `iterations`; `result` a
+      [`RESULTS`][] code (`converged` the bool) and `reason` in words.
     """
 
     model: Model = eqx.field(static=True)
     records: tuple[Record, ...] = eqx.field(static=True)
     method: str = eqx.field(static=True)
     params: np.ndarray
-    estimable: np.ndarray
+    free: np.ndarray
     stderr: np.ndarray
     stderr_corrected: np.ndarray
     covariance: np.ndarray
+    correlation: np.ndarray
     end_terms: np.ndarray
     frequencies: tuple[np.ndarray, ...]
     measured: tuple[np.ndarray, ...]
     modelled: tuple[np.ndarray, ...]
     inputs: tuple[np.ndarray, ...]
     noise: np.ndarray
+    cost: float
     iterations: int
-    converged: bool
-    message: str = ""
-
-    def estimates(self) -> dict[str, float]:
-        """Every parameter's value by name."""
-        return dict(zip(self.model.parameters, self.params.tolist(), strict=True))
+    result: RESULTS
+    reason: str
 
     def residual_spectrum(self, record: int = 0) -> np.ndarray:
         """`(frequencies, outputs)`: `|Z - Y|^2` of one record (output units times s,
@@ -111,9 +112,9 @@ class FrequencyFit(eqx.Module):
             list(self.model.parameters),
             self.params,
             np.nan_to_num(self.stderr_corrected),
-            self.estimable,
+            self.free,
         )
-        for row, crb, e in zip(rows, self.stderr, self.estimable, strict=True):
+        for row, crb, e in zip(rows, self.stderr, self.free, strict=True):
             row["stderr_crb"] = float(crb) if e else None
             row["estimated"] = bool(e)
         return rows
@@ -231,18 +232,48 @@ def _result(model, records, method, start, estimable, z, cov, cov_c, extra):
     sd[idx], sd_c[idx] = np.sqrt(var), np.sqrt(var_c)
     full = np.zeros((p, p))
     full[np.ix_(idx, idx)] = cov_c[:k, :k]
+    d = np.sqrt(np.clip(np.diag(full), 1e-300, None))
+    correlation = np.where(np.outer(estimable, estimable), full / np.outer(d, d), 0.0)
+    converged = extra.pop("converged")
+    code = RESULTS.successful
+    if not converged:
+        code = (
+            RESULTS.max_iterations
+            if extra["iterations"] >= extra.pop("max_iter", 10**9)
+            else RESULTS.slow_progress
+        )
+    extra.pop("max_iter", None)
     return FrequencyFit(
         model=model,
         records=records,
         method=method,
         params=params,
-        estimable=estimable,
+        free=estimable,
         stderr=sd,
         stderr_corrected=sd_c,
         covariance=full,
+        correlation=correlation,
         end_terms=z[k:].reshape(len(records), len(model.states)),
+        cost=float(np.sum(np.log(np.maximum(extra["noise"], 1e-300)))),
+        result=code,
         **extra,
     )
+
+
+def _expm(m, squarings: int = 10, terms: int = 16):
+    """`exp(m)` by a Taylor series of `m / 2^squarings` squared back: no control
+    flow, so a small program to compile and to differentiate (jax.scipy's expm
+    selects its Padé order at run time). Accurate to rounding for `|m|` up to
+    about 2^squarings; the sampled dynamics of a flight record are `|A dt| < 10`."""
+    x = m / 2.0**squarings
+    term = jnp.eye(m.shape[0], dtype=m.dtype)
+    out = term
+    for k in range(1, terms + 1):
+        term = term @ x / k
+        out = out + term
+    for _ in range(squarings):
+        out = out @ out
+    return out
 
 
 def _sampled_system(a, b, dt):
@@ -253,7 +284,7 @@ def _sampled_system(a, b, dt):
     f = jnp.zeros((n, n), a.dtype)
     f = f.at[:nx, :nx].set(a).at[:nx, nx : nx + nu].set(b)
     f = f.at[nx : nx + nu, nx + nu :].set(jnp.eye(nu))
-    e = jax.scipy.linalg.expm(f * dt)
+    e = _expm(f * dt)
     phi, g1, g2 = e[:nx, :nx], e[:nx, nx : nx + nu], e[:nx, nx + nu :] / dt
     return phi, g1 - g2, g2
 
@@ -413,6 +444,7 @@ def frequency_equation_error(
             noise=noise,
             iterations=max(1, weighting_passes),
             converged=True,
+            reason="",
         ),
     )
 
@@ -543,7 +575,13 @@ def frequency_output_error(
         if not improved:
             # at the optimum to rounding: the gradient is what is left
             converged = bool(np.max(np.abs(g / scale)) < 1e-6 * np.sqrt(len(er)))
-            message = "" if converged else "no step reduces the cost"
+            message = (
+                ""
+                if converged
+                else "no step reduces the cost (start from a frequency-domain "
+                "equation-error fit, method 'fdee', or hold poorly identified "
+                "parameters)"
+            )
             break
         z, e, j = z + step, e_new, j_new
         change = current - new
@@ -553,7 +591,7 @@ def frequency_output_error(
             converged = True
             break
     else:
-        message = f"no convergence in {max_iter} iterations"
+        message = RESULTS[RESULTS.max_iterations]
     s = np.maximum(np.mean(np.abs(e) ** 2, axis=0), 1e-300)
     groups = np.repeat(np.arange(e.shape[0]), ny)
     cov, cov_c = _covariances(
@@ -583,8 +621,9 @@ def frequency_output_error(
             inputs=tuple(d.sums("u") for d in data),
             noise=s,
             iterations=it,
+            max_iter=max_iter,
             converged=bool(converged),
-            message=message,
+            reason=message,
         ),
     )
     if throw and not out.converged:
