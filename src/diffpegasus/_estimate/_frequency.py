@@ -79,7 +79,7 @@ class FrequencyFit(AbstractFit):
     """
 
     model: Model = eqx.field(static=True)
-    records: tuple[Record, ...] = eqx.field(static=True)
+    records: tuple[Record, ...]
     method: str = eqx.field(static=True)
     params: np.ndarray
     free: np.ndarray
