@@ -227,5 +227,18 @@ __getattr__, __dir__, __all__ = _attach(
             "trim",
         ),
         "_estimate._rk4": ("RK4",),
+        "_estimate._recursive": (
+            "coefficient_regression",
+            "forgetting_for",
+            "model_regression",
+            "RecursiveFourier",
+            "RecursiveLeastSquares",
+            "replay",
+        ),
+        "_estimate._fourier": ("frequency_grid",),
+        "_report._bode": (
+            "plot_bode",
+            "plot_history",
+        ),
     },
 )

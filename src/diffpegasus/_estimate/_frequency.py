@@ -309,7 +309,7 @@ def _predict(model, z, estimable_idx, start, u, w, nx, dt, du):
         u = u * jnp.exp(-1j * w[:, None] * delays[None, :])
     phi, g0, g1 = _sampled_system(a, b, dt)
     zz = jnp.exp(1j * w * dt)[:, None]
-    m = zz[:, :, None] * jnp.eye(nx) - phi[None]
+    m = zz[:, :, None] * jnp.eye(nx)[None] - phi[None]
     rhs = u @ g0.T + zz * (u @ g1.T) + zz * (dt * (g1 @ du) - dt * dx)[None, :]
     x = jnp.linalg.solve(m, rhs[..., None])[..., 0]
     return x @ c.T.astype(x.dtype) + u @ d.T.astype(u.dtype)

@@ -32,7 +32,11 @@ sums of `w_i w_(i-l) H_i^T H_(i-l)` and the residuals' running autocovariance
 residuals; already smaller than the textbook `P s^2`, which ignores that the
 weights enter squared). For the recursive Fourier transform the residual transforms
 at different frequencies are nearly independent, so the bound is the per-frequency
-sandwich of the batch method ([`frequency_equation_error`][]).
+sandwich of the batch method ([`frequency_equation_error`][]), with the scores of
+frequencies closer than the memory resolves (`1 / T`) summed first. Both corrected
+bounds may fall below the white ones: differencing a noisy state makes neighbouring
+residuals negatively correlated, and the estimate's error smaller than the white
+bound says.
 """
 
 import abc
@@ -199,16 +203,16 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
     """Recursive least squares with exponential forgetting, bounds corrected for
     coloured residuals (see the module docstring).
 
-    **Fields:** `forgetting` (`lam`, default 0.995), `derivative` `(q,)` bool,
-    `dt` (s), `lags`: how many lags of the residuals' autocovariance enter the
-    corrected bound (default 20 samples; the correction uses at most what the
-    forgetting memory holds).
+    **Fields:** `forgetting` (`lam`), `derivative` `(q,)` bool, `dt` (s), `lags`:
+    how many lags of the residuals' autocovariance enter the corrected bound
+    (default 64 samples: it should span the residuals' correlation time; the cost
+    of an update grows with it).
     """
 
     forgetting: float = eqx.field(static=True)
     derivative: tuple[bool, ...] = eqx.field(static=True)
     dt: float = eqx.field(static=True)
-    lags: int = eqx.field(static=True, default=20)
+    lags: int = eqx.field(static=True, default=64)
 
     def init(self, theta0, prior=1e6):
         p, q = len(theta0), len(self.derivative)
@@ -251,13 +255,18 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
 
     def estimates(self, state):
         pm = _inverse(state.info)
-        bartlett = 1.0 - jnp.arange(self.lags + 1) / (self.lags + 1.0)
         c = state.autocov  # (lags+1, q)
         white = jnp.einsum("q,qab->ab", c[0], state.sums[0])
         sym = state.sums[1:] + jnp.swapaxes(state.sums[1:], -1, -2)
-        coloured = white + jnp.einsum("l,lq,lqab->ab", bartlett[1:], c[1:], sym)
+        # a flat (truncated) lag window: a tapered one would miss most of the
+        # negative lag-1 correlation that differencing puts in the derivative rows
+        # (whose effect on the estimate telescopes away), and part of a slow one
+        coloured = white + jnp.einsum("lq,lqab->ab", c[1:], sym)
         var = jnp.clip(jnp.diag(pm @ white @ pm), 0.0)
-        var_c = jnp.maximum(jnp.clip(jnp.diag(pm @ coloured @ pm), 0.0), var)
+        var_c = jnp.diag(pm @ coloured @ pm)
+        # may be below the white bound (negatively correlated residuals); a
+        # truncated window can make it negative: then the white bound stands
+        var_c = jnp.where(var_c > 0, var_c, var)
         return RecursiveEstimates(state.theta, jnp.sqrt(var), jnp.sqrt(var_c))
 
 
@@ -291,43 +300,50 @@ class RecursiveFourier(AbstractRecursiveEstimator):
 
     def absorb(self, state, h, y):
         lam = self.forgetting
-        active = jnp.any(h != 0, axis=1)
-        wq = _weights(state.r)
-        # the running variance from the last estimate's time-domain residuals
-        r = _running_variance(state.r, y - h @ state.theta, jnp.minimum(lam, 0.995), active)
         ph = state.phasor * self.dt
-        fh = lam * state.fh + ph[:, None, None] * (h * wq[:, None])[None]
-        fy = lam * state.fy + ph[:, None] * (y * wq)[None]
+        fh = lam * state.fh + ph[:, None, None] * h[None]
+        fy = lam * state.fy + ph[:, None] * y[None]
         phasor = state.phasor * state.rotation
         phasor = phasor / jnp.abs(phasor)
-        state = eqx.tree_at(
-            lambda s: (s.fh, s.fy, s.phasor, s.r), state, (fh, fy, phasor, r)
-        )
-        return eqx.tree_at(lambda s: s.theta, state, self.estimates(state).theta)
+        return eqx.tree_at(lambda s: (s.fh, s.fy, s.phasor), state, (fh, fy, phasor))
 
     def estimates(self, state):
         fh, fy = state.fh, state.fy  # (f, q, p), (f, q)
         p = fh.shape[-1]
-        info = jnp.real(jnp.einsum("fqa,fqb->ab", fh.conj(), fh))
-        rhs = jnp.real(jnp.einsum("fqa,fq->a", fh.conj(), fy))
-        scale = jnp.sqrt(jnp.maximum(jnp.diag(info), 1e-300))
-        known = jnp.diag(info) > 1e-12 * jnp.max(jnp.diag(info))
-        info_s = info / jnp.outer(scale, scale) + jnp.diag(~known * 1.0)
-        cov_s = jnp.linalg.inv(info_s)
-        theta = jnp.where(known, (cov_s @ (rhs / scale)) / scale, state.theta)
-        e = fy - jnp.einsum("fqa,a->fq", fh, theta)  # (f, q)
-        n_rows = jnp.sum(jnp.any(jnp.abs(fh) > 0, axis=-1))
-        dof = 2.0 * n_rows / jnp.maximum(2.0 * n_rows - p, 1.0)
-        s = jnp.mean(jnp.abs(e) ** 2, axis=0) * dof  # (q,)
-        w = 1.0 / jnp.maximum(s, 1e-300)
-        g = 2.0 * jnp.real(jnp.einsum("q,fqa,fqb->ab", w, fh.conj(), fh))
-        g = g / jnp.outer(scale, scale) + jnp.diag(~known * 1.0)
-        cov = jnp.linalg.inv(g) / jnp.outer(scale, scale)
+        n_rows = jnp.sum(jnp.any(jnp.abs(fh) > 0, axis=-1), axis=0)  # (q,)
+
+        def solve(w):
+            info = 2.0 * jnp.real(jnp.einsum("q,fqa,fqb->ab", w, fh.conj(), fh))
+            rhs = 2.0 * jnp.real(jnp.einsum("q,fqa,fq->a", w, fh.conj(), fy))
+            d = jnp.diag(info)
+            known = d > 1e-12 * jnp.max(d)
+            scale = jnp.sqrt(jnp.maximum(d, 1e-300))
+            cov = jnp.linalg.inv(
+                info / jnp.outer(scale, scale) + jnp.diag(~known * 1.0)
+            ) / jnp.outer(scale, scale)
+            theta = jnp.where(known, cov @ rhs, state.theta)
+            e = fy - jnp.einsum("fqa,a->fq", fh, theta)
+            power = jnp.sum(jnp.abs(e) ** 2, axis=0) / jnp.maximum(n_rows - 0.5 * p, 1.0)
+            return theta, cov, known, e, power
+
+        # equations weighted by their residual power (one pass to find it)
+        _, _, _, _, power = solve(jnp.ones(fh.shape[1]))
+        w = jnp.where(n_rows > 0, 1.0 / jnp.maximum(power, 1e-300), 0.0)
+        theta, cov, known, e, _ = solve(w)
+        # the transforms at frequencies closer than the memory's resolution
+        # (1 / T, T the time span or the forgetting's time constant) are
+        # correlated: their scores are summed before the outer product
+        f = jnp.asarray(self.frequencies)
+        span = jnp.maximum(state.count * self.dt, self.dt)
+        if self.forgetting < 1.0:
+            span = jnp.minimum(span, self.dt / (1.0 - self.forgetting))
+        near = (jnp.abs(f[:, None] - f[None, :]) < 1.0 / span).astype(float)
         v = 2.0 * jnp.einsum("q,fqa,fq->fa", w, fh.conj(), e)  # (f, p)
-        middle = 0.5 * jnp.real(v.T @ v.conj()) * dof
+        middle = 0.5 * jnp.real(jnp.einsum("fa,fg,gb->ab", v, near, v.conj()))
         cov_c = cov @ middle @ cov
         var = jnp.where(known, jnp.clip(jnp.diag(cov), 0.0), jnp.inf)
-        var_c = jnp.maximum(jnp.clip(jnp.diag(cov_c), 0.0), var)
+        var_c = jnp.diag(cov_c)
+        var_c = jnp.where(known & (var_c > 0), var_c, var)
         return RecursiveEstimates(theta, jnp.sqrt(var), jnp.sqrt(var_c))
 
 
