@@ -195,8 +195,15 @@ def _solve(m, b):
 
 
 def _weights(r):
-    """`1 / sqrt(r)` per equation (1 before a variance exists)."""
-    return jnp.where(jnp.isnan(r) | (r <= 0), 1.0, 1.0 / jnp.sqrt(jnp.maximum(r, 1e-300)))
+    """Per equation `sqrt(g / r)`, `g` the geometric mean of the variances `r`: the
+    equations weighted against each other by their residual variance, while a
+    sample's weight as a whole does not move with the residual level (that would
+    let a noise-free stretch outweigh every later sample). 1 before a variance
+    exists, and always for a single equation."""
+    ok = jnp.isfinite(r) & (r > 0)
+    logr = jnp.log(jnp.where(ok, r, 1.0))
+    mean = jnp.sum(jnp.where(ok, logr, 0.0)) / jnp.maximum(jnp.sum(ok), 1)
+    return jnp.where(ok, jnp.exp(0.5 * (mean - logr)), 1.0)
 
 
 class RecursiveLeastSquares(AbstractRecursiveEstimator):
@@ -312,11 +319,15 @@ class RecursiveFourier(AbstractRecursiveEstimator):
         p = fh.shape[-1]
         n_rows = jnp.sum(jnp.any(jnp.abs(fh) > 0, axis=-1), axis=0)  # (q,)
 
+        # which parameters the data move yet, judged without weights (a
+        # noise-free equation's weight would dwarf every other column)
+        plain = jnp.real(jnp.einsum("fqa,fqa->a", fh.conj(), fh))
+        known = plain > 1e-12 * jnp.max(plain)
+
         def solve(w):
             info = 2.0 * jnp.real(jnp.einsum("q,fqa,fqb->ab", w, fh.conj(), fh))
             rhs = 2.0 * jnp.real(jnp.einsum("q,fqa,fq->a", w, fh.conj(), fy))
             d = jnp.diag(info)
-            known = d > 1e-12 * jnp.max(d)
             scale = jnp.sqrt(jnp.maximum(d, 1e-300))
             cov = jnp.linalg.inv(
                 info / jnp.outer(scale, scale) + jnp.diag(~known * 1.0)
@@ -328,6 +339,8 @@ class RecursiveFourier(AbstractRecursiveEstimator):
 
         # equations weighted by their residual power (one pass to find it)
         _, _, _, _, power = solve(jnp.ones(fh.shape[1]))
+        # relative weights, at most 1e8 apart (a noise-free equation)
+        power = jnp.maximum(power, 1e-8 * jnp.max(power))
         w = jnp.where(n_rows > 0, 1.0 / jnp.maximum(power, 1e-300), 0.0)
         theta, cov, known, e, _ = solve(w)
         # the transforms at frequencies closer than the memory's resolution
