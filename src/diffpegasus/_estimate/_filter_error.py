@@ -42,10 +42,10 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
+from .._model import Model, Record
 from ._engine import _input_at, coloured_information, explain, Layout, MAX_ITER, RESULTS
 from ._estimator import AbstractFit
 from ._fit import layout as _layout, output_error, simulate, SingleShooting
-from ._model import Model, Record
 from ._riccati import discretise, solve_filter_riccati
 
 

@@ -9,9 +9,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._cache import kept_call
+from .._model import Model, Record
 from ._engine import explain, Layout, MAX_ITER, RESULTS, solve
 from ._estimator import AbstractFit
-from ._model import Model, Record
 
 
 class SingleShooting(eqx.Module):
@@ -426,3 +426,8 @@ def output_error(
     if throw and not out.converged:
         raise RuntimeError(f"output-error fit failed: {out.message}")
     return out
+
+
+# the public name of `simulate` (the package's top level keeps `simulate` for one
+# release as the Pegasus simulator's, see `diffpegasus.pegasus`)
+simulate_model = simulate
