@@ -43,10 +43,10 @@ def main():
     )
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    flight = dp.simulate(dp.PegasusConfig(), jax.random.key(args.seed))
-    log = dp.flight_to_log(flight, {"seed": args.seed})
+    flight = dp.pegasus.simulate(dp.pegasus.PegasusConfig(), jax.random.key(args.seed))
+    log = dp.pegasus.flight_to_log(flight, {"seed": args.seed})
     dt = 1.0 / log.sample_rate
-    reg = dp.coefficient_regression(log.channels, log.s_ref, log.c_ref)
+    reg = dp.pegasus.coefficient_regression(log.channels, log.s_ref, log.c_ref)
     lam = dp.forgetting_for(args.memory, dt)
     # the Fourier estimator's frequencies: what the memory resolves (1 / memory
     # apart) up to the elevator's bandwidth (5 Hz, well under Nyquist)
@@ -62,7 +62,7 @@ def main():
     truth = np.column_stack([np.asarray(log[f"true_{n}"]) for n in DERIVATIVES])
     cols = [reg.parameters.index(n) for n in DERIVATIVES]
     after = t >= IGNITION
-    lse = dp.estimate_lse(log)
+    lse = dp.pegasus.estimate_lse(log)
     lse_mid = 0.5 * (np.asarray(lse.window_start) + np.asarray(lse.window_end))
     lse_vals = np.asarray(lse.values)
     lse_ok = np.asarray(lse.valid) & (lse_mid >= IGNITION)

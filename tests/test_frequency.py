@@ -151,7 +151,7 @@ def _lateral_flight(seed, duration=25.0, rate=25.0):
 
 @pytest.mark.slow  # one time-domain and one frequency-domain compile
 def test_attas_like_lateral_manoeuvres_agree_with_the_time_domain():
-    model = dp.lateral_model(state_biases=False, output_biases=False)
+    model = dp.lateral.lateral_model(state_biases=False, output_biases=False)
     t, u, y = _lateral_flight(seed=3)
     rec = dp.Record(t, u, y, x0=np.zeros(2))
     td = dp.fit(model, rec)

@@ -5,10 +5,10 @@ import sys
 
 import numpy as np
 
-from .._estimate._filter_error import FilterErrorFit, fit_filter_error
+from .._errors import LogError
+from .._estimate._filter_error import filter_error, FilterErrorFit
 from .._estimate._fit import SingleShooting
 from .._estimate._modelfile import ModelSpec
-from .._log._format import LogError
 from ._runners import (
     channel_report,
     load_records,
@@ -19,29 +19,31 @@ from ._runners import (
 )
 
 
-METHODS = ("oem", "fem")
-
-
 def _say(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
 def check_method(method: str) -> str:
-    if method not in METHODS:
-        raise LogError(
-            f"--method must be oem (output error) or fem (filter error), got {method!r}"
-        )
+    """`method` if the estimator registry has it, else a `LogError` listing the
+    names."""
+    from .._estimate._methods import ESTIMATORS
+
+    if method not in ESTIMATORS:
+        names = ", ".join(ESTIMATORS)
+        raise LogError(f"--method must be one of {names}, got {method!r}")
     return method
 
 
 def parse_process_noise(texts, spec: ModelSpec):
     """`--process-noise STATE` / `STATE=F0` (repeatable) or, without any, the
-    spec's `process_noise` (a model file's, or the vehicle's: the HFB-320's is
-    FVSysID's four state equations and start intensities), else every state."""
+    states of the spec's `process_noise` (a model file's, or the vehicle's: the
+    HFB-320's four state equations), else every state. Without `=F0` the start
+    intensities are scaled to an output-error fit's residuals (a spec's book start
+    values can be far too large for a record the model already fits)."""
     model = spec.model
     if not texts:
         if spec.process_noise is not None:
-            return spec.process_noise
+            return tuple(spec.process_noise)
         return tuple(model.states)
     starts, names = {}, []
     for text in texts:
@@ -155,12 +157,13 @@ def run_model_fem(
     holds=(),
     process_noise=(),
     channels: bool = True,
+    max_iter: int | None = None,
 ) -> dict:
     """Fit `spec`'s model to `files` by the filter-error method (process noise on
     `--process-noise` states, else the spec's), as the library's
-    `fit_filter_error(model, records, process_noise=..., full_R=False, rtol=1e-6,
-    max_iter=60, throw=False)`; the JSON-ready report, with per-channel metrics of
-    the innovations when `channels`."""
+    `estimate(model, records, FilterError(process_noise=...), max_iter=max_iter,
+    throw=False)`; the JSON-ready report, with per-channel metrics of the
+    innovations when `channels`."""
     spec = parse_holds(list(holds), spec)
     noise = parse_process_noise(process_noise, spec)
     if (
@@ -180,14 +183,15 @@ def run_model_fem(
         f"on {', '.join(noise)}) to {len(records)} record(s) by filter error"
     )
     try:
-        result = fit_filter_error(
+        result = filter_error(
             spec.model,
             records,
             process_noise=noise,
             full_R=False,
             rtol=1e-6,
-            max_iter=60,
+            max_iter=max_iter,
             throw=False,
+            progress=sys.stderr.isatty(),
         )
     except ValueError as e:
         raise LogError(str(e)) from None

@@ -6,7 +6,7 @@ from typing import Annotated
 
 import typer
 
-from .._log._format import LogError
+from .._errors import LogError
 from ._common import (
     _banner,
     _check_addable,
@@ -20,6 +20,7 @@ from ._common import (
     AddOption,
     AlphaOrderOption,
     app,
+    assignments,
     ColumnsOption,
     FIT_FAILED,
     FixOption,
@@ -28,6 +29,7 @@ from ._common import (
     MethodOption,
     ModelOption,
     NodeOption,
+    positive,
     ProcessNoiseOption,
     RateOption,
     ResampleOption,
@@ -50,6 +52,7 @@ def _fit_model(
     show_channels=False,
     method="oem",
     process_noise=(),
+    max_iter=None,
 ):
     from .._estimate import MultipleShooting
     from .._vehicle import vehicle_spec
@@ -74,6 +77,15 @@ def _fit_model(
             )
     elif process_noise:
         _fail("--process-noise goes with --method fem")
+    if method not in ("oem", "fem") and (
+        bias or initial_state or shooting_interval is not None or out is not None
+    ):
+        _fail(
+            f"--method {method} runs with its default settings: --bias, "
+            "--initial-state, --shooting-interval and --out go with --method oem"
+        )
+    if max_iter is not None and max_iter < 0:
+        _fail(f"--max-iter must be a non-negative integer, got {max_iter}")
 
     if initial_state not in (None, "fixed", "estimated"):
         _fail(f"--initial-state must be fixed or estimated, got {initial_state!r}")
@@ -93,7 +105,10 @@ def _fit_model(
                 columns=columns,
                 holds=fix or (),
                 process_noise=process_noise,
+                max_iter=max_iter,
             )
+        elif method != "oem":
+            report = _run_registered(spec, logs, columns, fix or (), method, max_iter)
         else:
             report = run_model_fit(
                 spec,
@@ -106,6 +121,7 @@ def _fit_model(
                 if shooting_interval is None
                 else MultipleShooting(interval=shooting_interval),
                 out=out,
+                max_iter=max_iter,
             )
     except LogError as e:
         _fail(str(e))
@@ -114,14 +130,88 @@ def _fit_model(
     if as_json:
         _json_out(report)
     else:
-        typer.echo(
-            format_fem_table(report) if method == "fem" else format_table(report)
-        )
+        if method == "fem":
+            typer.echo(format_fem_table(report))
+        elif method == "oem":
+            typer.echo(format_table(report))
+        else:
+            typer.echo(_format_registered(report))
         if show_channels and "channels" in report:
             typer.echo(format_channels(report["channels"]))
     if not report["converged"]:
         typer.echo(f"error: {', '.join(map(str, logs))}: {report['message']}", err=True)
         raise typer.Exit(code=FIT_FAILED)
+
+
+def _run_registered(spec, logs, columns, holds, method, max_iter) -> dict:
+    """Any registered estimator with its default settings: the report of the
+    fields every result has ([`AbstractFit`][])."""
+    import sys
+
+    import numpy as np
+
+    from .._estimate._estimator import estimate
+    from .._estimate._methods import ESTIMATORS
+    from ._runners import load_records, num, parse_holds
+
+    spec = parse_holds(list(holds), spec)
+    records = load_records(spec, logs, columns)
+    try:
+        result = estimate(
+            spec.model,
+            records,
+            ESTIMATORS[method](),
+            max_iter=max_iter,
+            throw=False,
+            progress=sys.stderr.isatty(),
+        )
+    except ValueError as e:
+        raise LogError(str(e)) from None
+    ok = result.converged
+    names = spec.model.parameters
+    hidden = set(spec.candidates)
+    shown = [i for i, n in enumerate(names) if n not in hidden]
+    return {
+        "method": method,
+        "converged": ok,
+        "message": result.message,
+        "cost": num(result.cost),
+        "iterations": int(result.iterations),
+        "estimates": {names[i]: num(result.params[i]) if ok else None for i in shown},
+        "stderr": {
+            names[i]: num(result.stderr_corrected[i]) if ok and result.free[i] else None
+            for i in shown
+        },
+        "stderr_crb": {
+            names[i]: num(result.stderr[i]) if ok and result.free[i] else None
+            for i in shown
+        },
+        "fixed": [names[i] for i in shown if not result.free[i]],
+        "high_correlations": [
+            {"a": a, "b": b, "correlation": c}
+            for a, b, c in (result.high_correlations() if ok else [])
+            if a not in hidden and b not in hidden and np.isfinite(c)
+        ],
+    }
+
+
+def _format_registered(report: dict) -> str:
+    lines = [f"{'parameter':>12s} {'estimate':>14s} {'std. error':>12s}"]
+    for name, est in report["estimates"].items():
+        sd = report["stderr"][name]
+        if est is None:
+            lines.append(f"{name:>12s} {'-':>14s}")
+        elif sd is None:
+            lines.append(f"{name:>12s} {est:14.6g} {'(held)':>12s}")
+        else:
+            lines.append(f"{name:>12s} {est:14.6g} {sd:12.4g}")
+    lines.append(
+        f"{report['method']}: cost {report['cost']:.6e}   iterations: "
+        f"{report['iterations']}"
+    )
+    for c in report["high_correlations"]:
+        lines.append(f"correlation {c['a']} / {c['b']}: {c['correlation']:+.3f}")
+    return "\n".join(lines)
 
 
 @app.command()
@@ -155,7 +245,9 @@ def fit(
     ] = None,
     shooting_interval: Annotated[
         float | None,
-        typer.Option(help="Multiple shooting with a node every this many s"),
+        typer.Option(
+            help="Multiple shooting with a node every this many s", callback=positive
+        ),
     ] = None,
     add: AddOption = None,
     knots: KnotsOption = 6,
@@ -169,6 +261,13 @@ def fit(
     resample: ResampleOption = False,
     method: MethodOption = "oem",
     process_noise: ProcessNoiseOption = None,
+    max_iter: Annotated[
+        int | None,
+        typer.Option(
+            help="Iteration bound of the fit (default: iterate until the cost "
+            "settles, up to 500; a fit that stops short says why)"
+        ),
+    ] = None,
 ):
     """Fit a vehicle's or model file's parameters to one or several logs (output
     error; estimates, standard errors, correlations, cost; --method fem: filter
@@ -190,6 +289,7 @@ def fit(
             tuple(add or ()),
             method=method,
             process_noise=tuple(process_noise or ()),
+            max_iter=max_iter,
         )
         return
     if method != "oem" or process_noise:
@@ -211,6 +311,10 @@ def fit(
     if not add:
         _fail("name at least one effect with --add NAME (see `diffpegasus effects`)")
     settings = _settings(knots, alpha_order, rate, node_interval)
+    if max_iter is not None:
+        if max_iter < 0:
+            _fail(f"--max-iter must be a non-negative integer, got {max_iter}")
+        settings = dataclasses.replace(settings, max_iter=max_iter)
     _check_addable(add, settings)
     _check_out(out, "folder")
     flight = _read(log, resample)
@@ -266,11 +370,16 @@ def demo(
         pathlib.Path("demo")
     ),
     hidden: Annotated[
-        str, typer.Option(help="The effect hidden in the simulated flight, NAME=VALUE")
+        str,
+        typer.Option(
+            help="The effect hidden in the simulated flight, NAME=VALUE",
+            callback=assignments,
+        ),
     ] = "actuator_delay=0.02",
     seed: Annotated[int, typer.Option(help="Seed of the simulated flight")] = 1,
     duration: Annotated[
-        float | None, typer.Option(help="Flight length, s (default: to burnout)")
+        float | None,
+        typer.Option(help="Flight length, s (default: to burnout)", callback=positive),
     ] = None,
 ):
     """The discrepancy workflow end to end: simulate a flight with a hidden effect,

@@ -44,6 +44,11 @@ __getattr__, __dir__, __all__ = attach(
             "frequency_output_error",
             "FrequencyFit",
         ),
+        "_solver": (
+            "BlockLevenbergMarquardt",
+            "output_error_residuals",
+            "OutputErrorProblem",
+        ),
         "_filter_error": (
             "FilterErrorFit",
             "fit_filter_error",
@@ -67,10 +72,6 @@ __getattr__, __dir__, __all__ = attach(
             "lse_batch",
             "window_truth",
             "windowed_least_squares",
-        ),
-        "_model": (
-            "Model",
-            "Record",
         ),
         "_modelfile": (
             "load_model_file",
@@ -104,6 +105,5 @@ __getattr__, __dir__, __all__ = attach(
             "WindowedFit",
         ),
         "_windows": ("WindowLayout",),
-        "_rk4": ("RK4",),
     },
 )

@@ -35,7 +35,8 @@ import numpy as np
 from equinox import AbstractVar
 from jaxtyping import Array, Bool, Float, Int
 
-from ._model import Model
+from .._model import Model
+from .._rk4 import rk4_scan
 
 
 class RESULTS(eqx.Enumeration):
@@ -209,34 +210,6 @@ def segment_solve(model: Model, layout: Layout, s, node, theta):
         return model.f(t, x, _input_at(layout, r, t, delay), theta)
 
     return rk4_scan(field, node, ts, dt), ts
-
-
-def rk4_scan(field, x0, ts, dt, u=None):
-    """Classical RK4 with constant step `dt` from `x0` at `ts[0]`: the states at
-    `ts`, `(len(ts), states)`. `field(t, x)`, or `field(t, x, u)` given `u`
-    `(len(ts), inputs)` the inputs at `ts` (the middle stages then see the mean of a
-    step's two: linear interpolation without a lookup per stage). A `lax.scan`
-    rather than `diffrax.diffeqsolve`: it compiles in half the time, runs twice as
-    fast and, having no host callbacks, lands in JAX's persistent compilation
-    cache; tests check it against diffrax's solve with the same tableau."""
-    if u is None:
-        stage = lambda t, x, _: field(t, x)  # noqa: E731
-        u = jnp.zeros((ts.shape[0], 0))
-    else:
-        stage = field
-
-    def step(x, inp):
-        t, u0, um, u1 = inp
-        k1 = stage(t, x, u0)
-        k2 = stage(t + dt / 2, x + dt / 2 * k1, um)
-        k3 = stage(t + dt / 2, x + dt / 2 * k2, um)
-        k4 = stage(t + dt, x + dt * k3, u1)
-        x1 = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        return x1, x1
-
-    inputs = (ts[:-1], u[:-1], 0.5 * (u[:-1] + u[1:]), u[1:])
-    _, xs = jax.lax.scan(step, x0, inputs)
-    return jnp.concatenate([x0[None], xs])
 
 
 def segment_outputs(model: Model, layout: Layout, s, node, theta, bias):
@@ -439,7 +412,7 @@ def _print_progress(it, cost, change, damping, defect):
 
 
 @functools.partial(
-    jax.jit, static_argnames=("model", "max_iter", "nx", "p", "coloured", "progress")
+    jax.jit, static_argnames=("model", "nx", "p", "coloured", "progress")
 )
 def solve(
     model,
@@ -513,7 +486,9 @@ def solve(
         change = jnp.abs(cost_prev - cost) / jnp.abs(cost)
         if progress:
             defect = jnp.max(jnp.abs(jnp.where(accepted, d1, ev.d)), initial=0.0)
-            jax.debug.callback(_print_progress, it + active, cost, change, damping, defect)
+            jax.debug.callback(
+                _print_progress, it + active, cost, change, damping, defect
+            )
         after = (
             jnp.where(accepted, d1, ev.d),
             jnp.where(accepted, ys1, ev.ys),
@@ -543,10 +518,57 @@ def solve(
     init = (z0, jnp.ones(n_out), jnp.array(jnp.inf), jnp.array(0), jnp.array(False))
     init = (*init, jnp.array(0.0), jnp.array(False), lin0, after0, jnp.array(True))
     init = (*init, jnp.array(jnp.inf))
-    z, r, cost, iterations, done, _, broken, lin, (d, ys), _, change = jax.lax.while_loop(
-        lambda c: ((c[3] < max_iter) | c[9]) & ~c[4] & ~c[6], body, init
+    z, r, cost, iterations, done, _, broken, lin, (d, ys), _, change = (
+        jax.lax.while_loop(
+            lambda c: ((c[3] < max_iter) | c[9]) & ~c[4] & ~c[6], body, init
+        )
     )
     h, _, jyw, ew = lin
+    return finish(
+        layout,
+        z,
+        r,
+        cost,
+        iterations,
+        done,
+        broken,
+        h,
+        jyw,
+        ew,
+        d,
+        ys,
+        free,
+        nx=nx,
+        p=p,
+        coloured=coloured,
+        change=change,
+    )
+
+
+def finish(
+    layout,
+    z,
+    r,
+    cost,
+    iterations,
+    done,
+    broken,
+    h,
+    jyw,
+    ew,
+    d,
+    ys,
+    free,
+    *,
+    nx,
+    p,
+    coloured,
+    change,
+) -> Solution:
+    """The [`Solution`][] of a finished iteration: the covariances from the last
+    normal matrix `h` and whitened Jacobian `jyw` and residuals `ew`, the largest
+    defect of `d`, the result code (shared by [`solve`][] and the optimistix
+    solver's loop)."""
     m = free.astype(h.dtype)
     hm = h * m[:, None] * m[None, :] + jnp.diag(1.0 - m)
     cov = jnp.linalg.inv(hm) * m[:, None] * m[None, :]
@@ -593,14 +615,15 @@ def explain(
     names what went wrong and what to try ("" when it converged).
 
     **Arguments:** `code` the solve's result; `information` `(unknowns,
-    unknowns)` the Fisher information (zero rows for held unknowns); `free`
-    `(unknowns,)`; `names` a name per unknown (`None` for those not worth naming,
-    e.g. node states); `iterations`; `change` the last relative change of the
-    cost; `defect` the largest continuity defect relative to its tolerance (`None`
-    without multiple shooting).
+    unknowns)` the outputs' information about the unknowns that can be named
+    (parameters, biases, intensities: `A^T A` of the whitened residuals'
+    Jacobian in those columns); `free` `(unknowns,)`; `names` a name per
+    unknown (`None` for one not worth naming); `iterations`; `change` the last
+    relative change of the cost; `defect` the largest continuity defect relative
+    to its tolerance (`None` without multiple shooting).
 
-    A converged fit whose information is numerically singular (an eigenvalue of
-    the unit-diagonal information below the rounding of its largest, numpy's rank
+    A fit whose information is numerically singular (an eigenvalue of the
+    unit-diagonal information below the rounding of its largest, numpy's rank
     rule) is reported as `no_excitation`, naming the parameters of the null
     direction: their estimates are not unique.
     """
@@ -637,7 +660,11 @@ def _unexcited(information, free, names) -> list[str]:
         return []
     h = information[np.ix_(idx, idx)]
     diag = np.diag(h)
-    out = [names[i] for i, d in zip(idx, diag) if d <= 0 and names[i] is not None]
+    out = [
+        names[i]
+        for i, d in zip(idx, diag, strict=True)
+        if d <= 0 and names[i] is not None
+    ]
     live = diag > 0
     if np.sum(live) > 1:
         d = np.sqrt(diag[live])

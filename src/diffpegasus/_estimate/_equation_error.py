@@ -27,9 +27,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._model import Model, Record
 from ._engine import coloured_information, RESULTS
 from ._estimator import AbstractFit
-from ._model import Model, Record
 
 
 class EquationErrorFit(AbstractFit):

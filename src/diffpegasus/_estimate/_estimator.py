@@ -17,20 +17,19 @@ Adding an estimator is one file and one registry line:
 
 import abc
 from collections.abc import Sequence
+
 import equinox as eqx
 import numpy as np
 from equinox import AbstractVar
 
+from .._model import Model, Record
 from ._engine import RESULTS
-from ._model import Model, Record
 
 
 def is_successful(result) -> bool:
     """Whether a [`RESULTS`][] item is `successful`, compared on the host (`==` of
     two enumeration items is a JAX operation: a program compiled for one bool)."""
-    return int(np.asarray(result._value)) == int(
-        np.asarray(RESULTS.successful._value)
-    )
+    return int(np.asarray(result._value)) == int(np.asarray(RESULTS.successful._value))
 
 
 class AbstractFit(eqx.Module):
@@ -80,7 +79,9 @@ class AbstractFit(eqx.Module):
 
     def estimates(self) -> dict[str, float]:
         """Every parameter's value by name."""
-        return dict(zip(self.model.parameters, np.asarray(self.params).tolist()))
+        return dict(
+            zip(self.model.parameters, np.asarray(self.params).tolist(), strict=True)
+        )
 
     def standard_errors(self, corrected: bool = True) -> dict[str, float]:
         """Every estimated parameter's standard error by name: corrected for
@@ -88,7 +89,9 @@ class AbstractFit(eqx.Module):
         sd = self.stderr_corrected if corrected else self.stderr
         return {
             n: float(s)
-            for n, s, f in zip(self.model.parameters, np.asarray(sd), self.free)
+            for n, s, f in zip(
+                self.model.parameters, np.asarray(sd), self.free, strict=True
+            )
             if f
         }
 

@@ -42,10 +42,10 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
+from .._model import Model, Record
 from ._engine import _input_at, coloured_information, explain, Layout, MAX_ITER, RESULTS
 from ._estimator import AbstractFit
 from ._fit import layout as _layout, output_error, simulate, SingleShooting
-from ._model import Model, Record
 from ._riccati import discretise, solve_filter_riccati
 
 
@@ -214,9 +214,7 @@ def _print_progress(it, cost, change, damping):
     )
 
 
-@functools.partial(
-    jax.jit, static_argnames=("model", "max_iter", "full", "progress")
-)
+@functools.partial(jax.jit, static_argnames=("model", "full", "progress"))
 def solve_filter_error(
     model: Model,
     prob: FilterProblem,
@@ -508,7 +506,10 @@ def residual_intensities(model: Model, records, residuals, theta, noise_states):
     x0 = rec.x0 if rec.x0 is not None else rec.measured_states(model, [0])[0]
     c = np.asarray(
         jax.jacfwd(model.g, argnums=1)(
-            float(rec.t[0]), jnp.asarray(x0), jnp.asarray(rec.inputs[0]), jnp.asarray(theta)
+            float(rec.t[0]),
+            jnp.asarray(x0),
+            jnp.asarray(rec.inputs[0]),
+            jnp.asarray(theta),
         )
     )
     duration = max(float(r.t[-1] - r.t[0]) for r in records)
@@ -525,7 +526,9 @@ def residual_intensities(model: Model, records, residuals, theta, noise_states):
     f0 = np.asarray(f0)
     # a model that reproduces a channel to the last bit leaves no residual: a
     # floor of the rounding of the states' size keeps the intensity non-zero
-    floor = np.finfo(float).eps * np.maximum(np.abs(np.asarray(x0))[list(noise_states)], 1.0)
+    floor = np.finfo(float).eps * np.maximum(
+        np.abs(np.asarray(x0))[list(noise_states)], 1.0
+    )
     return np.maximum(f0, floor)
 
 
@@ -577,7 +580,7 @@ def filter_error(
         jnp.asarray(z0),
         jnp.asarray(free),
         rtol=rtol,
-        max_iter=MAX_ITER if max_iter is None else int(max_iter),
+        max_iter=jnp.asarray(MAX_ITER if max_iter is None else int(max_iter)),
         full=bool(full_R),
         progress=bool(progress),
     )
@@ -589,7 +592,7 @@ def filter_error(
     lengths = [len(rec.t) for rec in records]
     result, reason = explain(
         sol.result,
-        information=sol.information,
+        information=_gram(sol.jacobian),
         free=free,
         names=[*model.parameters, *(f"F[{s}]" for s in names)],
         iterations=int(sol.iterations),
@@ -632,7 +635,7 @@ def _output_error_start(model, records, start, prob):
     (from `start`) when it ends finite, else `start`'s simulation."""
     theta0 = np.asarray(model.start if start is None else start, float)
     oe = output_error(
-        model.replace(start=dict(zip(model.parameters, theta0.tolist()))),
+        model.replace(start=dict(zip(model.parameters, theta0.tolist(), strict=True))),
         records,
         throw=False,
     )
@@ -647,8 +650,17 @@ def _output_error_start(model, records, start, prob):
         ys = jax.vmap(lambda t, x, u: model.g(t, x, u, jnp.asarray(theta0)))(
             jnp.asarray(rec.t), jnp.asarray(xs), jnp.asarray(rec.inputs)
         )
-        residuals.append(np.nan_to_num(rec.measured - np.asarray(ys), posinf=0, neginf=0))
+        residuals.append(
+            np.nan_to_num(rec.measured - np.asarray(ys), posinf=0, neginf=0)
+        )
     return theta0, residuals
+
+
+def _gram(jacobian):
+    """`A^T A` of the whitened innovations' Jacobian `(records, length, outputs,
+    unknowns)`, held unknowns' columns included (the caller masks them)."""
+    a = jacobian.reshape(-1, jacobian.shape[-1])
+    return a.T @ a
 
 
 def _corrected_stderr(jacobian, whitened, covariance):
@@ -657,5 +669,7 @@ def _corrected_stderr(jacobian, whitened, covariance):
     total = np.zeros_like(covariance)
     for r in range(jacobian.shape[0]):
         k = np.einsum("tok,kn->ton", jacobian[r], covariance)
-        total += np.asarray(coloured_information(jnp.asarray(k), jnp.asarray(whitened[r])))
+        total += np.asarray(
+            coloured_information(jnp.asarray(k), jnp.asarray(whitened[r]))
+        )
     return np.sqrt(np.clip(np.diag(total), 0.0, None))

@@ -9,9 +9,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._cache import kept_call
+from .._model import Model, Record
 from ._engine import explain, Layout, MAX_ITER, RESULTS, solve
 from ._estimator import AbstractFit
-from ._model import Model, Record
 
 
 class SingleShooting(eqx.Module):
@@ -168,6 +168,23 @@ class Fit(AbstractFit):
         return rows
 
 
+def _output_information(jacobian, record, nx, p, nb):
+    """The outputs' information about the parameters and biases, node states
+    held: `A^T A` of the whitened output Jacobian's parameter and bias columns,
+    `(p + records nb, p + records nb)`. Whether the inputs excite a parameter is a
+    question about these columns alone (the continuity defects, weighted by a
+    tolerance, can dwarf them in the full information without adding any)."""
+    n_seg, length, n_out, _ = jacobian.shape
+    n_rec = int(record.max()) + 1
+    a = np.zeros((n_seg, length * n_out, p + n_rec * nb))
+    a[..., :p] = jacobian[..., nx : nx + p].reshape(n_seg, -1, p)
+    for s in range(n_seg if nb else 0):
+        col = p + record[s] * nb
+        a[s, :, col : col + nb] = jacobian[s, ..., nx + p :].reshape(-1, nb)
+    a = a.reshape(-1, a.shape[-1])
+    return a.T @ a
+
+
 def _initial_nodes(model, records, lay, start):
     """Node guesses: measured states where the outputs have them, else a forward
     simulation of the start model from the record's initial state."""
@@ -304,9 +321,12 @@ def output_error(
     max_iter: int | None = None,
     throw: bool = True,
     progress: bool = False,
+    solver=None,
 ) -> Fit:
     """The output-error fit behind [`OutputError`][] and [`fit`][] (arguments as
-    [`fit`][]'s; `progress` prints one line per iteration)."""
+    [`fit`][]'s; `progress` prints one line per iteration; `solver` a
+    [`BlockLevenbergMarquardt`][] runs the iteration through optimistix instead
+    of the engine's own loop)."""
     records = (records,) if isinstance(records, Record) else tuple(records)
     shooting = SingleShooting() if shooting is None else shooting
     if not records:
@@ -331,23 +351,26 @@ def output_error(
         model, records, shooting, initial_state, biases, _state_scale(model, nodes0)
     )
     z0 = np.concatenate([nodes0.reshape(-1), start, np.zeros(len(records) * nb)])
-    # through the cache's kept programs: a later process skips tracing
-    sol = kept_call(
-        solve,
-        {
-            "model": model.structure(),
-            "nx": nx,
-            "p": p,
-            "max_iter": MAX_ITER if max_iter is None else int(max_iter),
-            "progress": bool(progress),
-        },
-        {
-            "layout": lay,
-            "z0": np.asarray(z0, float),
-            "free_params": np.asarray(model.free),
-            "rtol": np.asarray(rtol, float),
-        },
-    )
+    static = {
+        "model": model.structure(),
+        "nx": nx,
+        "p": p,
+    }
+    dynamic = {
+        # traced: every bound shares one compiled program
+        "max_iter": np.asarray(MAX_ITER if max_iter is None else int(max_iter)),
+        "layout": lay,
+        "z0": np.asarray(z0, float),
+        "free_params": np.asarray(model.free),
+        "rtol": np.asarray(rtol, float),
+    }
+    if solver is None:
+        # through the cache's kept programs: a later process skips tracing
+        sol = kept_call(solve, {**static, "progress": bool(progress)}, dynamic)
+    else:
+        from ._solver import solve_with_optimistix
+
+        sol = solve_with_optimistix(**static, **dynamic, solver=solver)
     sol = jax.tree.map(np.asarray, sol)
     ns = lay.n_segments * nx
     var = np.clip(np.diag(sol.covariance), 0.0, None)
@@ -355,7 +378,9 @@ def output_error(
     sd, sd_c = np.sqrt(var), np.sqrt(var_c)
     block = sol.covariance[ns : ns + p, ns : ns + p]
     d = np.sqrt(np.clip(np.diag(block), 1e-300, None))
-    correlation = block / (d[:, None] * d[None, :])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # NaN where the information is singular (the result says so)
+        correlation = block / (d[:, None] * d[None, :])
     nodes = sol.z[:ns].reshape(-1, nx)
     record = np.asarray(lay.record)
     starts = np.flatnonzero(np.r_[True, record[1:] != record[:-1]])
@@ -364,12 +389,12 @@ def output_error(
         segs = np.flatnonzero(record == i)
         outputs.append(sol.outputs[segs].reshape(-1, len(model.outputs))[: len(rec.t)])
     multiple = isinstance(shooting, MultipleShooting)
-    names = [None] * ns + list(model.parameters)
+    names = list(model.parameters)
     names += [f"bias {b} ({rec.name})" for rec in records for b in biases]
     result, reason = explain(
         sol.result,
-        information=sol.information,
-        free=np.asarray(lay.free_columns(np.asarray(model.free), nx, p)),
+        information=_output_information(sol.jacobian, record, nx, p, nb),
+        free=np.r_[np.asarray(model.free), np.ones(len(records) * nb, bool)],
         names=names,
         iterations=int(sol.iterations),
         change=float(sol.change),
@@ -401,3 +426,8 @@ def output_error(
     if throw and not out.converged:
         raise RuntimeError(f"output-error fit failed: {out.message}")
     return out
+
+
+# the public name of `simulate` (the package's top level keeps `simulate` for one
+# release as the Pegasus simulator's, see `diffpegasus.pegasus`)
+simulate_model = simulate

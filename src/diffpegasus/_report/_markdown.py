@@ -3,6 +3,7 @@
 import pathlib
 
 from .._diagnose._model import OUTPUTS
+from .._files import write_text
 
 
 def _f(x, fmt=".3g"):
@@ -82,4 +83,4 @@ def write_report(
     text = [f"# {title}", ""]
     for heading, body in sections:
         text += [f"## {heading}", "", body, ""]
-    path.write_text("\n".join(text))
+    write_text(path, "\n".join(text))

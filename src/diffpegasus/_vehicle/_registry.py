@@ -3,8 +3,8 @@
 import dataclasses
 import pathlib
 
+from .._errors import LogError
 from .._estimate._modelfile import load_model_file, ModelSpec
-from .._log._format import LogError
 
 
 VEHICLES = {

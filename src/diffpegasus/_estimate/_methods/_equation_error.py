@@ -19,7 +19,9 @@ class EquationError(AbstractEstimator):
 
     equations: tuple[str, ...] | None = eqx.field(static=True, default=None)
 
-    def estimate(self, model, records, *, max_iter, throw, progress) -> EquationErrorFit:
+    def estimate(
+        self, model, records, *, max_iter, throw, progress
+    ) -> EquationErrorFit:
         del progress
         return equation_error(
             model,

@@ -43,8 +43,14 @@ class FilterError(AbstractEstimator):
             raise ValueError(f"rtol must be positive, got {self.rtol}")
 
     def estimate(self, model, records, *, max_iter, throw, progress) -> FilterErrorFit:
-        names = tuple(model.states if self.process_noise is None else self.process_noise)
-        noise = names if self.intensities is None else dict(zip(names, self.intensities))
+        names = tuple(
+            model.states if self.process_noise is None else self.process_noise
+        )
+        noise = (
+            names
+            if self.intensities is None
+            else dict(zip(names, self.intensities, strict=True))
+        )
         return filter_error(
             model,
             records,

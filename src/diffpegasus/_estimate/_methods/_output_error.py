@@ -5,6 +5,7 @@ import equinox as eqx
 
 from .._estimator import AbstractEstimator
 from .._fit import Fit, MultipleShooting, output_error, SingleShooting
+from .._solver import BlockLevenbergMarquardt
 
 
 class OutputError(AbstractEstimator):
@@ -19,6 +20,9 @@ class OutputError(AbstractEstimator):
       held at the record's `x0`, by default its first measured sample).
     - `biases`: outputs that get a constant bias per record (estimated).
     - `rtol`: converged when det(R) changes by less than this, relatively.
+    - `solver`: `None` (default) iterates in the engine's own loop; a
+      [`BlockLevenbergMarquardt`][] takes the same steps through
+      `optimistix.least_squares`, one per relaxation of R.
 
     Returns a [`Fit`][].
     """
@@ -27,6 +31,7 @@ class OutputError(AbstractEstimator):
     estimate_initial_state: bool = eqx.field(static=True, default=False)
     biases: tuple[str, ...] = eqx.field(static=True, default=())
     rtol: float = eqx.field(static=True, default=1e-7)
+    solver: BlockLevenbergMarquardt | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         if not isinstance(self.shooting, SingleShooting | MultipleShooting):
@@ -48,4 +53,5 @@ class OutputError(AbstractEstimator):
             max_iter=max_iter,
             throw=throw,
             progress=progress,
+            solver=self.solver,
         )
