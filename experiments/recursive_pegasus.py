@@ -27,6 +27,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import diffpegasus as dp  # noqa: E402
+from diffpegasus._estimate._recursive import forgetting_for  # noqa: E402
 
 
 IGNITION = 5.0  # s: before it the elevator does not move and nothing is identifiable
@@ -47,7 +48,7 @@ def main():
     log = dp.pegasus.flight_to_log(flight, {"seed": args.seed})
     dt = 1.0 / log.sample_rate
     reg = dp.pegasus.coefficient_regression(log.channels, log.s_ref, log.c_ref)
-    lam = dp.forgetting_for(args.memory, dt)
+    lam = forgetting_for(args.memory, dt)
     # the Fourier estimator's frequencies: what the memory resolves (1 / memory
     # apart) up to the elevator's bandwidth (5 Hz, well under Nyquist)
     step = 1.0 / args.memory

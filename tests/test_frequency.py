@@ -14,6 +14,7 @@ import scipy.linalg
 import scipy.signal
 
 import diffpegasus as dp
+from diffpegasus._estimate._fourier import frequency_grid
 
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -43,12 +44,12 @@ def test_finite_fourier_is_the_chirp_z_transform_with_trapezoidal_ends():
 
 def test_biases_vanish_on_the_frequency_grid():
     n, dt = 301, 0.05
-    freqs = dp.frequency_grid(n, dt, (0.0, 2.0))
+    freqs = frequency_grid(n, dt, (0.0, 2.0))
     assert freqs[0] == pytest.approx(1.0 / ((n - 1) * dt))
     x = np.full(n, 3.7)
     assert np.max(np.abs(np.asarray(dp.finite_fourier(x, dt, freqs)))) < 1e-12
     with pytest.raises(ValueError, match="Nyquist"):
-        dp.frequency_grid(n, dt, (0.0, 11.0))
+        frequency_grid(n, dt, (0.0, 11.0))
 
 
 def test_a_model_not_linear_in_its_states_is_refused_in_one_line():

@@ -86,7 +86,7 @@ def test_forgetting_tracks_a_change_that_all_data_averages():
     _, y2, _ = _regression(n=600, theta=(1.0, -0.7, 0.2))
     y = jnp.concatenate([y1[:300], y2[300:]])
     track = dp.RecursiveLeastSquares(
-        forgetting=dp.forgetting_for(1.0, DT), derivative=(False,), dt=DT
+        forgetting=float(np.exp(-DT / 1.0)), derivative=(False,), dt=DT
     )
     keep = dp.RecursiveLeastSquares(forgetting=1.0, derivative=(False,), dt=DT)
     a = dp.replay(track, h, y, o, jnp.zeros(3)).theta[-1, 0]

@@ -43,7 +43,6 @@ from ._estimate._fit import (
 )
 from ._estimate._fourier import (
     finite_fourier as finite_fourier,
-    frequency_grid as frequency_grid,
 )
 from ._estimate._frequency import (
     FrequencyFit as FrequencyFit,
@@ -64,7 +63,6 @@ from ._estimate._oem import (
     parameter_table as parameter_table,
 )
 from ._estimate._recursive import (
-    forgetting_for as forgetting_for,
     model_regression as model_regression,
     RecursiveFourier as RecursiveFourier,
     RecursiveLeastSquares as RecursiveLeastSquares,
@@ -77,7 +75,6 @@ from ._estimate._solver import (
 )
 from ._report._bode import (
     plot_bode as plot_bode,
-    plot_history as plot_history,
 )
 from ._inputs import (
     AbstractInput as AbstractInput,
