@@ -131,7 +131,9 @@ def main():
     t, de, measured = simulate(args.flights, args.duration, args.rate, args.seed)
     dt = 1.0 / args.rate
     regs = [
-        rc.model_regression(MODEL, dp.Record(t, de[:, None], measured[i], x0=np.zeros(2)))
+        rc.model_regression(
+            MODEL, dp.Record(t, de[:, None], measured[i], x0=np.zeros(2))
+        )
         for i in range(args.flights)
     ]
     names = regs[0].parameters
@@ -190,7 +192,9 @@ def main():
             "final_robust_scatter": dict(
                 zip(
                     names,
-                    (np.subtract(*np.percentile(final, [75, 25], axis=0)) / 1.349).tolist(),
+                    (
+                        np.subtract(*np.percentile(final, [75, 25], axis=0)) / 1.349
+                    ).tolist(),
                     strict=True,
                 )
             ),

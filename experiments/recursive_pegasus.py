@@ -54,7 +54,9 @@ def main():
     step = 1.0 / args.memory
     freqs = tuple(float(f) for f in np.arange(step, 5.0 + 1e-9, step))
     estimators = {
-        "rls": dp.RecursiveLeastSquares(forgetting=lam, derivative=reg.derivative, dt=dt),
+        "rls": dp.RecursiveLeastSquares(
+            forgetting=lam, derivative=reg.derivative, dt=dt
+        ),
         "rft": dp.RecursiveFourier(
             frequencies=freqs, forgetting=lam, derivative=reg.derivative, dt=dt
         ),
@@ -104,7 +106,8 @@ def main():
         summary["methods"][label] = {
             "seconds": elapsed,
             "mse_all_samples": {
-                n: float(np.mean((err[:, j] * DEG) ** 2)) for j, n in enumerate(DERIVATIVES)
+                n: float(np.mean((err[:, j] * DEG) ** 2))
+                for j, n in enumerate(DERIVATIVES)
             },
             "mse_at_window_ends": {
                 n: float(np.mean((win_err[:, j] * DEG) ** 2))

@@ -7,7 +7,6 @@ ATTAS-like lateral manoeuvres (simulated here in NumPy by the matrix exponential
 import pathlib
 import sys
 
-import jax.numpy as jnp
 import numpy as np
 import pytest
 import scipy.linalg
@@ -85,7 +84,9 @@ def test_hfb320_output_error_in_frequency_and_time_domains_agree(hfb320):
     assert not est[[model.parameters.index(n) for n in ("Z0", "M0", "az0")]].any()
     z = (fd.params - td.params)[est] / td.stderr_corrected[est]
     # measured on the record: |z| <= 0.35 for all six (Ma -0.35, Za -0.13)
-    assert np.all(np.abs(z) < 1.0), dict(zip(np.array(model.parameters)[est], z))
+    assert np.all(np.abs(z) < 1.0), dict(
+        zip(np.array(model.parameters)[est], z, strict=False)
+    )
     # the corrected bounds widen the plain ones (the record's residuals are
     # coloured) and the two domains' bounds are of one size (ratio 1.2-2.0)
     assert np.all(fd.stderr_corrected[est] >= fd.stderr[est])
@@ -159,6 +160,6 @@ def test_attas_like_lateral_manoeuvres_agree_with_the_time_domain():
     fd = dp.estimate(model, rec, dp.FrequencyOutputError(band=(0.0, 3.0)))
     z = (fd.params - td.params) / td.stderr_corrected
     # same model, same data: within one standard error of the time-domain optimum
-    assert np.all(np.abs(z) < 1.0), dict(zip(model.parameters, z))
+    assert np.all(np.abs(z) < 1.0), dict(zip(model.parameters, z, strict=False))
     truth = np.array([TRUTH[n] for n in model.parameters])
     assert np.all(np.abs(fd.params - truth) < 4 * fd.stderr_corrected)

@@ -140,7 +140,9 @@ def test_hfb320_converges_within_one_short_period_cycle(which):
     reg = dp.model_regression(spec.model, rec)
     start = np.asarray(spec.model.start)[list(reg.index)]
     if which == "rls":
-        est = dp.RecursiveLeastSquares(forgetting=1.0, derivative=reg.derivative, dt=rec.dt)
+        est = dp.RecursiveLeastSquares(
+            forgetting=1.0, derivative=reg.derivative, dt=rec.dt
+        )
     else:
         est = dp.RecursiveFourier(
             frequencies=tuple(np.arange(0.1, 1.51, 0.04).tolist()),
@@ -172,7 +174,9 @@ def test_unstable_aircraft_converges_within_one_short_period_cycle(which):
     reg = dp.model_regression(spec.model, rec)
     start = np.asarray(spec.model.start)[list(reg.index)]
     if which == "rls":
-        est = dp.RecursiveLeastSquares(forgetting=1.0, derivative=reg.derivative, dt=rec.dt)
+        est = dp.RecursiveLeastSquares(
+            forgetting=1.0, derivative=reg.derivative, dt=rec.dt
+        )
     else:
         est = dp.RecursiveFourier(
             frequencies=tuple(np.arange(0.1, 2.01, 0.08).tolist()),
@@ -194,7 +198,7 @@ def test_unstable_aircraft_converges_within_one_short_period_cycle(which):
     # the one from all the data (measured: 0.5% or less; the equation-error optimum
     # itself is 6% from output error's on Zde: the measured w in the az equation)
     rel = np.abs(th[k] - th[-1]) / np.abs(th[-1])
-    assert np.all(rel < 0.02), dict(zip(reg.parameters, rel.round(4)))
+    assert np.all(rel < 0.02), dict(zip(reg.parameters, rel.round(4), strict=False))
 
 
 def test_replay_command_writes_the_figure_and_the_estimates(tmp_path):

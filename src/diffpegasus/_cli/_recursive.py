@@ -25,18 +25,18 @@ def replay_command(
     log: Annotated[pathlib.Path, typer.Argument(help="Log or data file")],
     model: Annotated[
         pathlib.Path | None,
-        typer.Option(help="Model-definition file (linear in its parameters); "
-        "without it the log is a launch-vehicle log and CL, CD, CM are tracked on "
-        "[1, alpha, de]"),
+        typer.Option(
+            help="Model-definition file (linear in its parameters); "
+            "without it the log is a launch-vehicle log and CL, CD, CM are tracked on "
+            "[1, alpha, de]"
+        ),
     ] = None,
     method: Annotated[str, typer.Option(help="rls or rft")] = "rft",
     memory: Annotated[
         float,
         typer.Option(help="Forgetting time constant, s (inf: all data)"),
     ] = float("inf"),
-    band: Annotated[
-        str, typer.Option(help="rft frequencies LOW,HIGH Hz")
-    ] = "0.1,1.5",
+    band: Annotated[str, typer.Option(help="rft frequencies LOW,HIGH Hz")] = "0.1,1.5",
     step: Annotated[float, typer.Option(help="rft frequency spacing, Hz")] = 0.04,
     out: OutOption = None,
     as_json: JsonOption = False,
@@ -67,7 +67,9 @@ def replay_command(
             from .._log._format import read_log
 
             flight = read_log(log)
-            reg = rec_.coefficient_regression(flight.channels, flight.s_ref, flight.c_ref)
+            reg = rec_.coefficient_regression(
+                flight.channels, flight.s_ref, flight.c_ref
+            )
             t0, dt = float(flight.t[0]), 1.0 / flight.sample_rate
             start = np.zeros(9)
             if flight.has_truth:
@@ -80,7 +82,9 @@ def replay_command(
     try:
         lam = rec_.forgetting_for(memory, dt)
         if method == "rls":
-            est = rec_.RecursiveLeastSquares(forgetting=lam, derivative=reg.derivative, dt=dt)
+            est = rec_.RecursiveLeastSquares(
+                forgetting=lam, derivative=reg.derivative, dt=dt
+            )
         else:
             low, high = _band(band)
             freqs = tuple(float(f) for f in np.arange(low, high + 1e-9, step))
@@ -120,7 +124,12 @@ def replay_command(
                 [truth.get(n, np.full(len(theta), np.nan)) for n in reg.parameters]
             )
         plot_history(
-            hist.t, theta, sd, reg.parameters, out / "estimates.png", truth=tr,
+            hist.t,
+            theta,
+            sd,
+            reg.parameters,
+            out / "estimates.png",
+            truth=tr,
             title=f"{method}: {log.name}, memory {memory:g} s",
         )
         header = "t," + ",".join(
@@ -141,5 +150,9 @@ def replay_command(
     for n in reg.parameters:
         typer.echo(f"  {n:>8s} {final[n]: .6g} +- {final_sd[n]:.3g}")
     if "band_coverage_of_truth" in summary:
-        typer.echo("95% band covers the truth (after the first tenth): " + ", ".join(
-            f"{k} {v:.0%}" for k, v in summary["band_coverage_of_truth"].items()))
+        typer.echo(
+            "95% band covers the truth (after the first tenth): "
+            + ", ".join(
+                f"{k} {v:.0%}" for k, v in summary["band_coverage_of_truth"].items()
+            )
+        )

@@ -77,7 +77,9 @@ def finite_fourier(
     """
     x = jnp.asarray(x)
     n = x.shape[0]
-    phase = -2j * jnp.pi * jnp.asarray(frequencies)[:, None] * (jnp.arange(n) * dt)[None, :]
+    phase = (
+        -2j * jnp.pi * jnp.asarray(frequencies)[:, None] * (jnp.arange(n) * dt)[None, :]
+    )
     kernel = jnp.exp(phase)
     # the trapezoidal rule: half weight on the first and last samples
     kernel = kernel.at[:, 0].multiply(0.5).at[:, -1].multiply(0.5)

@@ -371,14 +371,13 @@ def frequency_equation_error(
     idx = np.flatnonzero(estimable)
     mats, jac = system_jacobian(model.structure(), jnp.asarray(start))
     # the part of each matrix the estimated parameters do not carry
-    base = [np.asarray(m) - np.asarray(j)[..., idx] @ start[idx] for m, j in zip(mats, jac, strict=True)]
+    base = [
+        np.asarray(m) - np.asarray(j)[..., idx] @ start[idx]
+        for m, j in zip(mats, jac, strict=True)
+    ]
     dmat = [np.asarray(j)[..., idx] for j in jac]
     state_rows = [model.outputs.index(s) for s in model.states]
-    out_eq = [
-        j
-        for j in range(ny)
-        if np.any(dmat[2][j]) or np.any(dmat[3][j])
-    ]
+    out_eq = [j for j in range(ny) if np.any(dmat[2][j]) or np.any(dmat[3][j])]
     k, n_rec = len(idx), len(records)
     rows_h, rows_y, rows_eq, rows_group = [], [], [], []
     group = 0
@@ -396,13 +395,19 @@ def frequency_equation_error(
             h[:, k + r * nx + i] = -end
             y = s_op * xs[:, i] - xs @ base[0][i] - u @ base[1][i]
             rows_h.append(h), rows_y.append(y)
-            rows_eq.append(np.full(len(f), i)), rows_group.append(group + np.arange(len(f)))
+            (
+                rows_eq.append(np.full(len(f), i)),
+                rows_group.append(group + np.arange(len(f))),
+            )
         for j in out_eq:
             h = np.zeros((len(f), k + n_rec * nx), complex)
             h[:, :k] = xs @ dmat[2][j] + u @ dmat[3][j]
             y = zt[:, j] - xs @ base[2][j] - u @ base[3][j]
             rows_h.append(h), rows_y.append(y)
-            rows_eq.append(np.full(len(f), nx + j)), rows_group.append(group + np.arange(len(f)))
+            (
+                rows_eq.append(np.full(len(f), nx + j)),
+                rows_group.append(group + np.arange(len(f))),
+            )
         group += len(f)
     h = np.concatenate(rows_h)
     y = np.concatenate(rows_y)
@@ -535,11 +540,15 @@ def frequency_output_error(
         return e, j
 
     def cost(e):
-        return float(np.sum(np.log(np.maximum(np.mean(np.abs(e) ** 2, axis=0), 1e-300))))
+        return float(
+            np.sum(np.log(np.maximum(np.mean(np.abs(e) ** 2, axis=0), 1e-300)))
+        )
 
     # end terms from the measured states where there are any, else 0
     if end_terms not in ("estimated", "measured"):
-        raise ValueError(f"end_terms must be 'estimated' or 'measured', got {end_terms!r}")
+        raise ValueError(
+            f"end_terms must be 'estimated' or 'measured', got {end_terms!r}"
+        )
     z = np.zeros(k + n_rec * nx)
     z[:k] = start[idx]
     active = np.ones(len(z), bool)
@@ -550,8 +559,9 @@ def frequency_output_error(
             active[k + r * nx : k + (r + 1) * nx] = np.isnan(xs[0])
     e, j = evaluate(z)
     current = cost(e)
-    damping, converged, message, it = 1e-6, False, "", 0
+    damping, converged, message, iterations = 1e-6, False, "", 0
     for it in range(1, max_iter + 1):
+        iterations = it
         s = np.maximum(np.mean(np.abs(e) ** 2, axis=0), 1e-300)
         jr = np.concatenate([j.real, j.imag]) / np.sqrt(s)[None, :, None]
         er = np.concatenate([e.real, e.imag]) / np.sqrt(s)[None, :]
@@ -563,9 +573,12 @@ def frequency_output_error(
         scale = np.where(active, scale, 1.0)
         improved = False
         while damping < 1e12:
-            step = np.linalg.solve(
-                info / np.outer(scale, scale) + damping * np.eye(len(z)), g / scale
-            ) / scale
+            step = (
+                np.linalg.solve(
+                    info / np.outer(scale, scale) + damping * np.eye(len(z)), g / scale
+                )
+                / scale
+            )
             e_new, j_new = evaluate(z + step)
             new = cost(e_new)
             if np.isfinite(new) and new <= current:
@@ -620,7 +633,7 @@ def frequency_output_error(
             modelled=modelled,
             inputs=tuple(d.sums("u") for d in data),
             noise=s,
-            iterations=it,
+            iterations=iterations,
             max_iter=max_iter,
             converged=bool(converged),
             reason=message,

@@ -42,9 +42,9 @@ def linear_system(model: Model, theta, t=0.0):
 def system_jacobian(model: Model, theta):
     """`(A, B, C, D)` at `theta` and their Jacobians with respect to it, each
     `(..., params)`: one compiled program per model."""
-    return linear_system(model, theta), jax.jacfwd(
-        lambda th: linear_system(model, th)
-    )(theta)
+    return linear_system(model, theta), jax.jacfwd(lambda th: linear_system(model, th))(
+        theta
+    )
 
 
 @eqx.filter_jit

@@ -252,10 +252,20 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
         autocov = jnp.where(
             started,
             lam_c * state.autocov + (1 - lam_c) * e_norm[None, :] * past_e,
-            state.autocov + (e_norm[None, :] * past_e - state.autocov) / (state.count + 1.0),
+            state.autocov
+            + (e_norm[None, :] * past_e - state.autocov) / (state.count + 1.0),
         )
         return eqx.tree_at(
-            lambda s: (s.theta, s.info, s.rhs, s.r, s.lag_h, s.lag_e, s.sums, s.autocov),
+            lambda s: (
+                s.theta,
+                s.info,
+                s.rhs,
+                s.r,
+                s.lag_h,
+                s.lag_e,
+                s.sums,
+                s.autocov,
+            ),
             state,
             (theta, info, rhs, r, past[:-1], past_e[:-1], sums, autocov),
         )
@@ -334,7 +344,9 @@ class RecursiveFourier(AbstractRecursiveEstimator):
             ) / jnp.outer(scale, scale)
             theta = jnp.where(known, cov @ rhs, state.theta)
             e = fy - jnp.einsum("fqa,a->fq", fh, theta)
-            power = jnp.sum(jnp.abs(e) ** 2, axis=0) / jnp.maximum(n_rows - 0.5 * p, 1.0)
+            power = jnp.sum(jnp.abs(e) ** 2, axis=0) / jnp.maximum(
+                n_rows - 0.5 * p, 1.0
+            )
             return theta, cov, known, e, power
 
         # equations weighted by their residual power (one pass to find it)
@@ -480,7 +492,9 @@ def model_regression(model, record) -> Regression:
         y=jnp.asarray(y),
         o=jnp.asarray(offset),
         derivative=derivative,
-        equations=tuple(f"d{n}/dt" if d else n for n, d in zip(names, derivative, strict=True)),
+        equations=tuple(
+            f"d{n}/dt" if d else n for n, d in zip(names, derivative, strict=True)
+        ),
         parameters=tuple(model.parameters[i] for i in index),
         index=tuple(int(i) for i in index),
     )

@@ -101,7 +101,9 @@ def plot_bode(fit, out, units: dict[str, str] | None = None, record: int = 0):
         ax.grid(True, alpha=0.3)
     axes[0, 0].legend(fontsize=8)
     axes[1, 0].legend(fontsize=8)
-    fig.suptitle("residual spectrum (top) and input-output coherence (bottom; band shaded)")
+    fig.suptitle(
+        "residual spectrum (top) and input-output coherence (bottom; band shaded)"
+    )
     fig.tight_layout()
     paths.append(out / "residual_spectrum.png")
     fig.savefig(paths[1], dpi=110)
@@ -129,7 +131,9 @@ def plot_history(
     p = len(names)
     cols = min(3, p)
     rows = -(-p // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 2.6 * rows), squeeze=False)
+    fig, axes = plt.subplots(
+        rows, cols, figsize=(4.2 * cols, 2.6 * rows), squeeze=False
+    )
     units = units or {}
     for k, name in enumerate(names):
         ax = axes.flat[k]

@@ -11,7 +11,9 @@ def _check_band(band):
     if band is None:
         return
     if len(band) != 2 or not float(band[1]) > float(band[0]) >= 0:
-        raise ValueError(f"band must be (low, high) Hz with high > low >= 0, got {band}")
+        raise ValueError(
+            f"band must be (low, high) Hz with high > low >= 0, got {band}"
+        )
 
 
 class FrequencyOutputError(AbstractEstimator):
