@@ -122,10 +122,27 @@ def test_cli_filter_error_fit_reproduces_the_library_and_fvsysid():
     assert cmp["channels"]["V"]["ljung_box_p"] > 0.01
 
 
+def test_filter_error_converges_on_near_clean_flights():
+    """A flight the model already fits (sensor noise only): the filter starts from
+    the output-error fit with intensities scaled to its residuals, so its first
+    steps stay finite and it converges, to det(R) no higher than output error's
+    (the filter nests it at zero intensity), the intensities small."""
+    model = hfb320_model()
+    for seed, rate in ((5, 10.0), (6, 50.0)):
+        ch, _ = simulate_log(duration=30.0, rate=rate, seed=seed)
+        rec = simulated_record(ch, name=f"seed{seed}")
+        oe = dp.estimate(model, rec)
+        fem = dp.estimate(model, rec, dp.FilterError(process_noise=STATES))
+        assert fem.converged, fem.message
+        assert fem.cost <= oe.cost * (1 + 1e-6)
+        # the estimates stay those of output error within its standard errors
+        assert np.all(np.abs(fem.params - oe.params) < 2 * oe.stderr_corrected)
+
+
 def test_method_fem_says_where_it_does_not_apply(tmp_path):
     _require(hfb320.DEFAULT_DATA)
     res = _cli(["fit", hfb320.DEFAULT_DATA, "--vehicle", "hfb320", "--method", "xyz"])
-    assert res.exit_code != 0 and "--method must be oem" in res.output
+    assert res.exit_code != 0 and "--method must be one of oem" in res.output
     res = _cli(
         [
             "fit",

@@ -41,9 +41,17 @@ from ._estimate._fit import (
     simulate_model as simulate_model,
     SingleShooting as SingleShooting,
 )
+from ._estimate._fourier import (
+    finite_fourier as finite_fourier,
+)
+from ._estimate._frequency import (
+    FrequencyFit as FrequencyFit,
+)
 from ._estimate._methods import (
     EquationError as EquationError,
     FilterError as FilterError,
+    FrequencyEquationError as FrequencyEquationError,
+    FrequencyOutputError as FrequencyOutputError,
     OutputError as OutputError,
 )
 from ._estimate._modelfile import (
@@ -53,6 +61,12 @@ from ._estimate._modelfile import (
 from ._estimate._oem import (
     format_parameter_table as format_parameter_table,
     parameter_table as parameter_table,
+)
+from ._estimate._recursive import (
+    model_regression as model_regression,
+    RecursiveFourier as RecursiveFourier,
+    RecursiveLeastSquares as RecursiveLeastSquares,
+    replay as replay,
 )
 from ._estimate._solver import (
     BlockLevenbergMarquardt as BlockLevenbergMarquardt,
@@ -95,6 +109,9 @@ from ._log._rocketlogs import (
 from ._model import (
     Model as Model,
     Record as Record,
+)
+from ._report._bode import (
+    plot_bode as plot_bode,
 )
 from ._rk4 import (
     RK4 as RK4,

@@ -4,6 +4,9 @@ from ._estimate._coefficients import (
     MeasuredCoefficients as MeasuredCoefficients,
     reconstruct_coefficients as reconstruct_coefficients,
 )
+from ._estimate._recursive import (
+    coefficient_regression as coefficient_regression,
+)
 from ._estimate._global_oem import (
     fit_global_oem as fit_global_oem,
     GlobalFit as GlobalFit,

@@ -30,7 +30,19 @@ __getattr__, __dir__, __all__ = attach(
             "EquationError",
             "ESTIMATORS",
             "FilterError",
+            "FrequencyEquationError",
+            "FrequencyOutputError",
             "OutputError",
+        ),
+        "_fourier": (
+            "finite_fourier",
+            "frequency_grid",
+        ),
+        "_frequency": (
+            "default_band",
+            "frequency_equation_error",
+            "frequency_output_error",
+            "FrequencyFit",
         ),
         "_solver": (
             "BlockLevenbergMarquardt",

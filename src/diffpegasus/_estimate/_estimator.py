@@ -22,8 +22,8 @@ import equinox as eqx
 import numpy as np
 from equinox import AbstractVar
 
+from .._model import Model, Record
 from ._engine import RESULTS
-from ._model import Model, Record
 
 
 def is_successful(result) -> bool:

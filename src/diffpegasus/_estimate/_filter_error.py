@@ -592,7 +592,7 @@ def filter_error(
     lengths = [len(rec.t) for rec in records]
     result, reason = explain(
         sol.result,
-        information=sol.information,
+        information=_gram(sol.jacobian),
         free=free,
         names=[*model.parameters, *(f"F[{s}]" for s in names)],
         iterations=int(sol.iterations),
@@ -654,6 +654,13 @@ def _output_error_start(model, records, start, prob):
             np.nan_to_num(rec.measured - np.asarray(ys), posinf=0, neginf=0)
         )
     return theta0, residuals
+
+
+def _gram(jacobian):
+    """`A^T A` of the whitened innovations' Jacobian `(records, length, outputs,
+    unknowns)`, held unknowns' columns included (the caller masks them)."""
+    a = jacobian.reshape(-1, jacobian.shape[-1])
+    return a.T @ a
 
 
 def _corrected_stderr(jacobian, whitened, covariance):
