@@ -129,9 +129,12 @@ def model_or_vehicle(ctx: typer.Context, param: typer.CallbackParam, value):
     if _skip(ctx) or value is None:
         return value
     other = "vehicle" if param.name == "model" else "model"
-    source = ctx.get_parameter_source(other)
     given = ctx.params.get(other)
-    if getattr(source, "name", None) == "COMMANDLINE" and given is not None:
+    both = all(
+        getattr(ctx.get_parameter_source(n), "name", None) == "COMMANDLINE"
+        for n in (param.name, other)
+    )
+    if both and given is not None:
         model, vehicle = (value, given) if param.name == "model" else (given, value)
         _fail(
             f"--model {model} and --vehicle {vehicle} both say what to fit; give one "

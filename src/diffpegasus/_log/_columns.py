@@ -291,7 +291,7 @@ def _check_step(table: Table, t: np.ndarray, col: Column) -> None:
 
 def _check_outliers(table: Table, raw: np.ndarray, col: Column) -> None:
     """Values the fit cannot use: one whose square, summed over the record, would
-    overflow float64; one a million times beyond the column's own 99th-percentile
+    overflow float64; one a million times beyond the column's own 90th-percentile
     spread about its median (a corrupt cell, not a measurement)."""
     where = f"{table.path}: column {col.column!r} (channel {col.channel!r}) row"
     big = np.abs(raw * col.factor)
@@ -304,12 +304,12 @@ def _check_outliers(table: Table, raw: np.ndarray, col: Column) -> None:
         )
     med = float(np.median(raw))
     dev = np.abs(raw - med)
-    spread = float(np.percentile(dev, 99))
+    spread = float(np.percentile(dev, 90))
     i = int(np.argmax(dev))
     if spread > 0 and dev[i] > 1e6 * spread:
         raise LogError(
             f"{where} {i + 1}: value {raw[i]:g} is {dev[i] / spread:.3g} times the "
-            f"column's 99th-percentile spread about its median ({med:g}): a corrupt "
+            f"column's 90th-percentile spread about its median ({med:g}): a corrupt "
             "cell, not a measurement"
         )
 
@@ -459,7 +459,7 @@ def _check_record(path, channels, model, resolved, time) -> None:
         if np.all(v == v[0]):
             col = resolved[name].column
             raise LogError(
-                f"{path}: column {col!r} (output {name!r}) is {v[0]:g} in all {n} "
+                f"{path}: column {col!r} (output {name!r}) is {v[0] + 0.0:g} in all {n} "
                 "rows: a dead sensor or an empty column; the fit weighs each output by "
                 "its residual variance, which a constant makes zero (remove the "
                 "output from the model, or map the right column)"
