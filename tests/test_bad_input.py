@@ -170,6 +170,18 @@ CASES = [
     ("thrust 100x", _mutated(thrust=lambda x: 100 * x), None, "the forces imply |CX|"),
     ("alpha in degrees", _mutated(alpha=lambda x: x * DEG), None, "column 'alpha'"),
     (
+        "thrust in lbf logged as N",
+        _mutated(thrust=lambda x: x / 4.4482216),
+        None,
+        "the forces imply a drag of",
+    ),
+    (
+        "ax alone in g",
+        _mutated(ax=lambda x: x / 9.80665),
+        None,
+        "'ax'",
+    ),
+    (
         "sample rate a word",
         CLEAN,
         {"sample_rate_hz": "fast"},
@@ -1068,3 +1080,233 @@ def test_the_clean_fit_input_reads(tmp_path):
     c = _sp_channels()
     np.testing.assert_allclose(rec.inputs[:, 0], np.radians(c["ELEV"]), rtol=1e-15)
     np.testing.assert_allclose(rec.measured[:, 2], np.radians(c["QB"]), rtol=1e-15)
+
+
+# Options: refused while the command line is parsed, before any file is read
+OPTION_CASES = [
+    (["simulate", "--duration", "-5"], "--duration -5.0: must be a positive"),
+    (["simulate", "--duration", "inf"], "--duration inf: must be a positive"),
+    (["simulate", "--sample-rate", "nan"], "--sample-rate nan: must be a positive"),
+    (["simulate", "--sample-rate", "0"], "--sample-rate 0.0: must be a positive"),
+    (
+        ["simulate", "--hidden", "pitch_damping=nan"],
+        "--hidden pitch_damping=nan: 'nan' is not a finite number",
+    ),
+    (["simulate", "--hidden", "pitch_damping"], "expected NAME=VALUE"),
+    (["simulate", "--hidden", "=3"], "no name before '='"),
+    (
+        ["simulate", "--hidden", "pitch_damping=-800", "--hidden", "pitch_damping=1"],
+        "--hidden is given twice for 'pitch_damping'",
+    ),
+    (
+        ["fit", "{log}", "--add", "pitch_damping", "--rate", "0"],
+        "--rate 0.0: must be a positive finite number",
+    ),
+    (
+        ["fit", "{log}", "--add", "pitch_damping", "--node-interval", "-1"],
+        "--node-interval -1.0: must be a positive",
+    ),
+    (["diagnose", "{log}", "--rate", "nan"], "--rate nan"),
+    (["compare", "{log}", "--node-interval", "0"], "--node-interval 0.0"),
+    (["demo", "--hidden", "actuator_delay=inf"], "'inf' is not a finite number"),
+    (["demo", "--duration", "0"], "--duration 0.0: must be a positive"),
+    (["estimate", "lse", "{log}", "--window", "0"], "--window 0.0: must be a positive"),
+    (["estimate", "lse", "{log}", "--tol", "nan"], "--tol nan"),
+    (
+        ["estimate", "oem", "{log}", "--decimate", "0"],
+        "--decimate 0: must be at least 1",
+    ),
+    (["estimate", "oem", "{log}", "--min-qbar", "nan"], "--min-qbar nan: not a finite"),
+    (["estimate", "nn", "{log}", "--window", "-0.5"], "--window -0.5"),
+    (["montecarlo", "--samples", "0"], "--samples 0: must be at least 1"),
+    (["montecarlo", "--batch", "0"], "--batch 0: must be at least 1"),
+    (["montecarlo", "--duration", "nan"], "--duration nan"),
+    (
+        ["fit", "{log}", "--vehicle", "hfb320", "--fix", "Cmq=1", "--fix", "Cmq=2"],
+        "--fix is given twice for 'Cmq'",
+    ),
+]
+
+
+@pytest.mark.parametrize(
+    "argv, fragment", OPTION_CASES, ids=[" ".join(c[0]) for c in OPTION_CASES]
+)
+def test_bad_option_is_one_error_line(tmp_path, argv, fragment):
+    # the log does not exist: a refused option is said first, before reading it
+    log = str(tmp_path / "never_read.csv")
+    out = tmp_path / "out"
+    args = [a.format(log=log) for a in argv]
+    if args[0] in ("simulate",):
+        args += ["--out", str(out / "f.csv")]
+    if args[0] in ("demo", "montecarlo"):
+        args += ["--out", str(out)]
+    _assert_one_error(runner.invoke(app, args), fragment)
+    assert not out.exists()
+
+
+# Logs and their sidecars are written as consistent pairs
+
+
+def test_interrupted_log_write_leaves_a_pair_check_refuses(tmp_path, monkeypatch):
+    """Interrupted between the two renames (the sidecar is renamed in first), the
+    old CSV sits beside the new sidecar: its hash names the CSV it belongs to, so
+    `check` refuses the pair; no temporary file is left behind."""
+    import diffpegasus._log._format as log_module
+
+    from .test_log import _log
+
+    path = dp.write_log(tmp_path / "f.csv", _log())
+    assert runner.invoke(app, ["check", str(path), "--help"]).exit_code == 0
+    old_csv = path.read_bytes()
+    new = _log()
+    new.channels["q"] = new.channels["q"] * 1.01
+    real_commit = log_module.commit
+
+    def interrupted(tmp, final):
+        if str(final).endswith(".csv"):
+            raise KeyboardInterrupt  # Ctrl-C at the moment the CSV is renamed in
+        return real_commit(tmp, final)
+
+    monkeypatch.setattr(log_module, "commit", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        dp.write_log(path, new)
+    assert path.read_bytes() == old_csv
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f.csv", "f.json"]
+    with pytest.raises(dp.LogError, match="the sidecar belongs to another version"):
+        dp.read_log(path, plausibility=False)
+
+
+def test_sidecar_hash_catches_an_edited_csv_and_can_be_dropped(tmp_path):
+    from .test_log import _log
+
+    path = dp.write_log(tmp_path / "f.csv", _log())
+    dp.read_log(path, plausibility=False)  # the pair as written reads
+    lines = path.read_text().splitlines()
+    lines[3] = lines[3].replace(",", ", ", 1)  # the same numbers, other bytes
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(dp.LogError, match="an interrupted write, or an edited CSV"):
+        dp.read_log(path, plausibility=False)
+    meta = json.loads(path.with_suffix(".json").read_text())
+    del meta["csv_sha256"]
+    path.with_suffix(".json").write_text(json.dumps(meta))
+    dp.read_log(path, plausibility=False)
+
+
+def test_a_log_with_nan_is_never_written(tmp_path):
+    from .test_log import _log
+
+    log = _log()
+    log.channels["az"][5] = np.nan
+    with pytest.raises(dp.LogError, match="channel 'az', row 6: value nan"):
+        dp.write_log(tmp_path / "f.csv", log)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_interrupted_figure_leaves_no_file(tmp_path):
+    """A figure interrupted while it is encoded appears neither truncated under its
+    name nor as a temporary file."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from diffpegasus._files import save_figure
+
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [0, 1])
+    path = tmp_path / "fit.png"
+    save_figure(fig, path, dpi=50)
+    good = path.read_bytes()
+    assert good.startswith(b"\x89PNG")
+
+    def half_then_stop(f, **kwargs):
+        f.write(good[: len(good) // 2])
+        raise KeyboardInterrupt
+
+    fig.savefig = half_then_stop
+    with pytest.raises(KeyboardInterrupt):
+        save_figure(fig, path, dpi=50)
+    plt.close(fig)
+    assert path.read_bytes() == good
+    assert [p.name for p in tmp_path.iterdir()] == ["fit.png"]
+
+
+# Unit mistakes inside the old factor-2 rule, on the HFB-320 flight record
+
+
+@pytest.mark.parametrize(
+    "column, factor, fragment",
+    [
+        ("TASCG", 1.943844, "V looks like knots"),
+        ("AXCG", 1 / 9.80665, "ax looks like units of g"),
+        ("AZCG", 1 / 9.80665, "'az'"),
+    ],
+    ids=["airspeed in knots", "ax in g", "az in g"],
+)
+def test_hfb320_unit_mistakes_within_factor_two(tmp_path, column, factor, fragment):
+    from .test_oem import _require, hfb320
+
+    _require(hfb320.DEFAULT_DATA)
+    data = dp.read_asc(hfb320.DEFAULT_DATA)
+    data[column] = data[column] * factor
+    path = tmp_path / "hfb.csv"
+    names = list(data)
+    np.savetxt(
+        path,
+        np.column_stack([data[n] for n in names]),
+        delimiter=",",
+        header=",".join(names),
+        comments="",
+        fmt="%.10g",
+    )
+    args = ["fit", str(path), "--vehicle", "hfb320", "--json"]
+    line = _assert_one_error(runner.invoke(app, args), fragment)
+    assert str(path) in line
+
+
+def test_hfb320_record_passes_the_tightened_checks():
+    from .test_oem import _require, hfb320
+
+    _require(hfb320.DEFAULT_DATA)
+    spec = dp.vehicle_spec("hfb320") if hasattr(dp, "vehicle_spec") else None
+    if spec is None:
+        from diffpegasus._vehicle import vehicle_spec
+
+        spec = vehicle_spec("hfb320")
+    rec = dp.load_record(spec.model, hfb320.DEFAULT_DATA, spec.columns)
+    assert rec.t.shape == (601,)
+
+
+# A model file that prints keeps --json valid; a fit without excitation says so
+
+
+def test_json_stays_valid_whatever_the_model_file_prints(tmp_path):
+    chatty = SP_MODEL.replace(
+        "def rates(t, x, u, p):\n",
+        "print('loading my model')\ndef rates(t, x, u, p):\n    print('tracing')\n",
+    )
+    _fill(tmp_path, {"m.py": chatty})
+    args = ["fit", str(tmp_path / "data.csv"), "--model", str(tmp_path / "m.py")]
+    args += ["--columns", str(tmp_path / "map.json"), "--json"]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)  # the whole of stdout is one JSON object
+    assert report["converged"] and "loading my model" in result.stderr
+
+
+def test_constant_inputs_are_named_as_no_excitation():
+    from diffpegasus._cli._runners import excitation_note
+
+    model = dp.Model(
+        states=("q",),
+        inputs=("de",),
+        outputs=("q",),
+        parameters={"Mq": -1.0},
+        rates=lambda t, x, u, p: -x,
+        observe=lambda t, x, u, p: x,
+    )
+    t = np.arange(10) * 0.1
+    still = dp.Record(t, np.full(10, 0.01), np.sin(t))
+    moving = dp.Record(t, np.sin(t), np.sin(t))
+    assert "nothing excites the vehicle" in excitation_note(model, [still, still])
+    assert excitation_note(model, [still, moving]) is None
