@@ -31,7 +31,8 @@ def _block_values(block: bytes, width: int) -> np.ndarray | None:
     ends = np.flatnonzero(raw == _NEWLINE)
     commas = np.flatnonzero(raw == _COMMA)
     per_line = np.diff(np.searchsorted(commas, ends), prepend=0)
-    if np.any(per_line != width - 1) or _BLANK_CELL.search(block):
+    # (the block's last newline ends its last line: no empty line after it)
+    if np.any(per_line != width - 1) or _BLANK_CELL.search(block, 0, len(block) - 1):
         return None
     with warnings.catch_warnings():
         # a cell np.fromstring cannot parse ends it early with a warning
