@@ -958,6 +958,18 @@ FIT_CASES = [
         ["process_noise names 'theta', not a state"],
     ),
     (
+        "the model file's columns a list",
+        {"m.py": _model('columns = ["TIME", "ELEV"]\n')},
+        ["{d}/data.csv", "--model", "{d}/m.py"],
+        ["m.py: columns: a column map is a dict", "got list"],
+    ),
+    (
+        "the model file's columns with a bad unit",
+        {"m.py": _model('columns = {"q": {"column": "QB", "unit": "degs"}}\n')},
+        ["{d}/data.csv", "--model", "{d}/m.py"],
+        ["m.py: columns: channel 'q': unknown unit 'degs'"],
+    ),
+    (
         "model file is a folder",
         {"m.py/x": "1"},
         None,

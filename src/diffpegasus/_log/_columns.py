@@ -149,12 +149,17 @@ class _DuplicateKey(ValueError):
     pass
 
 
-def load_columns(source) -> dict[str, Column]:
+def load_columns(source, where: str = "column map") -> dict[str, Column]:
     """A column map from a dict, or a `.json` / `.toml` file (UTF-8; a key given
-    twice is refused, not silently overwritten)."""
-    where = "column map"
+    twice is refused, not silently overwritten). `where` names a dict's origin in
+    messages (e.g. the model file that defines it)."""
     if source is None:
         return {}
+    if not isinstance(source, dict | str | os.PathLike):
+        raise LogError(
+            f"{where}: a column map is a dict of channel -> column, or the path of a "
+            f"JSON or TOML file, got {type(source).__name__}"
+        )
     if not isinstance(source, dict):
         path = pathlib.Path(source)
         where = str(path)
