@@ -13,12 +13,37 @@ from .._errors import LogError
 
 
 app = typer.Typer(
-    help="Differentiable flight simulation and aerodynamic identification: Pegasus, "
-    "HFB-320 and your own vehicles.",
+    help="Identify aerodynamic derivatives from flight logs and find what a model is "
+    "missing: aircraft, launch vehicles and your own models.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     add_completion=False,
+    # docstrings are Markdown: paragraphs reflow to the terminal's width
+    rich_markup_mode="markdown",
 )
+
+
+def _version(value: bool) -> None:
+    if value:
+        from .. import __version__
+
+        typer.echo(f"diffpegasus {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version",
+            callback=_version,
+            is_eager=True,
+            help="Print the version and exit.",
+        ),
+    ] = False,
+) -> None:
+    del version
 estimate_app = typer.Typer(
     help="Estimate the six derivatives per window from a flight log.",
     no_args_is_help=True,
@@ -130,11 +155,11 @@ def model_or_vehicle(ctx: typer.Context, param: typer.CallbackParam, value):
         return value
     other = "vehicle" if param.name == "model" else "model"
     given = ctx.params.get(other)
-    both = all(
-        getattr(ctx.get_parameter_source(n), "name", None) == "COMMANDLINE"
-        for n in (param.name, other)
-    )
-    if both and given is not None:
+    on_line = [
+        getattr(ctx.get_parameter_source(name), "name", None) == "COMMANDLINE"
+        for name in (param.name, other)
+    ]
+    if all(on_line) and given is not None:
         model, vehicle = (value, given) if param.name == "model" else (given, value)
         _fail(
             f"--model {model} and --vehicle {vehicle} both say what to fit; give one "

@@ -12,7 +12,8 @@ Units understood: see [`UNITS`][]; a value is multiplied by the unit's factor to
 then by `scale`. A channel missing from the map, or whose mapped column the file does
 not have, is looked up by its own name (in SI units).
 
-Files: CSV with a header row (`.csv`, or anything with commas in its header); the
+Files: MATLAB `.mat` (v5 and v7.3) and HDF5 files (see `_matfile`); CSV with a
+header row (`.csv`, or anything with commas in its header); the
 column text files of FVSysID (`.asc`: free-text lines, a row of names starting with
 `T`, a row of units, then numbers); and plain numeric tables with no header at all
 (whitespace or commas), whose columns are numbered from 1 as FVSysID's MATLAB scripts

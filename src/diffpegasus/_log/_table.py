@@ -19,6 +19,7 @@ import numpy as np
 
 from .._errors import LogError
 from ._fastcsv import read_numeric_csv
+from ._matfile import SUFFIXES as MATRIX_SUFFIXES
 
 
 # What a number in a data file may look like: ASCII decimal, optional exponent, nan,
@@ -207,6 +208,10 @@ def open_table(path: str | os.PathLike) -> Table:
     empty, decimal commas, no header an `.asc` file needs.
     """
     path = pathlib.Path(path)
+    if path.suffix.lower() in MATRIX_SUFFIXES:
+        from ._matfile import MatrixFileTable
+
+        return MatrixFileTable.open(path)  # type: ignore[return-value]
     head = _check_file(path)
     text = head.decode("utf-8", errors="ignore")
     lines = text.splitlines(keepends=True)
