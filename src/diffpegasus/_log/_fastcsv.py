@@ -22,6 +22,20 @@ _BLANK_CELL = re.compile(rb"(?:^|,)[ \t]*(?:,|$)", re.MULTILINE)
 _NEWLINE, _COMMA = ord("\n"), ord(",")
 
 
+def _has_blank_cell(block: bytes) -> bool:
+    """Whether a cell of `block` (whole lines) is empty or blanks only."""
+    if b" " in block or b"\t" in block:
+        # the block's last newline ends its last line: no empty line after it
+        return _BLANK_CELL.search(block, 0, len(block) - 1) is not None
+    return (
+        block.startswith((b",", b"\n"))
+        or b",," in block
+        or b",\n" in block
+        or b"\n," in block
+        or b"\n\n" in block
+    )
+
+
 def _block_values(block: bytes, width: int) -> np.ndarray | None:
     """The numbers of `block` (whole lines, each ending in a newline) as a
     `(lines, width)` array, or `None` if any line is not `width` plain numbers."""
@@ -31,8 +45,7 @@ def _block_values(block: bytes, width: int) -> np.ndarray | None:
     ends = np.flatnonzero(raw == _NEWLINE)
     commas = np.flatnonzero(raw == _COMMA)
     per_line = np.diff(np.searchsorted(commas, ends), prepend=0)
-    # (the block's last newline ends its last line: no empty line after it)
-    if np.any(per_line != width - 1) or _BLANK_CELL.search(block, 0, len(block) - 1):
+    if np.any(per_line != width - 1) or _has_blank_cell(block):
         return None
     with warnings.catch_warnings():
         # a cell np.fromstring cannot parse ends it early with a warning
