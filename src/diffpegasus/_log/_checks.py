@@ -113,11 +113,11 @@ def _ratio(y: np.ndarray, x: np.ndarray, t: np.ndarray) -> tuple[float, float]:
     a straight line in time is removed from both (a constant sensor bias integrates
     to such a line, so it does not spoil the ratio)."""
     tc = (t - t.mean()) / (np.ptp(t) or 1.0)
-    basis = np.column_stack([np.ones_like(tc), tc])
-    q, _ = np.linalg.qr(basis)
+    tt = float(tc @ tc) or 1.0
 
     def detrend(z):
-        return z - q @ (q.T @ z)
+        # tc has zero mean, so [1, tc] are orthogonal: the projection in closed form
+        return z - z.mean() - (float(tc @ z) / tt) * tc
 
     yr, xr = detrend(y), detrend(x)
     sxx, syy, sxy = float(xr @ xr), float(yr @ yr), float(xr @ yr)
@@ -482,9 +482,9 @@ def check_physics(
     _check_kinematics(channels, name, skip)
     if "air_data" not in skip:
         _check_air_data(channels, name)
+    if "coefficients" not in skip:
+        _check_coefficients(channels, metadata, name)
     if "specific_force" not in skip:
         _check_specific_force(channels, name)
     if "drag" not in skip:
         _check_drag(channels, metadata, name)
-    if "coefficients" not in skip:
-        _check_coefficients(channels, metadata, name)

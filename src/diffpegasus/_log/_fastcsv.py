@@ -22,18 +22,17 @@ _BLANK_CELL = re.compile(rb"(?:^|,)[ \t]*(?:,|$)", re.MULTILINE)
 _NEWLINE, _COMMA = ord("\n"), ord(",")
 
 
-def _has_blank_cell(block: bytes) -> bool:
-    """Whether a cell of `block` (whole lines) is empty or blanks only."""
+def _has_blank_cell(block: bytes, raw, newline, comma) -> bool:
+    """Whether a cell of `block` (whole lines) is empty or blanks only: two
+    separators side by side (or one first), or, in a block with blanks, a cell of
+    blanks."""
+    sep = newline | comma
+    if sep[0] or np.any(sep[1:] & sep[:-1]):
+        return True
     if b" " in block or b"\t" in block:
         # the block's last newline ends its last line: no empty line after it
         return _BLANK_CELL.search(block, 0, len(block) - 1) is not None
-    return (
-        block.startswith((b",", b"\n"))
-        or b",," in block
-        or b",\n" in block
-        or b"\n," in block
-        or b"\n\n" in block
-    )
+    return False
 
 
 def _block_values(block: bytes, width: int) -> np.ndarray | None:
@@ -42,10 +41,10 @@ def _block_values(block: bytes, width: int) -> np.ndarray | None:
     if b"\r" in block:
         block = block.replace(b"\r", b"")
     raw = np.frombuffer(block, np.uint8)
-    ends = np.flatnonzero(raw == _NEWLINE)
-    commas = np.flatnonzero(raw == _COMMA)
-    per_line = np.diff(np.searchsorted(commas, ends), prepend=0)
-    if np.any(per_line != width - 1) or _has_blank_cell(block):
+    newline, comma = raw == _NEWLINE, raw == _COMMA
+    ends = np.flatnonzero(newline)
+    per_line = np.diff(np.searchsorted(np.flatnonzero(comma), ends), prepend=0)
+    if np.any(per_line != width - 1) or _has_blank_cell(block, raw, newline, comma):
         return None
     with warnings.catch_warnings():
         # a cell np.fromstring cannot parse ends it early with a warning
