@@ -1323,3 +1323,24 @@ def test_constant_inputs_are_named_as_no_excitation():
     moving = dp.Record(t, np.sin(t), np.sin(t))
     assert "nothing excites the vehicle" in excitation_note(model, [still, still])
     assert excitation_note(model, [still, moving]) is None
+
+
+def test_block_reader_agrees_with_the_careful_reader(tmp_path, monkeypatch):
+    """Blocks of a few lines (cut mid-line), only the mapped columns converted: the
+    same numbers as the row-by-row reader; a ragged row in a later block is still
+    found and named by it."""
+    import diffpegasus._log._fastcsv as fastcsv
+    from diffpegasus._log._table import open_table
+
+    monkeypatch.setattr(fastcsv, "_BLOCK_BYTES", 97)
+    path = tmp_path / "d.csv"
+    path.write_text(SP_CSV.rstrip("\n"))  # and no newline after the last row
+    table = open_table(path)
+    fast = table.read(["QB", "TIME"])
+    careful = table._read_carefully(["QB", "TIME"], [4, 0], drop_text=False)
+    for k in ("QB", "TIME"):
+        np.testing.assert_array_equal(fast[k], careful[k])
+    assert len(fast["TIME"]) == 60
+    path.write_text(_sp_lines(lambda ls: ls.__setitem__(50, ls[50] + ",7")))
+    with pytest.raises(dp.LogError, match="line 51 has 6 values, the header 5"):
+        open_table(path).read(["TIME"])
