@@ -33,8 +33,8 @@ from ._estimate._fit import (
     Fit as Fit,
     fit as fit,
     MultipleShooting as MultipleShooting,
+    simulate_model as simulate_model,
     SingleShooting as SingleShooting,
-    simulate as simulate_model,
 )
 from ._estimate._modelfile import (
     load_model_file as load_model_file,

@@ -381,3 +381,8 @@ def fit(
     if throw and not out.converged:
         raise RuntimeError(f"output-error fit failed: {out.message}")
     return out
+
+
+# the public name of `simulate` (the package's top level keeps `simulate` for one
+# release as the Pegasus simulator's, see `diffpegasus.pegasus`)
+simulate_model = simulate
