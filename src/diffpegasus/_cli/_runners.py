@@ -67,10 +67,12 @@ def load_records(spec: ModelSpec, files, columns=None):
     (or the model file's `read` function when it has one and no `columns` given)."""
     _check_distinct(files)
     user = dict(load_columns(columns))
+    where = f"{spec.name}: columns" if spec.name.endswith(".py") else spec.name
+    own = dict(load_columns(spec.columns, where)) if spec.columns else {}
     if spec.name.endswith(".py") and spec.columns:
-        _check_map_keys(spec.model, load_columns(spec.columns), spec.name)
+        _check_map_keys(spec.model, own, spec.name)
     _check_map_keys(spec.model, user, "--columns")
-    cmap = dict(load_columns(spec.columns)) if spec.columns else {}
+    cmap = own
     cmap.update(user)
     reader = spec.read if columns is None else None
     model = spec.model
