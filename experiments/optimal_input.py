@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import diffpegasus as dp
-import diffpegasus._simulate._design as design_mod
+import diffpegasus._design._optimal as design_mod
 from diffpegasus._cli._campaign import _design_report
 from diffpegasus._report._plotting import plot_design
 

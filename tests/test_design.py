@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import diffpegasus as dp
-import diffpegasus._simulate._design as design_mod
+import diffpegasus._design._optimal as design_mod
 
 
 U0 = 50.0

@@ -1,7 +1,7 @@
 """Gradient-optimal input design through the differentiable output-error model (see
 the README, "Optimal input design")."""
 
-from ._simulate._design import (
+from ._design._optimal import (
     criterion as criterion,
     DesignProblem as DesignProblem,
     fisher_information as fisher_information,

@@ -4,7 +4,7 @@ import sys
 
 import typer
 
-from .._log._format import LogError
+from .._errors import LogError
 from . import _campaign, _diagnose, _estimate, _fit, _simulate  # noqa: F401 (registers)
 from ._common import _os_error, app
 

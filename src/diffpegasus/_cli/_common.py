@@ -1,22 +1,49 @@
 """What every command shares: the Typer apps, failing with one line, shared options."""
 
 import json
+import math
 import os
 import pathlib
+import sys
 from typing import Annotated
 
 import typer
 
-from .._log._format import LogError
+from .._errors import LogError
 
 
 app = typer.Typer(
-    help="Differentiable flight simulation and aerodynamic identification: Pegasus, "
-    "HFB-320 and your own vehicles.",
+    help="Identify aerodynamic derivatives from flight logs and find what a model is "
+    "missing: aircraft, launch vehicles and your own models.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     add_completion=False,
+    # docstrings are Markdown: paragraphs reflow to the terminal's width
+    rich_markup_mode="markdown",
 )
+
+
+def _version(value: bool) -> None:
+    if value:
+        from .. import __version__
+
+        typer.echo(f"diffpegasus {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version",
+            callback=_version,
+            is_eager=True,
+            help="Print the version and exit.",
+        ),
+    ] = False,
+) -> None:
+    del version
 estimate_app = typer.Typer(
     help="Estimate the six derivatives per window from a flight log.",
     no_args_is_help=True,
@@ -31,6 +58,114 @@ def _fail(message: str) -> None:
 
 # Exit code of a command whose input was fine but whose fit failed (nothing estimated).
 FIT_FAILED = 3
+
+
+# Option validators: typer callbacks that refuse a value in one `error:` line while
+# the command line is parsed, before any file is read or anything compiled. Use as
+# `typer.Option(..., callback=positive)`.
+
+
+def _option(param) -> str:
+    names = [n for n in getattr(param, "opts", ()) if n.startswith("--")]
+    return names[0] if names else f"--{param.name.replace('_', '-')}"
+
+
+def _skip(ctx) -> bool:
+    return ctx is not None and getattr(ctx, "resilient_parsing", False)
+
+
+def finite(ctx: typer.Context, param: typer.CallbackParam, value):
+    """A finite number (or `None`)."""
+    if _skip(ctx) or value is None:
+        return value
+    if not math.isfinite(value):
+        _fail(f"{_option(param)} {value}: not a finite number")
+    return value
+
+
+def positive(ctx: typer.Context, param: typer.CallbackParam, value):
+    """A finite number above zero (or `None`)."""
+    if _skip(ctx) or value is None:
+        return value
+    if not (math.isfinite(value) and value > 0):
+        _fail(f"{_option(param)} {value}: must be a positive finite number")
+    return value
+
+
+def at_least_one(ctx: typer.Context, param: typer.CallbackParam, value):
+    """An integer of at least 1 (or `None`)."""
+    if _skip(ctx) or value is None:
+        return value
+    if value < 1:
+        _fail(f"{_option(param)} {value}: must be at least 1")
+    return value
+
+
+def parse_assignment_text(option: str, text: str, *, need_value: bool):
+    """`NAME` or `NAME=VALUE` of `option`: `(name, float or None)`; one `error:` line
+    for an empty name, a missing `=VALUE` where one is needed, or a VALUE that is not
+    a finite number."""
+    name, sep, value = text.partition("=")
+    name = name.strip()
+    if not name:
+        _fail(f"{option} {text!r}: no name before '='")
+    if not sep:
+        if need_value:
+            _fail(f"{option} {text}: expected NAME=VALUE")
+        return name, None
+    try:
+        number = float(value)
+    except ValueError:
+        _fail(f"{option} {text}: {value.strip()!r} is not a number")
+    if not math.isfinite(number):
+        _fail(f"{option} {text}: {value.strip()!r} is not a finite number")
+    return name, number
+
+
+def assignments(ctx: typer.Context, param: typer.CallbackParam, value):
+    """Repeatable `NAME=VALUE` (VALUE finite), each NAME once (`--hidden`)."""
+    return _assignments(ctx, param, value, need_value=True)
+
+
+def holds(ctx: typer.Context, param: typer.CallbackParam, value):
+    """Repeatable `NAME` or `NAME=VALUE` (VALUE finite), each NAME once (`--fix`,
+    `--process-noise`)."""
+    return _assignments(ctx, param, value, need_value=False)
+
+
+def _assignments(ctx, param, value, *, need_value):
+    if _skip(ctx) or not value:
+        return value
+    texts = [value] if isinstance(value, str) else list(value)
+    seen: dict[str, str] = {}
+    for text in texts:
+        name, _ = parse_assignment_text(_option(param), text, need_value=need_value)
+        if name in seen:
+            _fail(
+                f"{_option(param)} is given twice for {name!r} ({seen[name]} and "
+                f"{text}); give it once"
+            )
+        seen[name] = text
+    return value
+
+
+def model_or_vehicle(ctx: typer.Context, param: typer.CallbackParam, value):
+    """`--model FILE` and `--vehicle NAME` name the same thing: refuse both."""
+    if _skip(ctx) or value is None:
+        return value
+    other = "vehicle" if param.name == "model" else "model"
+    given = ctx.params.get(other)
+    on_line = [
+        getattr(ctx.get_parameter_source(name), "name", None) == "COMMANDLINE"
+        for name in (param.name, other)
+    ]
+    if all(on_line) and given is not None:
+        model, vehicle = (value, given) if param.name == "model" else (given, value)
+        _fail(
+            f"--model {model} and --vehicle {vehicle} both say what to fit; give one "
+            "(a model file defines its own vehicle or model)"
+        )
+    return value
 
 
 def _check_out(out: pathlib.Path | None, kind: str) -> None:
@@ -52,11 +187,36 @@ def _check_units(units: str) -> None:
 # Options shared by the `estimate` commands.
 UnitsOption = Annotated[str, typer.Option(help="deg or rad")]
 OutOption = Annotated[pathlib.Path | None, typer.Option(help="Folder for CSV and PNG")]
-JsonOption = Annotated[bool, typer.Option("--json", help="Print one JSON object")]
+
+
+def json_mode(ctx: typer.Context, param: typer.CallbackParam, value: bool):
+    """With `--json`, stdout carries the one JSON object and nothing else: whatever
+    else is printed while the command runs (a model file's prints, progress) goes to
+    stderr until the command ends."""
+    if _skip(ctx) or not value:
+        return value
+    _JSON_STDOUT.append(sys.stdout)
+    sys.stdout = sys.stderr
+
+    def restore():
+        sys.stdout = _JSON_STDOUT.pop()
+
+    ctx.call_on_close(restore)
+    return value
+
+
+_JSON_STDOUT: list = []
+JsonOption = Annotated[
+    bool,
+    typer.Option("--json", help="Print one JSON object", callback=json_mode),
+]
 ResampleOption = Annotated[bool, typer.Option(help="Resample a non-uniform log")]
 VehicleOption = Annotated[
     str,
-    typer.Option(help="Built-in vehicle (see `diffpegasus vehicles`) or a FILE.py"),
+    typer.Option(
+        help="Built-in vehicle (see `diffpegasus vehicles`) or a FILE.py",
+        callback=model_or_vehicle,
+    ),
 ]
 EstimateVehicleOption = Annotated[
     str,
@@ -68,7 +228,10 @@ EstimateVehicleOption = Annotated[
 ]
 ModelOption = Annotated[
     pathlib.Path | None,
-    typer.Option(help="Model-definition file (Python; see the README)"),
+    typer.Option(
+        help="Model-definition file (Python; see the README)",
+        callback=model_or_vehicle,
+    ),
 ]
 ColumnsOption = Annotated[
     pathlib.Path | None,
@@ -76,7 +239,10 @@ ColumnsOption = Annotated[
 ]
 FixOption = Annotated[
     list[str] | None,
-    typer.Option(help="Hold a parameter: NAME=VALUE, or NAME at its start value"),
+    typer.Option(
+        help="Hold a parameter: NAME=VALUE, or NAME at its start value",
+        callback=holds,
+    ),
 ]
 
 
@@ -89,20 +255,24 @@ KnotsOption = Annotated[
 AlphaOrderOption = Annotated[
     int | None,
     typer.Option(
-        help="Highest power of alpha in the baseline coefficients (pegasus: 3)"
+        help="Highest power of alpha in the baseline coefficients (pegasus: 3)",
+        callback=at_least_one,
     ),
 ]
 RateOption = Annotated[
-    float | None, typer.Option(help="Model sample rate, Hz (pegasus: 50)")
+    float | None,
+    typer.Option(help="Model sample rate, Hz (pegasus: 50)", callback=positive),
 ]
 NodeOption = Annotated[
-    float | None, typer.Option(help="Shooting nodes every S s (pegasus: 1)")
+    float | None,
+    typer.Option(help="Shooting nodes every S s (pegasus: 1)", callback=positive),
 ]
 MaxIterOption = Annotated[
     int,
     typer.Option(
         help="Iteration budget of the fit (a fit that has not converged by then "
-        "says so and reports nothing)"
+        "says so and reports nothing)",
+        callback=at_least_one,
     ),
 ]
 AddOption = Annotated[
@@ -122,7 +292,8 @@ ProcessNoiseOption = Annotated[
         help="--method fem: a state with process noise, STATE or STATE=F0 (start "
         "intensity, state units/sqrt(s)), repeatable; default the vehicle's or model "
         "file's process_noise (hfb320: V, alpha, theta, q from FVSysID's starts), "
-        "else every state"
+        "else every state",
+        callback=holds,
     ),
 ]
 
@@ -163,7 +334,8 @@ def _finite(x):
 
 
 def _json_out(result):
-    typer.echo(json.dumps(_finite(result), allow_nan=False, default=float))
+    stream = _JSON_STDOUT[-1] if _JSON_STDOUT else sys.stdout
+    typer.echo(json.dumps(_finite(result), allow_nan=False, default=float), file=stream)
 
 
 def _global_fit_failed(result: dict, what: str) -> str | None:
@@ -187,7 +359,9 @@ def _banner(report: pathlib.Path, message: str) -> None:
     estimates."""
     try:
         if report.exists():
-            report.write_text(f"> **{message}**\n\n{report.read_text()}")
+            from .._files import write_text
+
+            write_text(report, f"> **{message}**\n\n{report.read_text()}")
     except OSError as e:
         _fail(_os_error(e))
 

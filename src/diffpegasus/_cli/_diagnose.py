@@ -6,7 +6,7 @@ from typing import Annotated
 
 import typer
 
-from .._log._format import LogError
+from .._errors import LogError
 from ._common import (
     _banner,
     _check_out,

@@ -5,10 +5,10 @@ import sys
 
 import numpy as np
 
+from .._errors import LogError
 from .._estimate._filter_error import FilterErrorFit, fit_filter_error
 from .._estimate._fit import SingleShooting
 from .._estimate._modelfile import ModelSpec
-from .._log._format import LogError
 from ._runners import (
     channel_report,
     load_records,

@@ -6,7 +6,7 @@ from typing import Annotated
 
 import typer
 
-from .._log._format import LogError
+from .._errors import LogError
 from ._common import (
     _banner,
     _check_out,
@@ -18,6 +18,7 @@ from ._common import (
     AddOption,
     AlphaOrderOption,
     app,
+    assignments,
     ColumnsOption,
     FIT_FAILED,
     FixOption,
@@ -27,6 +28,7 @@ from ._common import (
     MethodOption,
     ModelOption,
     NodeOption,
+    positive,
     ProcessNoiseOption,
     RateOption,
     ResampleOption,
@@ -158,7 +160,9 @@ def fit(
     ] = None,
     shooting_interval: Annotated[
         float | None,
-        typer.Option(help="Multiple shooting with a node every this many s"),
+        typer.Option(
+            help="Multiple shooting with a node every this many s", callback=positive
+        ),
     ] = None,
     add: AddOption = None,
     knots: KnotsOption = None,
@@ -280,11 +284,16 @@ def demo(
         pathlib.Path("demo")
     ),
     hidden: Annotated[
-        str, typer.Option(help="The effect hidden in the simulated flight, NAME=VALUE")
+        str,
+        typer.Option(
+            help="The effect hidden in the simulated flight, NAME=VALUE",
+            callback=assignments,
+        ),
     ] = "actuator_delay=0.02",
     seed: Annotated[int, typer.Option(help="Seed of the simulated flight")] = 1,
     duration: Annotated[
-        float | None, typer.Option(help="Flight length, s (default: to burnout)")
+        float | None,
+        typer.Option(help="Flight length, s (default: to burnout)", callback=positive),
     ] = None,
 ):
     """The discrepancy workflow end to end: simulate a flight with a hidden effect,

@@ -9,11 +9,12 @@ import numpy as np
 
 from .._diagnose._candidates import diagnosis_message, score_candidates
 from .._diagnose._rule import DecisionRule
+from .._errors import LogError
 from .._estimate._fit import Fit, fit
-from .._estimate._model import Record
 from .._estimate._modelfile import ModelSpec
+from .._files import save_figure
 from .._log._columns import load_columns, load_record
-from .._log._format import LogError
+from .._model import Record
 
 
 def _say(message: str) -> None:
@@ -31,9 +32,12 @@ def parse_name_value(option: str, text: str, names, what: str):
     if not sep:
         return name, None
     try:
-        return name, float(value)
+        number = float(value)
     except ValueError:
         raise LogError(f"{option} {text}: {value!r} is not a number") from None
+    if not np.isfinite(number):
+        raise LogError(f"{option} {text}: {value!r} is not a finite number")
+    return name, number
 
 
 def parse_holds(holds: list[str], spec: ModelSpec) -> ModelSpec:
@@ -61,6 +65,7 @@ def parse_holds(holds: list[str], spec: ModelSpec) -> ModelSpec:
 def load_records(spec: ModelSpec, files, columns=None):
     """One record per file, through the model's column map updated by `columns`
     (or the model file's `read` function when it has one and no `columns` given)."""
+    _check_distinct(files)
     user = dict(load_columns(columns))
     if spec.name.endswith(".py") and spec.columns:
         _check_map_keys(spec.model, load_columns(spec.columns), spec.name)
@@ -70,6 +75,8 @@ def load_records(spec: ModelSpec, files, columns=None):
     reader = spec.read if columns is None else None
     model = spec.model
     records = _load(spec, model, files, cmap, reader)
+    _check_distinct_records(records, files)
+    _check_enough_data(spec.model, records, files)
     # two files of one name (run1/data.csv, run2/data.csv) keep apart in reports
     names = [r.name for r in records]
     if len(set(names)) < len(names):
@@ -78,6 +85,56 @@ def load_records(spec: ModelSpec, files, columns=None):
             for r, f in zip(records, files, strict=True)
         ]
     return records
+
+
+def _check_distinct(files) -> None:
+    """One file given twice (two spellings of its path) would count its data twice
+    and shrink every standard error by sqrt(2)."""
+    import os
+
+    seen = {}
+    for f in files:
+        try:
+            key = os.path.realpath(f)
+        except OSError:
+            continue
+        if key in seen:
+            raise LogError(
+                f"{f}: the same file as {seen[key]} (given twice); each record once, "
+                "or its data count twice and the standard errors shrink by sqrt(2)"
+            )
+        seen[key] = f
+
+
+def _check_distinct_records(records, files) -> None:
+    """Two files holding the same numbers are one record given twice."""
+    for i in range(len(records)):
+        for j in range(i):
+            a, b = records[i], records[j]
+            if (
+                a.t.shape == b.t.shape
+                and np.array_equal(a.measured, b.measured)
+                and np.array_equal(a.inputs, b.inputs)
+            ):
+                raise LogError(
+                    f"{files[i]}: the same inputs and outputs as {files[j]} (a copy?); "
+                    "each record once, or its data count twice and the standard "
+                    "errors shrink by sqrt(2)"
+                )
+
+
+def _check_enough_data(model, records, files) -> None:
+    """More measured values than unknowns (the free parameters and one noise
+    variance per output), or the fit cannot tell them apart."""
+    values = sum(r.measured.size for r in records)
+    unknowns = int(np.sum(model.free)) + len(model.outputs)
+    if values <= unknowns:
+        raise LogError(
+            f"{', '.join(map(str, files))}: {values} measured values for {unknowns} "
+            f"unknowns ({int(np.sum(model.free))} free parameters and "
+            f"{len(model.outputs)} output noise variances); a fit needs more data than "
+            "unknowns: longer records"
+        )
 
 
 def _check_map_keys(model, cmap: dict, where: str) -> None:
@@ -287,10 +344,24 @@ def plot_fit(result: Fit, out: pathlib.Path) -> list[pathlib.Path]:
         fig.suptitle(f"{rec.name}: output-error fit, det(R) = {result.cost:.4e}")
         fig.tight_layout()
         path = out / f"fit_{i + 1}_{pathlib.Path(rec.name).stem}.png"
-        fig.savefig(path, dpi=100)
+        save_figure(fig, path, dpi=100)
         plt.close(fig)
         paths.append(path)
     return paths
+
+
+def excitation_note(model, records) -> str | None:
+    """Words for a fit whose inputs never move: the likely reason it failed."""
+    if not model.inputs:
+        return None
+    if all(np.all(r.inputs == r.inputs[0]) for r in records):
+        return (
+            f"the input(s) {', '.join(model.inputs)} are constant in every record: "
+            "nothing excites the vehicle, so the derivatives of the inputs (and often "
+            "the others) cannot be identified; fit records with control inputs "
+            "(a doublet, a 3-2-1-1) rather than more iterations"
+        )
+    return None
 
 
 def _fit_spec(
@@ -307,6 +378,15 @@ def _fit_spec(
     spec = parse_holds(list(holds), spec)
     if records is None:
         records = load_records(spec, files, columns)
+    interval = getattr(shooting or spec.shooting, "interval", None)
+    if interval is not None:
+        for rec, f in zip(records, files, strict=True):
+            if interval < 2 * rec.dt * (1 - 1e-9):
+                raise LogError(
+                    f"{f}: shooting interval {interval:g} s is shorter than two sample "
+                    f"steps ({2 * rec.dt:g} s): each segment needs samples to fit "
+                    "(--shooting-interval, or the model file's MultipleShooting)"
+                )
     _say(
         f"fitting {spec.name} ({sum(spec.model.free)} free parameters) to "
         f"{len(records)} record(s) by output error"
@@ -360,8 +440,10 @@ def run_model_diagnose(
     )
     report = {"fit": fit_report(result, spec), "ranking": [], "significant": []}
     if not result.converged and not (process_noise and np.isfinite(result.cost)):
+        note = excitation_note(spec.model, result.records)
         report["message"] = (
             f"the output-error fit did not converge ({result.message}): no ranking"
+            + (f"; {note}" if note else "")
         )
         return report
     ranking = score_candidates(result, spec.candidates)
@@ -417,6 +499,8 @@ def run_model_fit(
         max_iter,
     )
     report = fit_report(result, spec)
+    if not result.converged and (note := excitation_note(spec.model, result.records)):
+        report["message"] = f"{report['message']}; {note}"
     if result.converged:
         report["channels"] = channel_report(result)
     if out is not None:

@@ -6,12 +6,14 @@ from typing import Annotated
 
 import typer
 
-from .._log._format import LogError
+from .._errors import LogError
 from ._common import (
     _check_out,
     _fail,
     _os_error,
     app,
+    assignments,
+    positive,
 )
 
 
@@ -37,19 +39,22 @@ def simulate(
         typer.Option(
             help="Plant an effect, NAME=VALUE in SI units (repeatable), e.g. "
             "pitch_damping=-800 or sensor_bias:az=0.3, or turbulence=SIGMA (Dryden "
-            "gusts, m/s, realisation drawn from --seed); see `diffpegasus effects`"
+            "gusts, m/s, realisation drawn from --seed); see `diffpegasus effects`",
+            callback=assignments,
         ),
     ] = None,
     perturb: Annotated[
         bool, typer.Option(help="Apply a random Monte Carlo perturbation (Table 6.1)")
     ] = False,
     duration: Annotated[
-        float | None, typer.Option(help="Flight length, s (default: to burnout)")
+        float | None,
+        typer.Option(help="Flight length, s (default: to burnout)", callback=positive),
     ] = None,
     sample_rate: Annotated[
         float | None,
         typer.Option(
-            help="Log rate, Hz (default the vehicle's: pegasus 1000, hfb320 10)"
+            help="Log rate, Hz (default the vehicle's: pegasus 1000, hfb320 10)",
+            callback=positive,
         ),
     ] = None,
     noise: Annotated[bool, typer.Option(help="Add sensor noise")] = True,

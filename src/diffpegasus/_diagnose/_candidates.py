@@ -8,8 +8,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._estimate._fit import Fit, fit
-from .._estimate._model import Model, Record
 from .._estimate._score import score
+from .._model import Model, Record
 from ._rule import DecisionRule, verdict
 
 

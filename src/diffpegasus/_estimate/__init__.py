@@ -45,10 +45,6 @@ __getattr__, __dir__, __all__ = attach(
             "window_truth",
             "windowed_least_squares",
         ),
-        "_model": (
-            "Model",
-            "Record",
-        ),
         "_modelfile": (
             "load_model_file",
             "ModelSpec",
@@ -81,6 +77,5 @@ __getattr__, __dir__, __all__ = attach(
             "WindowedFit",
         ),
         "_windows": ("WindowLayout",),
-        "_rk4": ("RK4",),
     },
 )

@@ -27,7 +27,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._model import Model, Record
+from .._model import Model, Record
 
 
 class EquationErrorFit(eqx.Module):

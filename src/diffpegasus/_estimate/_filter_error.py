@@ -42,9 +42,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
+from .._model import Model, Record
 from ._engine import _input_at, Layout, RESULTS
 from ._fit import layout as _layout, simulate, SingleShooting
-from ._model import Model, Record
 from ._riccati import discretise, solve_filter_riccati
 
 

@@ -9,8 +9,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._cache import kept_call
+from .._model import Model, Record
 from ._engine import Layout, RESULTS, solve
-from ._model import Model, Record
 
 
 class SingleShooting(eqx.Module):
@@ -381,3 +381,8 @@ def fit(
     if throw and not out.converged:
         raise RuntimeError(f"output-error fit failed: {out.message}")
     return out
+
+
+# the public name of `simulate` (the package's top level keeps `simulate` for one
+# release as the Pegasus simulator's, see `diffpegasus.pegasus`)
+simulate_model = simulate

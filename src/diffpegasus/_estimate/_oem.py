@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from ._engine import rk4_scan
+from .._rk4 import rk4_scan
 
 
 class OEMProblem(eqx.Module):

@@ -10,6 +10,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from .._diagnose._workflow import channel_noise, FlightFit  # noqa: E402
+from .._files import save_figure  # noqa: E402
 
 
 # display unit of every output channel: (label, factor from SI)
@@ -54,7 +55,7 @@ def plot_fits(
         ax.set_xlabel("time, s")
     fig.suptitle(title or "measured vs model")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -101,7 +102,7 @@ def plot_regimes(fit: FlightFit, path: str | os.PathLike) -> None:
     axes[0, 0].legend(loc="upper right", fontsize=7, markerscale=5)
     fig.suptitle("where the model fails: residual / noise sigma by flight regime")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -117,5 +118,5 @@ def plot_ranking(diagnosis: dict, path: str | os.PathLike) -> None:
     ax.set_title("diagnosis: which effect explains the misfit (red: significant)")
     ax.grid(alpha=0.3, axis="x")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)

@@ -2,6 +2,8 @@
 
 import pathlib
 
+from .._files import write_text
+
 
 def _f(x, fmt=".3g"):
     return "-" if x is None else format(x, fmt)
@@ -89,4 +91,4 @@ def write_report(
     text = [f"# {title}", ""]
     for heading, body in sections:
         text += [f"## {heading}", "", body, ""]
-    path.write_text("\n".join(text))
+    write_text(path, "\n".join(text))

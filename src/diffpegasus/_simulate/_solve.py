@@ -19,13 +19,13 @@ import numpy as np
 from jaxtyping import Array, Float, PRNGKeyArray
 
 from .._custom_types import ScalarLike
+from .._inputs import AbstractInput, excitation, Schedule, Sum
 from .._log._format import FlightLog, PEGASUS_METADATA
 from .._vehicle._atmosphere import isa
 from .._vehicle._effects import AbstractEffect, EFFECTS, SensorBias
 from .._vehicle._pegasus._aerodynamics import DERIVATIVE_NAMES
 from .._vehicle._pegasus._dynamics import evaluate, FlightModel
 from .._vehicle._pegasus._vehicle import Vehicle
-from ._inputs import AbstractInput, excitation, Schedule, Sum
 from ._sensors import DEFAULT_SIGMA, SensorModel
 
 

@@ -19,7 +19,7 @@ The record shipped in
 import jax.numpy as jnp
 import numpy as np
 
-from .._estimate._model import Model, Record
+from .._model import Model, Record
 from ._parts import (
     AbstractAerodynamics,
     ConstantAtmosphere,
@@ -192,7 +192,7 @@ def simulate_log(
     (the air data at t = 0 are the book's initial state). Returns the log's channels and its
     sidecar metadata."""
     from .._estimate._fit import simulate_outputs
-    from .._simulate._inputs import three_two_one_one
+    from .._inputs import three_two_one_one
     from ._effects import make_effect, Turbulence
 
     hidden = dict(hidden or {})

@@ -59,7 +59,7 @@ from collections.abc import Sequence
 import jax.numpy as jnp
 import numpy as np
 
-from .._estimate._model import Model, Record
+from .._model import Model, Record
 from ._sixdof import (
     G,
 )

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 import jax.numpy as jnp
 import numpy as np
 
-from .._estimate._model import Model
+from .._model import Model
 from ._effects import make_effect
 from ._lateral import LATERAL_DERIVATIVES
 from ._parts import effect_parameter
@@ -175,7 +175,7 @@ def simulate_lateral_log(
     true coefficient derivatives and the implied linear-model derivatives
     ([`implied_lateral_derivatives`][]).
     """
-    from .._simulate._inputs import doublet, three_two_one_one
+    from .._inputs import doublet, three_two_one_one
     from ._sixdof import business_jet, simulate_sixdof, trim
 
     if first not in ("aileron", "rudder"):

@@ -25,7 +25,7 @@ import jax
 import jax.numpy as jnp
 from equinox import AbstractVar
 
-from .._estimate._model import Model
+from .._model import Model
 from ._atmosphere import isa
 from ._effects import AbstractEffect, FlightCondition, make_effect
 from ._flight import elevator_delay, has_delay, pitch_plane, PitchPlane

@@ -26,9 +26,10 @@ from collections.abc import Sequence
 import equinox as eqx
 from equinox import AbstractVar
 
-from .._estimate._model import Record
+from .._errors import LogError
 from .._estimate._modelfile import load_model_file, ModelSpec
-from .._log._format import FlightLog, LogError
+from .._log._format import FlightLog
+from .._model import Record
 
 
 class AbstractVehicleEntry(eqx.Module):

@@ -20,7 +20,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._custom_types import Scalar, ScalarLike
-from .._simulate._inputs import AbstractInput
+from .._inputs import AbstractInput
 from ._atmosphere import isa
 from ._pegasus._aerodynamics import AeroDatabase, load_database
 

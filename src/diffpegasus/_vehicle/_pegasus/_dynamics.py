@@ -11,7 +11,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from ..._custom_types import Scalar, ScalarLike
-from ..._simulate._inputs import AbstractInput
+from ..._inputs import AbstractInput
 from .._atmosphere import isa
 from .._effects import AbstractEffect, FlightCondition
 from .._flight import elevator_delay, pitch_plane

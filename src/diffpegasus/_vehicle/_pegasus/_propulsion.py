@@ -17,12 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..._custom_types import Scalar, ScalarLike
-
-
-def smoothstep(x: ScalarLike) -> Scalar:
-    """C1 step from 0 (x <= 0) to 1 (x >= 1)."""
-    x = jnp.clip(x, 0.0, 1.0)
-    return x * x * (3.0 - 2.0 * x)
+from ..._inputs import smoothstep as smoothstep
 
 
 class SolidMotor(eqx.Module):

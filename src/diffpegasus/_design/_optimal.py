@@ -23,7 +23,7 @@ import optax
 from jaxtyping import Array, Float
 
 from .._estimate._oem import _input_at, _window_solve, OEMProblem
-from ._inputs import AbstractInput
+from .._inputs import AbstractInput
 
 
 class Scaled(AbstractInput):
@@ -327,9 +327,14 @@ def pegasus_design(
         to_body,
         to_lift_drag,
     )
+    from .._simulate._sensors import DEFAULT_SIGMA, SensorModel
+    from .._simulate._solve import (
+        elevator_command,
+        flight_to_log,
+        PegasusConfig,
+        simulate,
+    )
     from .._vehicle._pegasus._aerodynamics import load_database
-    from ._sensors import DEFAULT_SIGMA, SensorModel
-    from ._solve import elevator_command, flight_to_log, PegasusConfig, simulate
 
     config = PegasusConfig(
         elevator=elevator_command("none"),
@@ -370,7 +375,7 @@ def pegasus_design(
 
 def multisine_spec() -> AbstractInput:
     """A filter spec that frees a [`Multisine`][]'s amplitudes and phases."""
-    from ._inputs import Multisine
+    from .._inputs import Multisine
 
     return Multisine(
         amplitudes=True, frequencies=False, phases=True, start=False, stop=False
@@ -391,7 +396,7 @@ def run_design(
     predicted standard errors (reported parameters), criterion and peaks; the
     optimiser history; and the name of the best hand-picked input.
     """
-    from ._inputs import excitation
+    from .._inputs import excitation
 
     start = float(design.problem.t0)
     inputs = {

@@ -1,0 +1,144 @@
+"""The public surface, for type checkers and for the lazy loader (`_lazy.attach_stub`)."""
+
+from . import (
+    design as design,
+    discrepancy as discrepancy,
+    lateral as lateral,
+    montecarlo as montecarlo,
+    pegasus as pegasus,
+)
+from ._campaign._sharding import (
+    map_over_devices as map_over_devices,
+    shard_batch as shard_batch,
+)
+from ._diagnose._candidates import (
+    diagnose_model as diagnose_model,
+    score_candidates as score_candidates,
+)
+from ._errors import (
+    LogError as LogError,
+)
+from ._estimate._engine import (
+    RESULTS as RESULTS,
+)
+from ._estimate._equation_error import (
+    equation_error as equation_error,
+    EquationErrorFit as EquationErrorFit,
+)
+from ._estimate._filter_error import (
+    FilterErrorFit as FilterErrorFit,
+    fit_filter_error as fit_filter_error,
+)
+from ._estimate._fit import (
+    Fit as Fit,
+    fit as fit,
+    MultipleShooting as MultipleShooting,
+    simulate_model as simulate_model,
+    SingleShooting as SingleShooting,
+)
+from ._estimate._modelfile import (
+    load_model_file as load_model_file,
+    ModelSpec as ModelSpec,
+)
+from ._estimate._oem import (
+    format_parameter_table as format_parameter_table,
+    parameter_table as parameter_table,
+)
+from ._inputs import (
+    AbstractInput as AbstractInput,
+    doublet as doublet,
+    excitation as excitation,
+    Multisine as Multisine,
+    NoInput as NoInput,
+    PulseTrain as PulseTrain,
+    Ramp as Ramp,
+    Schedule as Schedule,
+    schroeder_multisine as schroeder_multisine,
+    Sequence as Sequence,
+    Sine as Sine,
+    Step as Step,
+    Sum as Sum,
+    three_two_one_one as three_two_one_one,
+)
+from ._log._asc import (
+    read_asc as read_asc,
+)
+from ._log._columns import (
+    load_columns as load_columns,
+    load_record as load_record,
+)
+from ._log._format import (
+    FlightLog as FlightLog,
+    read_log as read_log,
+    validate_channels as validate_channels,
+    write_log as write_log,
+)
+from ._model import (
+    Model as Model,
+    Record as Record,
+)
+from ._rk4 import (
+    RK4 as RK4,
+)
+from ._vehicle._atmosphere import (
+    Atmosphere as Atmosphere,
+    isa as isa,
+)
+from ._vehicle._effects import (
+    AbstractEffect as AbstractEffect,
+    effect_names as effect_names,
+    EFFECTS as EFFECTS,
+    FlightCondition as FlightCondition,
+    make_effect as make_effect,
+    parse_assignment as parse_assignment,
+)
+from ._vehicle._flight import (
+    moment_about_cg as moment_about_cg,
+    pitch_plane as pitch_plane,
+    pitch_plane_rates as pitch_plane_rates,
+    PitchPlane as PitchPlane,
+)
+from ._vehicle._gravity import (
+    gravity as gravity,
+)
+from ._vehicle._hfb320 import (
+    hfb320_model as hfb320_model,
+)
+from ._vehicle._mach_spline import (
+    MachSplineAerodynamics as MachSplineAerodynamics,
+)
+from ._vehicle._parts import (
+    AbstractAerodynamics as AbstractAerodynamics,
+    AbstractAtmosphere as AbstractAtmosphere,
+    AbstractMassProperties as AbstractMassProperties,
+    AbstractPropulsion as AbstractPropulsion,
+    ConstantAtmosphere as ConstantAtmosphere,
+    ConstantMass as ConstantMass,
+    FlightVehicle as FlightVehicle,
+    Geometry as Geometry,
+    LoggedMass as LoggedMass,
+    LoggedThrust as LoggedThrust,
+    StandardAtmosphere as StandardAtmosphere,
+    vehicle_model as vehicle_model,
+)
+from ._vehicle._registry import (
+    AbstractModelEntry as AbstractModelEntry,
+    AbstractVehicleEntry as AbstractVehicleEntry,
+    vehicle_entry as vehicle_entry,
+    vehicle_spec as vehicle_spec,
+)
+from ._vehicle._sixdof import (
+    Aircraft as Aircraft,
+    body_to_earth as body_to_earth,
+    business_jet as business_jet,
+    Controls as Controls,
+    euler_rates as euler_rates,
+    inertia_tensor as inertia_tensor,
+    linearise as linearise,
+    rigid_body_rates as rigid_body_rates,
+    simulate_sixdof as simulate_sixdof,
+    sixdof_evaluate as sixdof_evaluate,
+    sixdof_rates as sixdof_rates,
+    Trim as Trim,
+    trim as trim,
+)

@@ -1,0 +1,1 @@
+"""Input design: excitations chosen through the differentiable output-error model."""
