@@ -121,7 +121,7 @@ def test_model_jacobian_matches_finite_differences():
             "mach_break[1]",
             "vertical_wind.w_up",
             "pitch_damping.Cmq",
-            "thrust_misalignment.dx",
+            "thrust_misalignment.offset",
         )
     ]:
         h = 1e-6 * max(1.0, abs(float(z[k])))

@@ -156,6 +156,9 @@ from ._vehicle._parts import (
     vehicle_model as vehicle_model,
 )
 from ._vehicle._registry import (
+    AbstractModelEntry as AbstractModelEntry,
+    AbstractVehicleEntry as AbstractVehicleEntry,
+    vehicle_entry as vehicle_entry,
     vehicle_spec as vehicle_spec,
 )
 from ._vehicle._sixdof import (
