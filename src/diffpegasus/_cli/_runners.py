@@ -420,7 +420,7 @@ def run_model_diagnose(
     shooting=None,
     process_noise: tuple[str, ...] | None = None,
     records=None,
-    max_iter: int = 200,
+    max_iter: int | None = None,
 ) -> dict:
     """Fit `spec`'s model with its candidates held, then rank the candidates by
     score test; the JSON-ready report (`ranking`, `significant`, `message`). With
