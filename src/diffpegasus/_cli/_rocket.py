@@ -36,13 +36,14 @@ JsonOption = Annotated[bool, typer.Option("--json", help="Print one JSON object"
 
 
 def _load(toml, logs, columns):
-    from .._log._rocketlogs import read_rocket_log
     from .._vehicle._rocket import read_rocket
 
     if not toml.is_file():
         _fail(f"{toml}: no such file")
     try:
         rocket = read_rocket(toml)
+        from .._log._rocketlogs import read_rocket_log
+
         log = read_rocket_log(list(logs) if logs else toml, columns)
     except LogError as e:
         _fail(str(e))
