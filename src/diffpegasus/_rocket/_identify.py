@@ -22,7 +22,9 @@ from ._data import ascent_record, pad_pressure
 BASE_FREE = ("thrust_scale", "motor_time")
 SENSOR_FREE = ("baro_lag", "static_error")
 ACCEL_FREE = ("temperature",)  # the accelerometer fixes the length scale
-KNOT_SPACING = 0.1  # Mach between drag knots (a team's tables are about this fine)
+# Mach between drag knots: an accelerometer reads drag directly, as finely as a
+# team's tables; an altitude alone carries it twice integrated, so half as finely
+KNOT_SPACING = {True: 0.1, False: 0.2}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -133,11 +135,13 @@ def top_speed(record, rocket) -> float:
 
 
 def knots_for(record, rocket, temperature) -> DragKnots:
-    """Knots about every `KNOT_SPACING` Mach from 0.1 to the flight's top Mach (its
-    top speed over the pad's speed of sound); beyond the last, `CD` is constant."""
+    """Knots about every `KNOT_SPACING` Mach (finer with an accelerometer) from 0.1
+    to the flight's top Mach (its top speed over the pad's speed of sound); beyond
+    the last, `CD` is constant."""
     sound = float(np.sqrt(1.4 * 287.05287 * temperature))
     top = max(top_speed(record, rocket) / sound, 0.3)
-    n = max(3, int(np.round((top - 0.1) / KNOT_SPACING)) + 1)
+    spacing = KNOT_SPACING[record.inputs.shape[1] > 2]
+    n = max(3, int(np.round((top - 0.1) / spacing)) + 1)
     return DragKnots(tuple(float(m) for m in np.round(np.linspace(0.1, top, n), 3)))
 
 

@@ -33,14 +33,20 @@ def run_flight(rocket, log, out=None, *, free=None) -> dict:
     from ._identify import SENSOR_FREE
     from ._report import figures, summary
 
+    from .._vehicle._rocket._sensors import TRANSONIC_WIDTH
+
     t0 = time.perf_counter()
     problem = prepare(rocket, log)
-    result = fit_rocket(problem, free=SENSOR_FREE if free is None else tuple(free),
-                        throw=False)
+    if free is None:
+        # a flight through Mach 1 carries the transonic jump of the static pressure
+        through = problem.flight.knots.mach[-1] > 1.0 - TRANSONIC_WIDTH
+        free = SENSOR_FREE + (("transonic_error",) if through else ())
+    free = tuple(free)
+    result = fit_rocket(problem, free=free, throw=False)
     seconds = time.perf_counter() - t0
     cut = burnout_time(log, problem, result) + PREDICTION_HORIZON
-    prediction = fit_rocket(problem, free=SENSOR_FREE if free is None else free,
-                            until=cut, drag="scale", throw=False)
+    prediction = fit_rocket(problem, free=free, until=cut, drag="scale",
+                            throw=False)
     team = resimulate(problem, result) if rocket.team_drag_off is not None else result
     _, h = baro_channel(log)
     t, _ = baro_channel(log)
@@ -55,7 +61,7 @@ def run_flight(rocket, log, out=None, *, free=None) -> dict:
         for m, c, s, tc in zip(mach, cd, sd, team_cd, strict=True)
     ]
     row["estimates"] = {k: list(result.estimate(k)) for k in
-                        ("thrust_scale", "motor_time", "baro_lag", "static_error")}
+                        ("thrust_scale", "motor_time", "temperature") + free}
     if out is not None:
         ee = equation_error_drag(result)
         figures(problem, result, prediction, team, ee, out)
