@@ -18,6 +18,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 def main():
     from diffpegasus._log._rocketlogs import read_rocket_log
+
     from diffpegasus.rocket import fit_rocket, prepare, read_rocket
 
     out = {"load_average": os.getloadavg()[0]}
@@ -30,9 +31,12 @@ def main():
             problem = prepare(rocket, log) if not times else problem  # noqa: F821
             result = fit_rocket(problem, throw=False)
             times.append(time.perf_counter() - t0)
-        out[folder.name] = {"cold_s": times[0], "warm_s": times[1],
-                            "iterations": int(result.fit.iterations),
-                            "samples": len(result.record.t)}
+        out[folder.name] = {
+            "cold_s": times[0],
+            "warm_s": times[1],
+            "iterations": int(result.fit.iterations),
+            "samples": len(result.record.t),
+        }
         print(folder.name, out[folder.name], flush=True)
     path = ROOT / "benchmarks" / "results" / "rocket_fit_time.json"
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -28,8 +28,10 @@ def sim_log(folder):
 
     return types.SimpleNamespace(
         channels={"altitude": channel(1), "accel_axial": channel(2)},
-        events={"liftoff": types.SimpleNamespace(t=0.0),
-                "apogee": types.SimpleNamespace(t=float(a[-1, 0]))},
+        events={
+            "liftoff": types.SimpleNamespace(t=0.0),
+            "apogee": types.SimpleNamespace(t=float(a[-1, 0])),
+        },
         pad={},
     )
 
@@ -58,9 +60,12 @@ def main():
         row = {
             "fit_seconds": seconds,
             "converged": bool(result.fit.converged),
-            "mach": mach.tolist(), "cd": cd.tolist(), "stderr": sd.tolist(),
+            "mach": mach.tolist(),
+            "cd": cd.tolist(),
+            "stderr": sd.tolist(),
             "planted": planted.tolist(),
-            "inside_95": int(inside.sum()), "points": len(mach),
+            "inside_95": int(inside.sum()),
+            "points": len(mach),
             "thrust_scale": result.estimate("thrust_scale"),
             "thrust_scale_planted": truth["thrust_scale"],
             "apogee_reconstructed_m": result.apogee,
@@ -72,9 +77,12 @@ def main():
             row["tests"] = tests
         row["planted_effects"] = {k: v for k, v in truth.items()}
         out[folder.name] = row
-        print(folder.name, {k: row[k] for k in ("inside_95", "points", "thrust_scale",
-                                                  "fit_seconds")},
-              row.get("named"), flush=True)
+        print(
+            folder.name,
+            {k: row[k] for k in ("inside_95", "points", "thrust_scale", "fit_seconds")},
+            row.get("named"),
+            flush=True,
+        )
     total = sum(r["inside_95"] for r in out.values())
     points = sum(r["points"] for r in out.values())
     out["coverage"] = total / points

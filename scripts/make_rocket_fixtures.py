@@ -22,23 +22,60 @@ OUT = pathlib.Path(__file__).resolve().parents[1] / "tests" / "data" / "rocket_s
 G0 = 9.80665
 
 # catalogue thrust curve of a 75 mm L motor (rounded points of a public RASP file)
-THRUST = np.array([
-    [0.0, 0.0], [0.02, 50], [0.05, 200], [0.09, 1110], [0.14, 1250], [0.25, 1211],
-    [0.9, 1220], [1.2, 1280], [2.0, 1150], [2.6, 1000], [3.0, 900], [3.3, 700],
-    [3.5, 300], [3.8, 0.0],
-])
+THRUST = np.array(
+    [
+        [0.0, 0.0],
+        [0.02, 50],
+        [0.05, 200],
+        [0.09, 1110],
+        [0.14, 1250],
+        [0.25, 1211],
+        [0.9, 1220],
+        [1.2, 1280],
+        [2.0, 1150],
+        [2.6, 1000],
+        [3.0, 900],
+        [3.3, 700],
+        [3.5, 300],
+        [3.8, 0.0],
+    ]
+)
 
 FLIGHTS = {
     # name: drag curve (Mach, CD), thrust scale, wind (u east, v north) m/s,
     # baro lag s, static-pressure error, noise (altitude m, accel m/s^2), seed
-    "clean": dict(drag=[(0.0, 0.50), (0.3, 0.46), (0.6, 0.45), (0.8, 0.50),
-                        (0.9, 0.58), (1.2, 0.70)],
-                  scale=1.0, wind=(0.0, 0.0), lag=0.0, static=0.0,
-                  noise=(0.5, 0.3), seed=1),
-    "planted": dict(drag=[(0.0, 0.62), (0.3, 0.55), (0.6, 0.50), (0.8, 0.55),
-                          (0.9, 0.66), (1.2, 0.80)],
-                    scale=0.94, wind=(6.0, -3.0), lag=0.15, static=0.04,
-                    noise=(1.0, 0.5), seed=2),
+    "clean": dict(
+        drag=[
+            (0.0, 0.50),
+            (0.3, 0.46),
+            (0.6, 0.45),
+            (0.8, 0.50),
+            (0.9, 0.58),
+            (1.2, 0.70),
+        ],
+        scale=1.0,
+        wind=(0.0, 0.0),
+        lag=0.0,
+        static=0.0,
+        noise=(0.5, 0.3),
+        seed=1,
+    ),
+    "planted": dict(
+        drag=[
+            (0.0, 0.62),
+            (0.3, 0.55),
+            (0.6, 0.50),
+            (0.8, 0.55),
+            (0.9, 0.66),
+            (1.2, 0.80),
+        ],
+        scale=0.94,
+        wind=(6.0, -3.0),
+        lag=0.15,
+        static=0.04,
+        noise=(1.0, 0.5),
+        seed=2,
+    ),
 }
 
 
@@ -48,33 +85,55 @@ def flight(name, spec):
     folder = OUT / name
     folder.mkdir(parents=True, exist_ok=True)
     np.savetxt(folder / "motor.csv", THRUST, delimiter=",", fmt="%.4f")
-    np.savetxt(folder / "drag.csv", np.array(spec["drag"]), delimiter=",",
-               fmt="%.4f")
+    np.savetxt(folder / "drag.csv", np.array(spec["drag"]), delimiter=",", fmt="%.4f")
     flown = THRUST.copy()
     flown[:, 1] *= spec["scale"]
     env = Environment(latitude=39.39, longitude=-8.29, elevation=150)
     u, v = spec["wind"]
-    env.set_atmospheric_model(type="custom_atmosphere", pressure=None,
-                              temperature=None, wind_u=[(0, u), (8000, u)],
-                              wind_v=[(0, v), (8000, v)])
+    env.set_atmospheric_model(
+        type="custom_atmosphere",
+        pressure=None,
+        temperature=None,
+        wind_u=[(0, u), (8000, u)],
+        wind_v=[(0, v), (8000, v)],
+    )
     motor = GenericMotor(
-        thrust_source=flown, burn_time=3.8, chamber_radius=0.0375,
-        chamber_height=0.5, chamber_position=0.25, propellant_initial_mass=1.9,
-        nozzle_radius=0.03, dry_mass=1.6, dry_inertia=(0.05, 0.05, 0.002),
+        thrust_source=flown,
+        burn_time=3.8,
+        chamber_radius=0.0375,
+        chamber_height=0.5,
+        chamber_position=0.25,
+        propellant_initial_mass=1.9,
+        nozzle_radius=0.03,
+        dry_mass=1.6,
+        dry_inertia=(0.05, 0.05, 0.002),
         center_of_dry_mass_position=0.25,
     )
     drag = [tuple(p) for p in spec["drag"]]
-    rocket = Rocket(radius=0.052, mass=8.2, inertia=(4.4, 4.4, 0.015),
-                    power_off_drag=drag, power_on_drag=drag,
-                    center_of_mass_without_motor=1.2,
-                    coordinate_system_orientation="tail_to_nose")
+    rocket = Rocket(
+        radius=0.052,
+        mass=8.2,
+        inertia=(4.4, 4.4, 0.015),
+        power_off_drag=drag,
+        power_on_drag=drag,
+        center_of_mass_without_motor=1.2,
+        coordinate_system_orientation="tail_to_nose",
+    )
     rocket.add_motor(motor, position=0.0)
     rocket.add_nose(length=0.52, kind="von karman", position=2.72)
-    rocket.add_trapezoidal_fins(n=4, root_chord=0.2, tip_chord=0.07, span=0.1,
-                                position=0.21)
+    rocket.add_trapezoidal_fins(
+        n=4, root_chord=0.2, tip_chord=0.07, span=0.1, position=0.21
+    )
     rocket.set_rail_buttons(1.1, 0.3)
-    fl = Flight(rocket=rocket, environment=env, rail_length=12, inclination=84,
-                heading=133, terminate_on_apogee=True, max_time_step=0.01)
+    fl = Flight(
+        rocket=rocket,
+        environment=env,
+        rail_length=12,
+        inclination=84,
+        heading=133,
+        terminate_on_apogee=True,
+        max_time_step=0.01,
+    )
     t = np.arange(0.0, float(fl.apogee_time), 0.02)
     rng = np.random.default_rng(spec["seed"])
     # static pressure at the rocket, the ports' error, then the flight computer's
@@ -94,15 +153,23 @@ def flight(name, spec):
     # specific force along the body axis: body z from the attitude quaternion
     acc = np.array([[fl.ax(s), fl.ay(s), fl.az(s)] for s in t])
     e0, e1, e2, e3 = (np.array([getattr(fl, f"e{i}")(s) for s in t]) for i in range(4))
-    axis = np.stack([2 * (e1 * e3 + e0 * e2), 2 * (e2 * e3 - e0 * e1),
-                     1 - 2 * (e1**2 + e2**2)], axis=1)
+    axis = np.stack(
+        [2 * (e1 * e3 + e0 * e2), 2 * (e2 * e3 - e0 * e1), 1 - 2 * (e1**2 + e2**2)],
+        axis=1,
+    )
     g = np.array([env.gravity(h) for h in z])
     f = np.einsum("ij,ij->i", acc, axis) + g * axis[:, 2]
     f += rng.normal(0, spec["noise"][1], len(t))
-    np.savetxt(folder / "log.csv", np.column_stack([t, alt, f]), delimiter=",",
-               fmt="%.3f", header="time_s,altitude_m,accel_axial_m_s2", comments="")
+    np.savetxt(
+        folder / "log.csv",
+        np.column_stack([t, alt, f]),
+        delimiter=",",
+        fmt="%.3f",
+        header="time_s,altitude_m,accel_axial_m_s2",
+        comments="",
+    )
     (folder / "rocket.toml").write_text(f"""\
-# A flight simulated by RocketPy {__import__('importlib.metadata').metadata.version('rocketpy')} (scripts/make_rocket_fixtures.py)
+# A flight simulated by RocketPy {__import__("importlib.metadata").metadata.version("rocketpy")} (scripts/make_rocket_fixtures.py)
 name = "sim-{name}"
 
 [rocket]
@@ -131,13 +198,13 @@ surface_temperature_K = {float(env.temperature(150.0)):.3f}
 recorded_apogee_agl_m = {float(fl.apogee) - 150.0:.2f}
 
 [truth]
-thrust_scale = {spec['scale']}
+thrust_scale = {spec["scale"]}
 wind_east_m_s = {u}
 wind_north_m_s = {v}
-baro_lag_s = {spec['lag']}
-static_error = {spec['static']}
-noise_altitude_m = {spec['noise'][0]}
-noise_accel_m_s2 = {spec['noise'][1]}
+baro_lag_s = {spec["lag"]}
+static_error = {spec["static"]}
+noise_altitude_m = {spec["noise"][0]}
+noise_accel_m_s2 = {spec["noise"][1]}
 apogee_geometric_agl_m = {float(fl.apogee) - 150.0:.3f}
 max_mach = {float(fl.max_mach_number):.4f}
 """)

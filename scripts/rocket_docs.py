@@ -66,8 +66,10 @@ def page(name, row):
         "|---|---|---|---|",
     ]
     for r in row["cd_table"]:
-        lines.append(f"| {r['mach']:.2f} | {r['cd']:.3f} | ± {1.96 * r['stderr']:.3f}"
-                     f" | {r['team_cd']:.3f} |")
+        lines.append(
+            f"| {r['mach']:.2f} | {r['cd']:.3f} | ± {1.96 * r['stderr']:.3f}"
+            f" | {r['team_cd']:.3f} |"
+        )
     lines += [
         "",
         f"![altitude]({name}/altitude.png)",
@@ -81,6 +83,7 @@ def page(name, row):
 
 def main():
     from diffpegasus._log._rocketlogs import read_rocket_log
+
     from diffpegasus.rocket import read_rocket, run_flight
 
     rows = {}
@@ -93,8 +96,20 @@ def main():
         row["command_seconds"] = time.perf_counter() - t0
         (DOCS / f"{name}.md").write_text(page(name, row))
         rows[name] = row
-        print(name, {k: row[k] for k in ("apogee_logged_m", "apogee_reconstructed_m",
-              "apogee_predicted_m", "altitude_rms_m", "fit_seconds")}, flush=True)
+        print(
+            name,
+            {
+                k: row[k]
+                for k in (
+                    "apogee_logged_m",
+                    "apogee_reconstructed_m",
+                    "apogee_predicted_m",
+                    "altitude_rms_m",
+                    "fit_seconds",
+                )
+            },
+            flush=True,
+        )
     table = DOCS / "validation.json"
     old = json.loads(table.read_text()) if table.exists() else {}
     old.update(rows)
@@ -116,7 +131,8 @@ def main():
             f"({pct(r['reconstructed_error_pct'])}) | {m(r['apogee_predicted_m'])} "
             f"({pct(r['predicted_error_pct'])}) | {m(r['apogee_team_preflight_m'])} "
             f"({pct(r['team_preflight_error_pct'])}) | {r['altitude_rms_m']:.1f} m "
-            f"({r['altitude_rms_pct_of_apogee']:.2f} %) | {r['fit_seconds']:.0f} |")
+            f"({r['altitude_rms_pct_of_apogee']:.2f} %) | {r['fit_seconds']:.0f} |"
+        )
     lines.append("")
     (DOCS / "validation.md").write_text("\n".join(lines))
 

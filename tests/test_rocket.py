@@ -72,8 +72,9 @@ def test_accelerometer_reads_specific_force():
 
 def test_motor_reader_eng_and_csv(tmp_path):
     eng = tmp_path / "m.eng"
-    eng.write_text("; comment\nL995 75 486 0 1.996 3.591 CTI\n0.1 1000\n1.0 1000\n"
-                   "1.1 0\n")
+    eng.write_text(
+        "; comment\nL995 75 486 0 1.996 3.591 CTI\n0.1 1000\n1.0 1000\n1.1 0\n"
+    )
     m = dr.read_motor(eng)
     assert m.propellant_mass == 1.996
     # trapezoid with the zero at ignition added: 0.05*1000 + 0.9*1000 + 0.05*1000

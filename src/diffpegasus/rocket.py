@@ -1,12 +1,12 @@
 """Rocket flights: a rocket from its parts, identified from its flight computer's log.
 
-    import diffpegasus.rocket as dr
+import diffpegasus.rocket as dr
 
-    rocket = dr.read_rocket("rocket.toml")
-    problem = dr.prepare(rocket, log)          # log: a rocket log (channels, events)
-    result = dr.fit_rocket(problem)            # CD(Mach) knots, thrust scale, baro
-    cd, stderr = result.cd([0.3, 0.6, 0.9])    # with its coloured-residual band
-    named, tests, _ = dr.diagnose(problem)     # missing effects
+rocket = dr.read_rocket("rocket.toml")
+problem = dr.prepare(rocket, log)          # log: a rocket log (channels, events)
+result = dr.fit_rocket(problem)            # CD(Mach) knots, thrust scale, baro
+cd, stderr = result.cd([0.3, 0.6, 0.9])    # with its coloured-residual band
+named, tests, _ = dr.diagnose(problem)     # missing effects
 """
 
 from ._rocket._checks import (

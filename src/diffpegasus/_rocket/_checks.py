@@ -32,12 +32,15 @@ def equation_error_drag(result: RocketFit, min_q: float = 2e3):
     coast = t_motor > rocket.motor.burn_time + 0.1
     idx = idx[coast]
     x = np.interp(rec.t[idx], result.t, np.arange(len(result.t)))
-    states = np.array([np.interp(x, np.arange(len(result.t)), result.states[:, j])
-                       for j in range(6)]).T
+    states = np.array(
+        [np.interp(x, np.arange(len(result.t)), result.states[:, j]) for j in range(6)]
+    ).T
     mach = np.interp(rec.t[idx], result.t, result.mach)
     f = rec.measured[idx, 1] - float(p["accel_bias"])
     mass = rocket.dry_mass + float(p["mass_offset"])
-    rho = np.array([float(flight.air(s[2], p)[0]) for s in states[:: max(1, len(states) // 200)]])
+    rho = np.array(
+        [float(flight.air(s[2], p)[0]) for s in states[:: max(1, len(states) // 200)]]
+    )
     hs = states[:: max(1, len(states) // 200), 2]
     rho = np.interp(states[:, 2], hs[np.argsort(hs)], rho[np.argsort(hs)])
     wind = np.array([float(p["wind_east"]), float(p["wind_north"]), 0.0])
@@ -62,5 +65,6 @@ def resimulate(problem: Problem, result: RocketFit, cd_curve=None) -> RocketFit:
     params[names.index("cd_scale")] = 1.0
     params[names.index("thrust_scale")] = 1.0
     refit = eqx.tree_at(lambda f: f.params, result.fit, params)
-    return trajectory(problem.rocket, problem.flight, refit, result.record,
-                      result.outputs)
+    return trajectory(
+        problem.rocket, problem.flight, refit, result.record, result.outputs
+    )

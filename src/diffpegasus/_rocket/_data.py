@@ -21,8 +21,9 @@ def channels_of(log) -> tuple[str, ...]:
     """The model outputs the log can feed: `altitude` (barometric, or from pressure)
     and `accel` (axial specific force), in the model's order."""
     if "altitude" not in log.channels and "pressure" not in log.channels:
-        raise LogError("the log has no barometric altitude or pressure: a rocket "
-                       "fit needs one")
+        raise LogError(
+            "the log has no barometric altitude or pressure: a rocket fit needs one"
+        )
     out = ("altitude",)
     if "accel_axial" in log.channels:
         out += ("accel",)
@@ -100,7 +101,9 @@ def ascent_record(log, until=None, name="flight") -> tuple[Record, tuple[str, ..
         measured[on, j] = total[on] / count[on]
         has[on, j] = 1.0
     if has[:, 0].sum() < 10:
-        raise LogError(f"fewer than 10 altitude samples in the ascent ({int(has[:, 0].sum())})")
+        raise LogError(
+            f"fewer than 10 altitude samples in the ascent ({int(has[:, 0].sum())})"
+        )
     inputs = np.column_stack([np.zeros(n), has])
     rec = Record(grid, inputs, measured, x0=np.zeros(6), name=name)
     return rec, outputs

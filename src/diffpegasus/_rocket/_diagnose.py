@@ -78,9 +78,16 @@ def diagnose(problem: Problem, *, level: float = 0.05, rounds: int = 3):
     n_tests = len(pool) + 2
     chi = lambda k: float(stats.chi2.ppf(1 - level / n_tests, k))  # noqa: E731
     s = _wald(base, ("thrust_scale",), (1.0,))
-    rows.append({"round": 0, "candidate": "thrust scale", "statistic": s,
-                 "threshold": chi(1), "cost_ratio": 1.0,
-                 "estimates": {"thrust_scale": base.estimate("thrust_scale")[0]}})
+    rows.append(
+        {
+            "round": 0,
+            "candidate": "thrust scale",
+            "statistic": s,
+            "threshold": chi(1),
+            "cost_ratio": 1.0,
+            "estimates": {"thrust_scale": base.estimate("thrust_scale")[0]},
+        }
+    )
     if s > chi(1):
         named.append("thrust scale (or thrust misalignment)")
     fit = base.fit
@@ -93,8 +100,16 @@ def diagnose(problem: Problem, *, level: float = 0.05, rounds: int = 3):
         s = float(d @ np.linalg.solve(diff @ cov @ diff.T, d))
     except np.linalg.LinAlgError:
         s = 0.0
-    rows.append({"round": 0, "candidate": "Mach dependence of CD", "statistic": s,
-                 "threshold": chi(len(idx) - 1), "cost_ratio": 1.0, "estimates": {}})
+    rows.append(
+        {
+            "round": 0,
+            "candidate": "Mach dependence of CD",
+            "statistic": s,
+            "threshold": chi(len(idx) - 1),
+            "cost_ratio": 1.0,
+            "estimates": {},
+        }
+    )
     if s > chi(len(idx) - 1):
         named.append("Mach dependence of CD")
     current = base
@@ -108,9 +123,16 @@ def diagnose(problem: Problem, *, level: float = 0.05, rounds: int = 3):
             s = _wald(trial, c.parameters, centre)
             ratio = trial.fit.cost / current.fit.cost
             ok = trial.fit.converged and s > chi(len(c.parameters)) and ratio < 1
-            rows.append({"round": r, "candidate": c.name, "statistic": s,
-                         "threshold": chi(len(c.parameters)), "cost_ratio": ratio,
-                         "estimates": {n: trial.estimate(n)[0] for n in c.parameters}})
+            rows.append(
+                {
+                    "round": r,
+                    "candidate": c.name,
+                    "statistic": s,
+                    "threshold": chi(len(c.parameters)),
+                    "cost_ratio": ratio,
+                    "estimates": {n: trial.estimate(n)[0] for n in c.parameters},
+                }
+            )
             if ok and (best is None or ratio < best[1]):
                 best = (c, ratio, trial)
         if best is None:

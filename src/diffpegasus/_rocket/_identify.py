@@ -13,8 +13,8 @@ import dataclasses
 import numpy as np
 
 from .._errors import LogError
-from .._estimate._fit import fit, Fit, MultipleShooting, simulate
-from .._vehicle._rocket import DragKnots, EFFECTS, Flight, rocket_model, Rocket
+from .._estimate._fit import Fit, fit, MultipleShooting, simulate
+from .._vehicle._rocket import DragKnots, EFFECTS, Flight, Rocket, rocket_model
 from .._vehicle._rocket._model import observe as _observe
 from ._data import ascent_record, pad_pressure
 
@@ -174,13 +174,15 @@ def prepare(rocket: Rocket, log, *, knots: DragKnots | None = None) -> Problem:
         tb, db = rocket.airbrakes
         inputs = record.inputs.copy()
         inputs[:, 0] = np.interp(record.t, tb, db, left=0.0, right=0.0)
-        record = type(record)(record.t, inputs, record.measured, x0=record.x0,
-                              name=record.name)
+        record = type(record)(
+            record.t, inputs, record.measured, x0=record.x0, name=record.name
+        )
     if knots is None:
         knots = knots_for(record, rocket, temperature)
     flight = Flight(rocket, knots, pressure)
-    return Problem(rocket, flight, record, outputs,
-                   default_start(rocket, knots, temperature))
+    return Problem(
+        rocket, flight, record, outputs, default_start(rocket, knots, temperature)
+    )
 
 
 def fit_rocket(
@@ -231,8 +233,9 @@ def fit_rocket(
     if until is not None:
         inputs = record.inputs.copy()
         inputs[record.t > until, 1:] = 0.0
-        record = type(record)(record.t, inputs, record.measured, x0=record.x0,
-                              name=record.name)
+        record = type(record)(
+            record.t, inputs, record.measured, x0=record.x0, name=record.name
+        )
     result = fit(
         model,
         record,
@@ -240,8 +243,7 @@ def fit_rocket(
         initial_state="fixed",
         throw=throw,
     )
-    return trajectory(problem.rocket, problem.flight, result, record,
-                      problem.outputs)
+    return trajectory(problem.rocket, problem.flight, result, record, problem.outputs)
 
 
 def simulate_flight(problem: Problem, start: dict | None = None) -> RocketFit:
@@ -250,12 +252,20 @@ def simulate_flight(problem: Problem, start: dict | None = None) -> RocketFit:
     values = dict(problem.start)
     values.update(start or {})
     model = rocket_model(problem.flight, problem.outputs, values, ())
-    return trajectory(problem.rocket, problem.flight, None, problem.record,
-                      problem.outputs, model=model, params=np.asarray(model.start))
+    return trajectory(
+        problem.rocket,
+        problem.flight,
+        None,
+        problem.record,
+        problem.outputs,
+        model=model,
+        params=np.asarray(model.start),
+    )
 
 
-def trajectory(rocket, flight, result, record, outputs, extra=30.0, *, model=None,
-               params=None) -> RocketFit:
+def trajectory(
+    rocket, flight, result, record, outputs, extra=30.0, *, model=None, params=None
+) -> RocketFit:
     """The fitted flight integrated from the pad past the apogee (`extra` s beyond
     the record, stopped at the top), with its barometric altitude, axial specific
     force and Mach number."""
@@ -278,9 +288,18 @@ def trajectory(rocket, flight, result, record, outputs, extra=30.0, *, model=Non
     cut = min(n, top + int(1.0 / dt))
     peak = int(np.argmax(baro[:cut]))
     return RocketFit(
-        rocket=rocket, flight=flight, fit=result, record=record, outputs=outputs,
-        t=t[:cut], states=x[:cut], baro=baro[:cut], accel=accel[:cut],
-        mach=mach[:cut], apogee=float(baro[peak]), apogee_time=float(t[peak]),
+        rocket=rocket,
+        flight=flight,
+        fit=result,
+        record=record,
+        outputs=outputs,
+        t=t[:cut],
+        states=x[:cut],
+        baro=baro[:cut],
+        accel=accel[:cut],
+        mach=mach[:cut],
+        apogee=float(baro[peak]),
+        apogee_time=float(t[peak]),
     )
 
 

@@ -30,10 +30,9 @@ def run_flight(rocket, log, out=None, *, free=None) -> dict:
     **Returns:** the summary (see [`summary`][]) with `cd_table` rows (Mach, CD,
     standard error, team CD) added.
     """
+    from .._vehicle._rocket._sensors import TRANSONIC_WIDTH
     from ._identify import SENSOR_FREE
     from ._report import figures, summary
-
-    from .._vehicle._rocket._sensors import TRANSONIC_WIDTH
 
     t0 = time.perf_counter()
     problem = prepare(rocket, log)
@@ -45,8 +44,7 @@ def run_flight(rocket, log, out=None, *, free=None) -> dict:
     result = fit_rocket(problem, free=free, throw=False)
     seconds = time.perf_counter() - t0
     cut = burnout_time(log, problem, result) + PREDICTION_HORIZON
-    prediction = fit_rocket(problem, free=free, until=cut, drag="scale",
-                            throw=False)
+    prediction = fit_rocket(problem, free=free, until=cut, drag="scale", throw=False)
     team = resimulate(problem, result) if rocket.team_drag_off is not None else result
     _, h = baro_channel(log)
     t, _ = baro_channel(log)
@@ -54,14 +52,19 @@ def run_flight(rocket, log, out=None, *, free=None) -> dict:
     row = summary(problem, result, prediction, team, log_apogee, seconds)
     mach = np.array(problem.flight.knots.mach)
     cd, sd = result.cd(mach)
-    team_cd = (np.interp(mach, *rocket.team_drag_off) if rocket.team_drag_off
-               is not None else np.full(len(mach), np.nan))
+    team_cd = (
+        np.interp(mach, *rocket.team_drag_off)
+        if rocket.team_drag_off is not None
+        else np.full(len(mach), np.nan)
+    )
     row["cd_table"] = [
         {"mach": float(m), "cd": float(c), "stderr": float(s), "team_cd": float(tc)}
         for m, c, s, tc in zip(mach, cd, sd, team_cd, strict=True)
     ]
-    row["estimates"] = {k: list(result.estimate(k)) for k in
-                        ("thrust_scale", "motor_time", "temperature") + free}
+    row["estimates"] = {
+        k: list(result.estimate(k))
+        for k in ("thrust_scale", "motor_time", "temperature") + free
+    }
     if out is not None:
         ee = equation_error_drag(result)
         figures(problem, result, prediction, team, ee, out)

@@ -120,44 +120,50 @@ def read_rocket(path) -> Rocket:
         raise LogError(f"{path}: [motor] needs thrust_file")
     prop = _number(mo, "propellant_initial_mass_kg", path, "motor")
     motor_dry = _number(mo, "dry_mass_kg", path, "motor", default=0.0, positive=False)
-    motor = read_motor(folder / mo["thrust_file"], propellant_mass=prop,
-                       dry_mass=motor_dry)
+    motor = read_motor(
+        folder / mo["thrust_file"], propellant_mass=prop, dry_mass=motor_dry
+    )
     rocket_mass = _number(rk, "mass_without_motor_kg", path, "rocket")
     inclination = _number(la, "inclination_deg", path, "launch")
     if not 0 < inclination <= 90:
-        raise LogError(f"{path}: [launch] inclination_deg = {inclination:g} must be "
-                       "in (0, 90] degrees from horizontal")
+        raise LogError(
+            f"{path}: [launch] inclination_deg = {inclination:g} must be "
+            "in (0, 90] degrees from horizontal"
+        )
     temperature = _optional(at, "surface_temperature_K")
     if temperature is None:
         text = str(at.get("notebook_surface_conditions", ""))
         m = re.search(r"\bT\s*([0-9.]+)\s*K", text)
-        temperature = float(m.group(1)) if m else _optional(
-            at, "era5_near_surface_temperature_K")
+        temperature = (
+            float(m.group(1)) if m else _optional(at, "era5_near_surface_temperature_K")
+        )
     if temperature is not None and not 180 < temperature < 340:
-        raise LogError(f"{path}: [atmosphere] surface temperature {temperature:g} K "
-                       "is not plausible (give kelvin)")
+        raise LogError(
+            f"{path}: [atmosphere] surface temperature {temperature:g} K "
+            "is not plausible (give kelvin)"
+        )
 
     def drag(key):
         return read_drag_curve(folder / ae[key]) if key in ae else None
 
     brakes = None
     if "air_brakes_actuation_file" in ae:
-        a = np.loadtxt(folder / ae["air_brakes_actuation_file"], delimiter=",",
-                       ndmin=2)
+        a = np.loadtxt(folder / ae["air_brakes_actuation_file"], delimiter=",", ndmin=2)
         brakes = (a[:, 0], np.clip(a[:, 1], 0, 1))
     return Rocket(
         name=str(doc.get("name", path.parent.name)),
         dry_mass=rocket_mass + motor_dry,
         motor=motor,
         radius=_number(rk, "radius_m", path, "rocket"),
-        holddown=_number(mo, "holddown_time_s", path, "motor", default=0.0,
-                         positive=False),
-        elevation=_number(la, "elevation_m", path, "launch", default=0.0,
-                          positive=False),
+        holddown=_number(
+            mo, "holddown_time_s", path, "motor", default=0.0, positive=False
+        ),
+        elevation=_number(
+            la, "elevation_m", path, "launch", default=0.0, positive=False
+        ),
         rail_length=_number(la, "rail_length_m", path, "launch"),
         inclination=inclination,
-        heading=_number(la, "heading_deg", path, "launch", default=0.0,
-                        positive=False),
+        heading=_number(la, "heading_deg", path, "launch", default=0.0, positive=False),
         surface_temperature=temperature,
         team_drag_off=drag("power_off_drag_file"),
         team_drag_on=drag("power_on_drag_file"),

@@ -67,7 +67,9 @@ def read_drag_curve(path) -> tuple[np.ndarray, np.ndarray]:
         except (ValueError, IndexError):
             if not rows:
                 continue  # header
-            raise LogError(f"{path}: row {i}: {line.strip()!r} is not 'Mach CD'") from None
+            raise LogError(
+                f"{path}: row {i}: {line.strip()!r} is not 'Mach CD'"
+            ) from None
         if not (np.isfinite(m) and np.isfinite(c)) or m < 0 or c < 0:
             raise LogError(f"{path}: row {i}: Mach {m:g}, CD {c:g} is not plausible")
         rows.append((m, c))

@@ -88,9 +88,11 @@ class Flight(eqx.Module):
         h_std = pressure_altitude(self.pad_pressure) + s * height
         atm = isa(h_std)
         temperature = atm.temperature / s
-        return atm.pressure / (R_AIR * temperature), jnp.sqrt(
-            GAMMA_AIR * R_AIR * temperature
-        ), s
+        return (
+            atm.pressure / (R_AIR * temperature),
+            jnp.sqrt(GAMMA_AIR * R_AIR * temperature),
+            s,
+        )
 
     def forces(self, t, x, u, p):
         """Acceleration `(3,)` m/s^2, body axis `(3,)`, and the air data."""
@@ -129,7 +131,6 @@ class Flight(eqx.Module):
         return accel, axis, (q, rho, g, mach, s)
 
 
-
 def rates(flight: Flight, t, x, u, p):
     """`dx/dt` `(6,)`: velocity and acceleration."""
     accel, _, _ = flight.forces(t, x, u, p)
@@ -140,8 +141,18 @@ def observe(flight: Flight, t, x, u, p):
     """The measured channels: barometric altitude (m AGL) and axial specific force
     (m/s^2), each multiplied by its `has_` input (0 where the log has no sample)."""
     accel, axis, (q, rho, g, mach, s) = flight.forces(t, x, u, p)
-    h = baro_altitude(x[2], x[5], s, p["baro_lag"], p["static_error"],
-                      p["transonic_error"], q, rho, g, mach)
+    h = baro_altitude(
+        x[2],
+        x[5],
+        s,
+        p["baro_lag"],
+        p["static_error"],
+        p["transonic_error"],
+        q,
+        rho,
+        g,
+        mach,
+    )
     f = axial_specific_force(accel, g, axis)
     y = jnp.stack([h + p["altitude_bias"], f + p["accel_bias"]])
     return y[: u.shape[0] - 1] * u[1:]

@@ -118,8 +118,10 @@ def read_motor(path, *, propellant_mass=None, dry_mass=0.0) -> Motor:
     t, f = a[:, 0], a[:, 1]
     if np.any(np.diff(t) <= 0):
         i = int(np.argmax(np.diff(t) <= 0)) + 1
-        raise LogError(f"{path}: thrust-curve time does not increase at point {i + 1} "
-                       f"(t = {t[i]:g} s)")
+        raise LogError(
+            f"{path}: thrust-curve time does not increase at point {i + 1} "
+            f"(t = {t[i]:g} s)"
+        )
     if np.any(f < 0):
         i = int(np.argmax(f < 0))
         raise LogError(f"{path}: negative thrust {f[i]:g} N at t = {t[i]:g} s")

@@ -15,7 +15,7 @@
 import jax.numpy as jnp
 import numpy as np
 
-from ..._vehicle._atmosphere import _H_BASE, _LAPSE, _P_BASE, _T_BASE, G0, R_AIR, isa
+from ..._vehicle._atmosphere import _H_BASE, _LAPSE, _P_BASE, _T_BASE, G0, isa, R_AIR
 
 
 TRANSONIC_WIDTH = 0.05  # Mach; half-width of the static-pressure disturbance
