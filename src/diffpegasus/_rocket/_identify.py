@@ -134,6 +134,41 @@ def top_speed(record, rocket) -> float:
     return best / sin
 
 
+def measured_thrust_scale(record, rocket) -> float:
+    """The thrust scale the accelerometer reads (an equation-error start): the
+    impulse `sum m f dt` over the samples with the motor burning (specific force
+    above the gravity component along the rail, mass falling with the catalogue
+    impulse) over the catalogue impulse at the same samples (the motor lit so that
+    it lifts off at 0); 1 without an accelerometer. Drag makes
+    it read a few per cent low; the fit takes it from there."""
+    if record.inputs.shape[1] < 3 or record.inputs[:, 2].sum() < 10:
+        return 1.0
+    has = (record.inputs[:, 2] > 0) & (record.t > -0.05)
+    t, f = record.t[has], record.measured[has, 1]
+    sin = np.sin(np.radians(rocket.inclination))
+    burning = f > 9.80665 * sin + 5.0
+    if burning.sum() < 5:
+        return 1.0
+    tc, fc, burned = rocket.motor.tables()
+    start = default_start(rocket, DragKnots((0.1,)), 288.15)["motor_time"]
+    catalogue = np.interp(t - start, tc, fc, left=0.0, right=0.0)
+    mass = rocket.loaded_mass - rocket.motor.propellant_mass * np.interp(
+        t - start, tc, burned, left=0.0, right=1.0
+    )
+    dt = np.gradient(t)
+    # drag from the speed the accelerometer integrates to, sea-level-ish air and
+    # the start drag curve (the team's, else 0.5): a few per cent of the thrust
+    speed = np.cumsum(np.where(t > 0, f - 9.80665 * sin, 0.0) * dt)
+    if rocket.team_drag_off is not None:
+        cd = np.interp(speed / 340.0, *rocket.team_drag_off)
+    else:
+        cd = 0.5
+    drag = 0.5 * 1.1 * speed**2 * rocket.area * cd
+    impulse = float(np.sum(((mass * f + drag) * dt)[burning]))
+    total = float(np.sum((catalogue * dt)[burning]))
+    return float(np.clip(impulse / max(total, 1e-9), 0.5, 1.5))
+
+
 def knots_for(record, rocket, temperature) -> DragKnots:
     """Knots about every `KNOT_SPACING` Mach (finer with an accelerometer) from 0.1
     to the flight's top Mach (its top speed over the pad's speed of sound); beyond
@@ -180,9 +215,9 @@ def prepare(rocket: Rocket, log, *, knots: DragKnots | None = None) -> Problem:
     if knots is None:
         knots = knots_for(record, rocket, temperature)
     flight = Flight(rocket, knots, pressure)
-    return Problem(
-        rocket, flight, record, outputs, default_start(rocket, knots, temperature)
-    )
+    start = default_start(rocket, knots, temperature)
+    start["thrust_scale"] = measured_thrust_scale(record, rocket)
+    return Problem(rocket, flight, record, outputs, start)
 
 
 def fit_rocket(
@@ -193,6 +228,7 @@ def fit_rocket(
     drag: str = "knots",
     start: dict | None = None,
     shooting_interval: float = 2.0,
+    hold_temperature: bool = False,
     throw: bool = True,
 ) -> RocketFit:
     """Fit the rocket's model to the ascent.
@@ -209,6 +245,7 @@ def fit_rocket(
       one scale factor estimated: what a short log supports).
     - `start`: start values by name, over the problem's.
     - `shooting_interval`: s between multiple-shooting nodes.
+    - `hold_temperature`: hold the pad temperature even with an accelerometer.
     - `throw`: raise on a failed fit (else the fit carries its result code).
 
     **Returns:** a [`RocketFit`][].
@@ -226,7 +263,9 @@ def fit_rocket(
     else:
         raise ValueError(f"drag must be 'knots' or 'scale', got {drag!r}")
     if "accel" in problem.outputs:
-        estimated += ("accel_bias",) + tuple(a for a in ACCEL_FREE if a not in free)
+        estimated += ("accel_bias",)
+        if not hold_temperature:
+            estimated += tuple(a for a in ACCEL_FREE if a not in free)
     estimated += tuple(free)
     model = rocket_model(problem.flight, problem.outputs, values, estimated)
     record = problem.record

@@ -49,7 +49,11 @@ def run_flight(rocket, log, out=None, *, free=None) -> dict:
     result = fit_rocket(problem, free=free, throw=False)
     seconds = time.perf_counter() - t0
     cut = burnout_time(log, problem, result) + PREDICTION_HORIZON
-    prediction = fit_rocket(problem, free=free, until=cut, drag="scale", throw=False)
+    # a few seconds of log cannot tell the barometer's errors or the day's
+    # temperature from the drag: the prediction holds them at their start values
+    prediction = fit_rocket(
+        problem, free=(), until=cut, drag="scale", hold_temperature=True, throw=False
+    )
     team = resimulate(problem, result) if rocket.team_drag_off is not None else result
     _, h = baro_channel(log)
     t, _ = baro_channel(log)
