@@ -163,3 +163,15 @@ def test_cli_refuses_a_bad_rocket_file_in_one_line(tmp_path):
     assert res.exit_code == 2
     assert "propellant_initial_mass_kg" in res.output
     assert len(res.output.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("name, planted", [("clean", 1.0), ("planted", 0.94)])
+def test_thrust_scale_start_from_the_accelerometer(name, planted):
+    """The equation-error thrust scale (the fit's start) on RocketPy's flights:
+    measured 1.0009 and 0.9406; 1% is the drag it estimates from the start curve."""
+    from diffpegasus._rocket._data import ascent_record
+    from diffpegasus._rocket._identify import measured_thrust_scale
+
+    rocket = dr.read_rocket(SIM / name / "rocket.toml")
+    record, _ = ascent_record(sim_log(name))
+    assert abs(measured_thrust_scale(record, rocket) - planted) < 0.01
