@@ -89,6 +89,13 @@ AlphaOrderOption = Annotated[
 ]
 RateOption = Annotated[float, typer.Option(help="Model sample rate, Hz")]
 NodeOption = Annotated[float, typer.Option(help="Shooting nodes every S s")]
+MaxIterOption = Annotated[
+    int,
+    typer.Option(
+        help="Iteration budget of the output-error fit (it stops sooner when det(R) "
+        "settles, and says why when it does not)"
+    ),
+]
 AddOption = Annotated[
     list[str] | None,
     typer.Option("--add", help="Effect to estimate (repeatable), e.g. pitch_damping"),
@@ -111,15 +118,22 @@ ProcessNoiseOption = Annotated[
 ]
 
 
-def _settings(knots, alpha_order, rate, node_interval):
+def _settings(knots, alpha_order, rate, node_interval, max_iter=None):
     from .._diagnose import Settings
 
+    if max_iter is not None and max_iter < 1:
+        _fail(f"--max-iter must be at least 1, got {max_iter}")
     if knots < 4:
         _fail(f"--knots must be at least 4, got {knots}")
     if alpha_order < 1:
         _fail(f"--alpha-order must be at least 1, got {alpha_order}")
+    budget = {} if max_iter is None else {"max_iter": max_iter}
     return Settings(
-        knots=knots, alpha_order=alpha_order, rate=rate, node_interval=node_interval
+        knots=knots,
+        alpha_order=alpha_order,
+        rate=rate,
+        node_interval=node_interval,
+        **budget,
     )
 
 

@@ -24,6 +24,7 @@ from ._common import (
     FixOption,
     JsonOption,
     KnotsOption,
+    MaxIterOption,
     MethodOption,
     ModelOption,
     NodeOption,
@@ -53,6 +54,7 @@ def compare(
     resample: ResampleOption = False,
     method: MethodOption = "oem",
     process_noise: ProcessNoiseOption = None,
+    max_iter: MaxIterOption = 400,
 ):
     """Fit the model by output error (or, --vehicle/--model with --method fem, by
     filter error: process noise such as turbulence) and show where it fails:
@@ -80,18 +82,21 @@ def compare(
             "workflow's multiple-shooting spline baseline has no filter-error fit"
         )
     from .._diagnose import run_compare
+    from .._diagnose._convergence import why_not_converged
 
-    settings = _settings(knots, alpha_order, rate, node_interval)
+    settings = _settings(knots, alpha_order, rate, node_interval, max_iter)
     _check_out(out, "folder")
     flight = _read(log, resample)
     try:
-        result, _ = run_compare(flight, settings, out)
+        result, base = run_compare(flight, settings, out)
     except ValueError as e:
         _fail(str(e))
     except OSError as e:
         _fail(_os_error(e))
-    failed = _global_fit_failed(result, "the output-error fit of the model")
+    failed = why_not_converged(base, settings.max_iter)
+    _global_fit_failed(result, "the output-error fit of the model")
     if failed:
+        result["message"] = failed
         result["derivatives"] = None
         if out is not None:
             _banner(out / "compare.md", failed)
@@ -140,22 +145,24 @@ def _diagnose_model(which, log, columns, fix, add, as_json, process_noise=()):
     if as_json:
         _json_out(report)
     else:
+        from .._diagnose._rule import ranking_lines
+
+        deterministic = []
         for r in report["ranking"]:
-            mark = "*" if r["significant"] else " "
-            if r["effect"] == "process_noise":
-                typer.echo(
-                    f"{mark} {'process_noise':24s} statistic {r['statistic']:8.1f}  "
-                    f"p = {r['p_value']:.2g}  cost fall "
-                    f"{100 * r['cost_reduction']:5.1f}%  (likelihood ratio, "
-                    f"{r['dof']} dof) F = "
-                    + ", ".join(f"{k} {v:.3g}" for k, v in r["intensities"].items())
-                )
+            if r["effect"] != "process_noise":
+                deterministic.append(r)
                 continue
+            mark = "*" if r["significant"] else " "
             typer.echo(
-                f"{mark} {r['effect']:24s} statistic {r['statistic']:8.1f}  "
-                f"p = {r['p_value']:.2g}  cost fall {100 * r['cost_reduction']:5.1f}%  "
-                f"estimate {r['estimate']:.4g} +/- {r['stderr']:.2g}"
+                f"{mark} {'process_noise':24s} statistic {r['statistic']:8.1f}  "
+                f"p = {r['p_value']:.2g}  cost fall "
+                f"{100 * r['cost_reduction']:5.1f}%  (likelihood ratio, "
+                f"{r['dof']} dof) F = "
+                + ", ".join(f"{k} {v:.3g}" for k, v in r["intensities"].items())
             )
+        typer.echo("\n".join(ranking_lines(deterministic, top=len(deterministic))))
+        if "rule" in report:
+            typer.echo(f"decision rule: {report['rule']['text']}")
         typer.echo(report["message"])
     # an output-error fit stopped by turbulence is no failure when the filter-error
     # fit explains the record
@@ -192,6 +199,7 @@ def diagnose(
             "shooting, which the filter-error method does not take)"
         ),
     ] = None,
+    max_iter: MaxIterOption = 400,
 ):
     """Rank the library's effects by how much of the misfit each would explain
     (score test with exact Jacobians); say when none is significant. With
@@ -215,9 +223,11 @@ def diagnose(
             "workflow's multiple-shooting spline baseline has no filter-error fit"
         )
     from .._diagnose import run_diagnose
+    from .._diagnose._convergence import why_not_converged
+    from .._diagnose._rule import ranking_lines
 
     add = tuple(add or ())
-    settings = _settings(knots, alpha_order, rate, node_interval)
+    settings = _settings(knots, alpha_order, rate, node_interval, max_iter)
     _check_addable(add, settings)
     _check_out(out, "folder")
     flight = _read(log, resample)
@@ -227,31 +237,24 @@ def diagnose(
         _fail(str(e))
     except OSError as e:
         _fail(_os_error(e))
-    if not bool(base.result.converged):
-        failed = (
-            f"the output-error fit of the model did not converge after "
-            f"{int(base.result.iterations)} iterations, so the ranking of effects "
-            "measures nothing: none is reported"
-        )
-        result.update(message=failed, ranking=[], significant=[])
+    failed = why_not_converged(base, settings.max_iter)
+    if failed:
+        # the statistics at an unconverged fit are the fit's leftovers: shown, not
+        # decided on
+        for r in result["ranking"]:
+            r["significant"] = False
+        result.update(message=failed, significant=[], provisional=True)
         if out is not None:
             _banner(out / "diagnose.md", failed)
         if as_json:
             _json_out(result)
+        else:
+            typer.echo("\n".join(ranking_lines(result["ranking"])))
         typer.echo(f"error: {log}: {failed}", err=True)
         raise typer.Exit(code=FIT_FAILED)
     if as_json:
         _json_out(result)
         return
     typer.echo(result["message"])
-    typer.echo(
-        f"{'effect':>24s} {'statistic':>9s} {'p-value':>9s} {'cost fall':>9s} "
-        f"{'estimate':>12s} {'std err':>9s}"
-    )
-    for r in result["ranking"][:8]:
-        mark = " *" if r["significant"] else ""
-        typer.echo(
-            f"{r['effect']:>24s} {r['statistic']:9.1f} {r['p_value']:9.2g} "
-            f"{100 * r['cost_reduction']:8.1f}% {r['estimate']:12.4g} "
-            f"{r['stderr']:9.2g}{mark}"
-        )
+    typer.echo(f"decision rule: {result['rule']['text']}")
+    typer.echo("\n".join(ranking_lines(result["ranking"])))

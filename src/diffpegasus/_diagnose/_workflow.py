@@ -8,10 +8,11 @@ import numpy as np
 from .._estimate._global_oem import score_test
 from .._log._format import FlightLog
 from .._vehicle._effects import EFFECTS, make_effect
+from ._convergence import fit_budget, progress
 from ._fit import block_weights, fit_model, ModelFit
 from ._metrics import binned_misfit, channel_metrics, residual_noise_sigma
 from ._model import ModelSpec, OUTPUTS
-from ._rule import DecisionRule, DELAY_EFFECT, verdict
+from ._rule import DecisionRule, DELAY_EFFECT, rule_summary, verdict
 
 
 # Absorbed by a baseline with alpha^2 terms (alpha_order >= 2); and a bias on the
@@ -34,11 +35,12 @@ def default_candidates(alpha_order: int = 3) -> tuple[str, ...]:
 @dataclasses.dataclass
 class Settings:
     """How the model is built and fitted (see `diffpegasus compare --help`), and
-    the decision rule of [`diagnose`][]: `significance` (family-wise level of the
-    Bonferroni-corrected score test) and `min_statistic` (the penalty: the
-    coloured-residual score statistic a candidate must exceed, set above the
-    largest value measured on clean flights of two independent simulators; see the
-    README, "A decision rule that holds on other data")."""
+    the decision rule of [`diagnose`][]: `significance`, the family-wise
+    false-alarm level of a diagnosis, whose threshold comes from the fit's own
+    residuals ([`DecisionRule`][]). `max_iter` is a budget, not a target: the fit
+    stops when det(R) settles, and continues (in rounds of `round_iter`
+    iterations, reported on the terminal) while it still falls, up to
+    `max_iter`."""
 
     knots: int = 6
     knot_placement: str = "quantile"
@@ -46,9 +48,9 @@ class Settings:
     alpha_elevator: bool = True
     rate: float = 50.0
     node_interval: float = 1.0
-    max_iter: int = 30
+    max_iter: int = 400
+    round_iter: int = 50
     significance: float = 0.01
-    min_statistic: float = 150.0
 
     def spec(self, log: FlightLog, extra: tuple[str, ...] = ()) -> ModelSpec:
         effects = tuple(dict.fromkeys(default_candidates(self.alpha_order) + extra))
@@ -72,15 +74,30 @@ def fit(
     """Fit the global model with the effects `add` estimated (canonical names)."""
     settings = settings or Settings()
     check_addable(add, settings)
-    return fit_model(
-        log,
-        settings.spec(log, tuple(add)),
-        tuple(add),
-        rate=settings.rate,
-        node_interval=settings.node_interval,
-        start=start,
-        max_iter=settings.max_iter,
-    )
+    spec = settings.spec(log, tuple(add))
+    done = 0
+    while True:
+        # rounds of one compiled length, continued from where the last stopped
+        size = min(settings.round_iter, settings.max_iter - done)
+        result = fit_model(
+            log,
+            spec,
+            tuple(add),
+            rate=settings.rate,
+            node_interval=settings.node_interval,
+            start=start,
+            max_iter=size,
+        )
+        done += int(result.result.iterations)
+        if bool(result.result.converged) or not np.isfinite(result.cost):
+            return fit_budget(result, done, settings)
+        if done >= settings.max_iter:
+            return fit_budget(result, done, settings)
+        progress(
+            f"  {done} iterations: det(R) = {result.cost:.4g}, largest continuity "
+            f"defect {float(result.result.defect):.2g} of the state scale; continuing"
+        )
+        start = result
 
 
 def check_addable(add: tuple[str, ...], settings: Settings) -> None:
@@ -238,28 +255,23 @@ def diagnose(
     one Gauss-Newton step in each (score test with exact Jacobians), and decide
     which are significant.
 
-    The decision uses the score statistic, whose variance includes the residuals' colour
-    and their covariance between outputs (from the residuals the step would leave; see
-    [`score_variance`][]), so a baseline's own smooth structural misfit, which shows in
-    several outputs at once, counts as coloured noise once, not as evidence. A candidate
-    is **significant** when (1) its Bonferroni-corrected p-value is below
-    `settings.significance` and (2) its statistic exceeds `settings.min_statistic`, a
-    penalty measured on clean flights of two independent simulators (a baseline's
-    structural error alone gives statistics up to about 100 there, at 50 Hz to 1 kHz).
-    The predicted share of det(R) it removes (`cost_reduction`) is reported beside it
-    but is not part of the decision: how much of the misfit an effect removes depends on
-    the noise level of the log.
-    An actuator delay is judged by the log's resolution instead of the penalty:
-    significant when the p-value passes and its estimate is at least half a log
-    sample interval (a lead is not physical); a smaller one is reported as
-    `resolution_limit`: where steps of the input fall between samples shifts them
-    by up to that much, so such a delay is not physics.
+    The decision is [`DecisionRule`][]'s, the same as the engine's
+    [`score_candidates`][]: a candidate is **significant** when its score statistic
+    (variance with the residuals' colour and their covariance between outputs)
+    exceeds the `1 - settings.significance` point of the largest statistic over all
+    candidates in block-bootstrap replicates of this fit's residuals, a threshold
+    from the log itself holding that family-wise false-alarm level. The predicted
+    share of det(R) it removes (`cost_reduction`) is reported beside it, not decided
+    on. An actuator delay also needs an estimate of at least half a log sample
+    interval (a smaller one is a `resolution_limit`: where steps of the input fall
+    between samples shifts them by up to that much); a lead is never significant.
 
     **Returns:** `{"ranking": [{"effect", "parameter", "cost_reduction",
     "statistic", "p_value", "estimate", "stderr", "significant",
-    "resolution_limit", "hard_to_tell_from"}...], "significant": [...],
-    "message": ..., "rule": ...}`; `cost_reduction` is the predicted fractional fall
-    of det(R).
+    "resolution_limit", "lead", "hard_to_tell_from", "threshold"}...],
+    "significant": [...], "message": ..., "rule": {"text", "threshold",
+    "false_alarm_level", ...}}`, significant rows first; `cost_reduction` is the
+    predicted fractional fall of det(R).
     """
     settings = settings or Settings()
     spec = fit.spec
@@ -268,46 +280,18 @@ def diagnose(
         candidates = tuple(e for e in spec.effects if not free[spec.effect_index(e)])
     idx = np.array([spec.effect_index(c) for c in candidates])
     st = jax.tree.map(np.asarray, score_test(fit.problem, fit.result, idx))
-    k = len(candidates)
-    reduction = 1.0 - st.cost_ratio
-    order = np.argsort(-reduction)
     resolution = 0.5 / fit.log.sample_rate
-    rule = DecisionRule(settings.significance, settings.min_statistic)
-    ranking = []
-    for i in order:
-        decided = rule.judge(
-            statistic=float(st.statistic[i]),
-            p_value=float(st.p_value[i]),
-            estimate=float(st.estimate[i]),
-            tested=k,
-            is_delay=make_effect(candidates[i]).name == DELAY_EFFECT,
-            resolution=resolution,
-        )
-        close = [
-            {"effect": candidates[j], "correlation": float(st.correlation[i, j])}
-            for j in np.argsort(-np.abs(st.correlation[i]))
-            if j != i and abs(st.correlation[i, j]) > 0.9
-        ]
-        ranking.append(
-            {
-                "effect": candidates[i],
-                "parameter": make_effect(candidates[i]).parameter,
-                "cost_reduction": float(reduction[i]),
-                "statistic": float(st.statistic[i]),
-                "p_value": decided["p_value"],
-                "estimate": float(st.estimate[i]),
-                "stderr": float(st.stderr[i]),
-                "significant": decided["significant"],
-                "resolution_limit": decided["resolution_limit"],
-                "hard_to_tell_from": close,
-            }
-        )
-    significant = [r["effect"] for r in ranking if r["significant"]]
-    rule_text = rule.describe()
-    message = verdict(ranking, rule, resolution)
+    rule = DecisionRule(settings.significance)
+    ranking, _ = rule.decide(
+        st,
+        list(candidates),
+        [make_effect(c).parameter for c in candidates],
+        delays=[make_effect(c).name == DELAY_EFFECT for c in candidates],
+        resolution=resolution,
+    )
     return {
         "ranking": ranking,
-        "significant": significant,
-        "message": message,
-        "rule": rule_text,
+        "significant": [r["effect"] for r in ranking if r["significant"]],
+        "message": verdict(ranking, resolution),
+        "rule": rule_summary(ranking),
     }
