@@ -4,9 +4,6 @@ from ._estimate._coefficients import (
     MeasuredCoefficients as MeasuredCoefficients,
     reconstruct_coefficients as reconstruct_coefficients,
 )
-from ._estimate._recursive import (
-    coefficient_regression as coefficient_regression,
-)
 from ._estimate._global_oem import (
     fit_global_oem as fit_global_oem,
     GlobalFit as GlobalFit,
@@ -38,6 +35,9 @@ from ._estimate._pegasus_oem import (
     to_body as to_body,
     to_lift_drag as to_lift_drag,
     windowed_lift_drag as windowed_lift_drag,
+)
+from ._estimate._recursive import (
+    coefficient_regression as coefficient_regression,
 )
 from ._estimate._result import (
     Estimates as Estimates,

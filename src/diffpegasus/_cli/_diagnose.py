@@ -142,10 +142,15 @@ def _print_compare(result):
 
 
 def _print_ranking(report):
+    from .._diagnose._rule import ranking_lines
+
     typer.echo(report["message"])
+    if isinstance(report.get("rule"), dict):
+        typer.echo(f"decision rule: {report['rule']['text']}")
+    effects = [r for r in report["ranking"] if r["effect"] != "process_noise"]
     for r in report["ranking"]:
-        mark = "*" if r["significant"] else " "
         if r["effect"] == "process_noise":
+            mark = "*" if r["significant"] else " "
             typer.echo(
                 f"{mark} {'process_noise':24s} statistic {r['statistic']:8.1f}  "
                 f"p = {r['p_value']:.2g}  cost fall "
@@ -153,14 +158,7 @@ def _print_ranking(report):
                 f"{r['dof']} dof) F = "
                 + ", ".join(f"{k} {v:.3g}" for k, v in r["intensities"].items())
             )
-            continue
-        close = r.get("hard_to_tell_from") or []
-        tied = f"  (cannot be told from {', '.join(close)})" if close else ""
-        typer.echo(
-            f"{mark} {r['effect']:24s} statistic {r['statistic']:8.1f}  "
-            f"p = {r['p_value']:.2g}  cost fall {100 * r['cost_reduction']:5.1f}%  "
-            f"estimate {r['estimate']:.4g} +/- {r['stderr']:.2g}{tied}"
-        )
+    typer.echo("\n".join(ranking_lines(effects, top=len(effects))))
 
 
 def _write_diagnosis(report: dict, out: pathlib.Path, name: str) -> None:

@@ -8,7 +8,7 @@ import sys
 import numpy as np
 
 from .._diagnose._candidates import diagnosis_message, score_candidates
-from .._diagnose._rule import DecisionRule
+from .._diagnose._rule import rule_summary
 from .._errors import LogError
 from .._estimate._fit import Fit, output_error
 from .._estimate._modelfile import ModelSpec
@@ -450,9 +450,9 @@ def run_model_diagnose(
         )
         return report
     ranking = score_candidates(result, spec.candidates)
-    # the workflow's measured decision rule and verdict (see _diagnose/_rule.py)
+    # the decision rule shared with the Pegasus workflow (see _diagnose/_rule.py)
     report["message"] = diagnosis_message(ranking, result)
-    report["rule"] = DecisionRule().describe()
+    report["rule"] = rule_summary(ranking)
     for row in ranking:
         row["hard_to_tell_from"] = [n.split(".")[0] for n in row["hard_to_tell_from"]]
     report["ranking"] = ranking
