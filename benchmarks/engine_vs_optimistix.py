@@ -54,7 +54,7 @@ def _cases():
         rec,
         dp.MultipleShooting(interval=2.0),
     )
-    from diffpegasus._vehicle._hfb320 import simulate_log, simulated_record
+    from diffpegasus._registry._hfb320_simulator import simulate_log, simulated_record
 
     channels, _ = simulate_log(duration=80.0, rate=100.0, seed=7)
     long = simulated_record(channels, name="pegasus-sized")

@@ -145,7 +145,7 @@ def pegasus(args):
 
 def hfb320(args):
     from diffpegasus._cli._runners import run_model_diagnose
-    from diffpegasus._vehicle import vehicle_spec
+    from diffpegasus._registry import vehicle_spec
 
     path = OUT / "hfb320.jsonl"
     done = {(r["rate"], r["seed"], r["planted"]) for r in _lines(path)}
@@ -200,7 +200,7 @@ def refit(args):
     from diffpegasus._estimate._fit import fit as engine_fit
     from diffpegasus._estimate._model import Record
     from diffpegasus._estimate._score import score
-    from diffpegasus._vehicle import vehicle_spec
+    from diffpegasus._registry import vehicle_spec
 
     folder = pathlib.Path(tempfile.mkdtemp(prefix="rule_refit_"))
     channels, meta = gen.generate_hfb320(args.seed, args.rates[0])

@@ -419,7 +419,7 @@ def test_write_error_after_the_checks_is_one_line(tmp_path, monkeypatch):
 
     monkeypatch.setattr(log_module, "write_log", refuse)
     monkeypatch.setattr(
-        "diffpegasus._vehicle._pegasus._simulator.simulate_pegasus_log",
+        "diffpegasus._registry._pegasus_simulator.simulate_pegasus_log",
         lambda *a, **k: object(),
     )
     _assert_one_error(
@@ -1284,7 +1284,7 @@ def test_hfb320_record_passes_the_tightened_checks():
     _require(hfb320.DEFAULT_DATA)
     spec = dp.vehicle_spec("hfb320") if hasattr(dp, "vehicle_spec") else None
     if spec is None:
-        from diffpegasus._vehicle import vehicle_spec
+        from diffpegasus._registry import vehicle_spec
 
         spec = vehicle_spec("hfb320")
     rec = dp.load_record(spec.model, hfb320.DEFAULT_DATA, spec.columns)

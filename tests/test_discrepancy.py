@@ -22,8 +22,8 @@ import diffpegasus as dp
 from diffpegasus._cli import app
 from diffpegasus._diagnose._metrics import channel_metrics, ljung_box
 from diffpegasus._diagnose._rule import DecisionRule
+from diffpegasus._registry._pegasus import OUTPUTS
 from diffpegasus._vehicle._mach_spline import bspline_basis
-from diffpegasus._vehicle._pegasus._entry import OUTPUTS
 from diffpegasus.discrepancy import diagnose, fit_log, vehicle_entry
 
 

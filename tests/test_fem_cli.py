@@ -13,14 +13,13 @@ from typer.testing import CliRunner
 import diffpegasus as dp
 from diffpegasus._cli import app
 from diffpegasus._diagnose._process_noise import TURBULENCE_VERDICT
-from diffpegasus._vehicle import vehicle_spec
+from diffpegasus._registry import vehicle_spec
+from diffpegasus._registry._hfb320_simulator import simulate_log, simulated_record
 from diffpegasus._vehicle._hfb320 import (
     BOOK_FEM,
     hfb320_model,
     IDENTIFIED,
     PROCESS_NOISE,
-    simulate_log,
-    simulated_record,
     X0,
 )
 
@@ -240,7 +239,7 @@ def test_simulate_seed_draws_the_turbulence(tmp_path, monkeypatch):
 
     monkeypatch.setattr(solve, "simulate", capture)
     with pytest.raises(RuntimeError, match="captured"):
-        from diffpegasus._vehicle import vehicle_entry
+        from diffpegasus._registry import vehicle_entry
 
         vehicle_entry("pegasus").simulate(
             seed=7, hidden=["turbulence=1.5"], duration=1.0, sample_rate=50.0

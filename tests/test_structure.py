@@ -3,9 +3,11 @@ layers and no two modules import each other, directly or round a cycle.
 
 The layers, bottom to top: the shared contracts at the package root (`_model`,
 `_inputs`, `_rk4`, `_errors`, ...), then `_vehicle` -> `_log` -> `_simulate` ->
-`_estimate` -> `_design` -> `_diagnose` -> `_report` -> `_campaign` -> `_cli`, then
-the public namespaces (`diffpegasus`, `diffpegasus.design`, ...). The log format sits
-below the simulator because the simulator writes logs.
+`_estimate` -> `_registry` (the vehicles by name: each entry builds its model, reads
+its logs, runs its simulator) -> `_design` -> `_diagnose` -> `_report` -> `_rocket`
+(the rocket workflow) -> `_campaign` -> `_cli`, then the public namespaces
+(`diffpegasus`, `diffpegasus.pegasus`, ...). The log format sits below the simulator
+because the simulator writes logs.
 """
 
 import ast
@@ -20,9 +22,11 @@ LAYERS = (
     "_log",
     "_simulate",
     "_estimate",
+    "_registry",
     "_design",
     "_diagnose",
     "_report",
+    "_rocket",
     "_campaign",
     "_cli",
 )

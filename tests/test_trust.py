@@ -16,7 +16,7 @@ import pytest
 
 import diffpegasus as dp
 from diffpegasus._diagnose._metrics import residual_noise_sigma
-from diffpegasus._vehicle._pegasus._entry import block_means, block_weights
+from diffpegasus._registry._pegasus import block_means, block_weights
 from diffpegasus.discrepancy import diagnose, fit_log, fit_metrics, vehicle_entry
 
 from . import independent_generator as gen
@@ -326,7 +326,7 @@ def test_engine_diagnosis_of_clean_independent_flights_flags_nothing(
     tmp_path, seed, rate
 ):
     from diffpegasus._cli._runners import run_model_diagnose
-    from diffpegasus._vehicle import vehicle_spec
+    from diffpegasus._registry import vehicle_spec
 
     report = run_model_diagnose(
         vehicle_spec("hfb320", candidates=True), [_hfb_log(tmp_path, seed, rate)]
@@ -346,7 +346,7 @@ def test_engine_diagnosis_of_clean_independent_flights_flags_nothing(
 
 def test_engine_diagnosis_finds_a_planted_az_bias_on_independent_flights(tmp_path):
     from diffpegasus._cli._runners import run_model_diagnose
-    from diffpegasus._vehicle import vehicle_spec
+    from diffpegasus._registry import vehicle_spec
 
     path = _hfb_log(tmp_path, 4, 10.0, {"sensor_bias:az": 0.1})
     report = run_model_diagnose(vehicle_spec("hfb320", candidates=True), [path])

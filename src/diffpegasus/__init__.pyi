@@ -6,6 +6,7 @@ from . import (
     lateral as lateral,
     montecarlo as montecarlo,
     pegasus as pegasus,
+    sixdof as sixdof,
 )
 from ._campaign._sharding import (
     map_over_devices as map_over_devices,
@@ -21,6 +22,7 @@ from ._errors import (
 from ._estimate._engine import (
     RESULTS as RESULTS,
 )
+from ._estimate._entry import estimate as estimate
 from ._estimate._equation_error import (
     equation_error as equation_error,
     EquationErrorFit as EquationErrorFit,
@@ -28,7 +30,6 @@ from ._estimate._equation_error import (
 from ._estimate._estimator import (
     AbstractEstimator as AbstractEstimator,
     AbstractFit as AbstractFit,
-    estimate as estimate,
 )
 from ._estimate._filter_error import (
     FilterErrorFit as FilterErrorFit,
@@ -110,6 +111,12 @@ from ._model import (
     Model as Model,
     Record as Record,
 )
+from ._registry import (
+    AbstractModelEntry as AbstractModelEntry,
+    AbstractVehicleEntry as AbstractVehicleEntry,
+    vehicle_entry as vehicle_entry,
+    vehicle_spec as vehicle_spec,
+)
 from ._report._bode import (
     plot_bode as plot_bode,
 )
@@ -154,25 +161,4 @@ from ._vehicle._parts import (
     LoggedThrust as LoggedThrust,
     StandardAtmosphere as StandardAtmosphere,
     vehicle_model as vehicle_model,
-)
-from ._vehicle._registry import (
-    AbstractModelEntry as AbstractModelEntry,
-    AbstractVehicleEntry as AbstractVehicleEntry,
-    vehicle_entry as vehicle_entry,
-    vehicle_spec as vehicle_spec,
-)
-from ._vehicle._sixdof import (
-    Aircraft as Aircraft,
-    body_to_earth as body_to_earth,
-    business_jet as business_jet,
-    Controls as Controls,
-    euler_rates as euler_rates,
-    inertia_tensor as inertia_tensor,
-    linearise as linearise,
-    rigid_body_rates as rigid_body_rates,
-    simulate_sixdof as simulate_sixdof,
-    sixdof_evaluate as sixdof_evaluate,
-    sixdof_rates as sixdof_rates,
-    Trim as Trim,
-    trim as trim,
 )

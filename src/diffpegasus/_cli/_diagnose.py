@@ -14,6 +14,7 @@ from ._common import (
     _fail,
     _global_fit_failed,
     _json_out,
+    _log_arg,
     _os_error,
     AddOption,
     AlphaOrderOption,
@@ -33,18 +34,6 @@ from ._common import (
     VehicleOption,
 )
 from ._fit import _fit_model
-
-
-def _log_arg(log: pathlib.Path, resample: bool):
-    """The log as the entry reads it: a path, or a resampled [`FlightLog`][]."""
-    if not resample:
-        return log
-    from .._log._format import read_log
-
-    try:
-        return read_log(log, resample=True)
-    except LogError as e:
-        _fail(str(e))
 
 
 @app.command()
@@ -96,11 +85,11 @@ def compare(
             max_iter=max_iter,
         )
         return
-    from .. import _diagnose
+    from .._report import _runs
 
     _check_out(out, "folder")
     try:
-        result, _ = _diagnose.run_compare(
+        result, _ = _runs.run_compare(
             entry, _log_arg(log, resample), out, max_iter=max_iter
         )
     except LogError as e:
@@ -210,7 +199,7 @@ def diagnose(
     With process noise declared, process noise (turbulence) is a candidate too:
     the filter-error fit's likelihood ratio, and every effect tested again at
     that fit (a term missing even under process noise ranks first)."""
-    from ._fem import diagnosis_states
+    from ._fem import diagnosis_states, process_noise_diagnosis
     from ._runners import run_model_diagnose
 
     entry = _entry(
@@ -236,6 +225,7 @@ def diagnose(
             process_noise=diagnosis_states(tuple(process_noise or ()), spec),
             records=records,
             max_iter=max_iter,
+            score_process_noise=process_noise_diagnosis,
         )
         report["model_effects"] = list(add or ())
         if out is not None and report["ranking"]:

@@ -70,8 +70,8 @@ def simulate(
     """Simulate a flight of a vehicle (Pegasus first stage by default) and write
     its flight log."""
     from .._log._format import write_log
+    from .._registry import vehicle_entry
     from .._report._plotting import plot_trajectory
-    from .._vehicle._registry import vehicle_entry
 
     _check_out(out, "file")
     try:

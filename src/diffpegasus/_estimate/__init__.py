@@ -21,10 +21,10 @@ __getattr__, __dir__, __all__ = attach(
             "equation_error",
             "EquationErrorFit",
         ),
+        "_entry": ("estimate",),
         "_estimator": (
             "AbstractEstimator",
             "AbstractFit",
-            "estimate",
         ),
         "_methods": (
             "EquationError",

@@ -5,7 +5,8 @@ import runpy
 
 import numpy as np
 
-from .._log._format import FlightLog, LogError
+from .._errors import LogError
+from .._log._format import FlightLog
 
 
 def simulate_model_file(
@@ -27,8 +28,8 @@ def simulate_model_file(
     file's `noise` (a dict output name -> sigma, default none) drawn from `seed`.
     """
     from .._estimate._fit import simulate_outputs
-    from ._effects import parse_assignment
-    from ._parts import effect_parameter
+    from .._vehicle._effects import parse_assignment
+    from .._vehicle._parts import effect_parameter
 
     model = spec.model
     if input not in ("pulse", "3211"):
