@@ -21,7 +21,6 @@ from typer.testing import CliRunner
 import diffpegasus as dp
 from diffpegasus._cli import app
 from diffpegasus._diagnose._metrics import channel_metrics, ljung_box
-from diffpegasus._diagnose._rule import DecisionRule
 from diffpegasus._registry._pegasus import OUTPUTS
 from diffpegasus._vehicle._mach_spline import bspline_basis
 from diffpegasus.discrepancy import diagnose, fit_log, vehicle_entry
@@ -31,7 +30,6 @@ sys.path.insert(0, str(pathlib.Path(__file__).parents[1] / "experiments"))
 
 
 ENTRY = vehicle_entry("pegasus")
-MIN_STATISTIC = DecisionRule.min_statistic
 
 
 def fit(log, add=(), start=None):
