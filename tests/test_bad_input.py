@@ -419,7 +419,8 @@ def test_write_error_after_the_checks_is_one_line(tmp_path, monkeypatch):
 
     monkeypatch.setattr(log_module, "write_log", refuse)
     monkeypatch.setattr(
-        "diffpegasus._cli._simulate._simulate_to_log", lambda *a, **k: object()
+        "diffpegasus._registry._pegasus_simulator.simulate_pegasus_log",
+        lambda *a, **k: object(),
     )
     _assert_one_error(
         runner.invoke(app, ["simulate", "--out", str(tmp_path / "f.csv")]),
@@ -515,7 +516,7 @@ def test_oem_with_some_failed_windows_nulls_them(tmp_path, monkeypatch):
 def test_compare_that_did_not_converge_reports_no_derivatives(tmp_path, monkeypatch):
     import diffpegasus._diagnose as discrepancy
 
-    def failed(log, settings, out):
+    def failed(entry, log, out, **kwargs):
         (out / "compare.md").write_text("# compare\n| CLa | 4.1 |\n")
         return {
             "cost": 1.0,
@@ -1283,7 +1284,7 @@ def test_hfb320_record_passes_the_tightened_checks():
     _require(hfb320.DEFAULT_DATA)
     spec = dp.vehicle_spec("hfb320") if hasattr(dp, "vehicle_spec") else None
     if spec is None:
-        from diffpegasus._vehicle import vehicle_spec
+        from diffpegasus._registry import vehicle_spec
 
         spec = vehicle_spec("hfb320")
     rec = dp.load_record(spec.model, hfb320.DEFAULT_DATA, spec.columns)

@@ -118,9 +118,17 @@ def test_code_blocks_run(page, tmp_path, monkeypatch):
 FORBIDDEN = [
     (re.compile(r"\b[Ii]ssues? #?\d+|\(#\d+\)|\B#\d{1,3}\b"), "an issue number"),
     (re.compile(r"\bsession\b", re.I), "a work session"),
-    (re.compile(r"/work/|\.\./shared|\bshared/data\b|\bnotes/"), "a path outside the repository"),
+    (
+        re.compile(r"/work/|\.\./shared|\bshared/data\b|\bnotes/"),
+        "a path outside the repository",
+    ),
     (re.compile(r"\bSPEC\b"), "the internal specification"),
-    (re.compile(r"\b(?<![.\d])(?=[0-9a-f]*[a-f])(?=[0-9a-f]*\d)[0-9a-f]{7,40}\b(?![-+]\d)"), "a commit hash"),
+    (
+        re.compile(
+            r"\b(?<![.\d])(?=[0-9a-f]*[a-f])(?=[0-9a-f]*\d)[0-9a-f]{7,40}\b(?![-+]\d)"
+        ),
+        "a commit hash",
+    ),
     (re.compile(r"\bload \d+(\.\d+)?-\d"), "an edit note about machine load"),
 ]
 
@@ -141,7 +149,16 @@ def test_the_site_builds_strict(tmp_path):
     env["PYTHONPATH"] = str(ROOT / "src") + os.pathsep + env.get("PYTHONPATH", "")
     env["NO_MKDOCS_2_WARNING"] = "1"
     done = subprocess.run(
-        [sys.executable, "-m", "mkdocs", "build", "--strict", "-q", "-d", str(tmp_path / "site")],
+        [
+            sys.executable,
+            "-m",
+            "mkdocs",
+            "build",
+            "--strict",
+            "-q",
+            "-d",
+            str(tmp_path / "site"),
+        ],
         cwd=ROOT,
         env=env,
         capture_output=True,
@@ -154,3 +171,60 @@ def test_the_site_builds_strict(tmp_path):
     # the generated pages hold what the program has (a command, an option, a name)
     assert "diffpegasus fit" in cli and "--columns" in cli
     assert "dp.fit" in api and "dp.Model" in api
+
+
+def _commands():
+    """Every `diffpegasus ...` line of every bash block, run or not (continuation
+    lines joined, comments and redirections dropped)."""
+    import shlex
+
+    out = []
+    for page in [*_pages(), ROOT / "README.md"]:
+        for language, _, code, line in _blocks(page):
+            if language != "bash":
+                continue
+            for text in code.replace("\\\n", " ").splitlines():
+                text = text.strip()
+                for prefix in ("srun ", "if "):
+                    text = text.removeprefix(prefix)
+                if not text.startswith("diffpegasus "):
+                    continue
+                words = shlex.split(text, comments=True)
+                words = words[
+                    : next(
+                        (
+                            i
+                            for i, w in enumerate(words)
+                            if w in (">", "2>", ";", "&&", "|", "2>&1")
+                        ),
+                        len(words),
+                    )
+                ]
+                out.append((f"{page.relative_to(ROOT)}:{line}", words))
+    return out
+
+
+def test_every_command_shown_exists():
+    """The commands the pages show, run or not, name commands and options the
+    program has (the pages that cannot run still follow the command line)."""
+    import typer.main
+
+    from diffpegasus._cli import app
+
+    root = typer.main.get_command(app)
+    for where, words in _commands():
+        cmd, ctx = root, root.context_class(root, info_name="diffpegasus")
+        rest = words[1:]
+        while rest and hasattr(cmd, "get_command") and not rest[0].startswith("-"):
+            sub = cmd.get_command(ctx, rest[0])
+            assert sub is not None, f"{where}: no command {' '.join(words[:2])!r}"
+            cmd, ctx = sub, sub.context_class(sub, info_name=rest[0], parent=ctx)
+            rest = rest[1:]
+        known = {"--help", "--no-cache"}
+        for p in cmd.get_params(ctx):
+            known.update(getattr(p, "opts", ()), getattr(p, "secondary_opts", ()))
+        for w in rest:
+            if w.startswith("--"):
+                assert w.split("=")[0] in known, (
+                    f"{where}: {' '.join(words)}: no option {w}"
+                )

@@ -17,15 +17,15 @@ import types
 
 
 MARKER = "<!-- api-reference -->"
-TITLES = {
+TITLES = {  # in the order of the pipeline: vehicle -> simulate -> log -> estimate ...
     "_model": "Models and records",
-    "_errors": "Errors",
-    "_inputs": "Inputs",
-    "_rk4": "Integration",
-    "_estimate": "Estimation",
     "_vehicle": "Vehicles and effects",
+    "_inputs": "Inputs",
     "_simulate": "Simulation",
+    "_rk4": "Integration",
     "_log": "Logs and files",
+    "_errors": "Errors",
+    "_estimate": "Estimation",
     "_diagnose": "Finding missing terms",
     "_campaign": "Campaigns",
     "_report": "Reports",
@@ -66,9 +66,30 @@ def _where(name, obj, modules, package):
     return module, attr
 
 
+def _static(module: str, attr: str) -> bool:
+    """Whether a static reader (griffe) finds `attr` in `module`'s source: a
+    top-level class, function or assignment of that name."""
+    source = inspect.getsource(importlib.import_module(module))
+    head = re.escape(attr.split(".")[0])
+    return bool(re.search(rf"^(class|def)\s+{head}\b|^{head}\s*[:=]", source, re.M))
+
+
 def _entry(public: str, located, level: int) -> list[str]:
     module, attr = located
     short = public.rsplit(".", 1)[-1]
+    if not _static(module, attr):
+        # made at run time (e.g. a class built on first use): its docstring only
+        obj = getattr(importlib.import_module(module), attr.split(".")[0])
+        doc = inspect.getdoc(obj) or ""
+        anchor = f"[](){{#{short}}} " if _claim(short) else ""
+        return [
+            f"{'#' * level} {public}",
+            "",
+            f"{anchor}`{module}.{attr}`",
+            "",
+            doc,
+            "",
+        ]
     # the docstrings cross-reference names bare (`[Model][]`, `[Fit.table][]`):
     # anchor the name and a class's members here
     anchors = [short]
@@ -173,7 +194,10 @@ def _section(pkg, prefix: str, modules, level: int) -> list[str]:
             _entry(f"{prefix}.{name}", located, level + 1)
         )
     out = []
-    for title in sorted(groups):
+    order = list(TITLES.values())
+    for title in sorted(
+        groups, key=lambda g: (order.index(g) if g in order else 99, g)
+    ):
         out += [f"{'#' * level} {title}", "", *groups[title]]
     return out, namespaces
 
@@ -184,6 +208,14 @@ def api_reference() -> str:
     _CLAIMED.clear()
     modules = _all_modules(diffpegasus)
     out, namespaces = _section(diffpegasus, "dp", modules, 2)
+    # the public namespaces: modules of the package without a leading underscore
+    listed = {name for name, _ in namespaces}
+    for info in pkgutil.iter_modules(diffpegasus.__path__):
+        if info.name.startswith("_") or info.name in listed:
+            continue
+        module = importlib.import_module(f"diffpegasus.{info.name}")
+        if getattr(module, "__all__", None):
+            namespaces.append((info.name, module))
     for name, module in namespaces:
         out += [f"## `dp.{name}`", ""]
         if module.__doc__:

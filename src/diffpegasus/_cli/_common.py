@@ -44,6 +44,8 @@ def _main(
     ] = False,
 ) -> None:
     del version
+
+
 estimate_app = typer.Typer(
     help="Estimate the six derivatives per window from a flight log.",
     no_args_is_help=True,
@@ -223,7 +225,7 @@ EstimateVehicleOption = Annotated[
     typer.Option(
         "--vehicle",
         help="Vehicle whose reference area and length scale the coefficients "
-        "(built-in name or a FILE.py defining `vehicle`); default: the log's sidecar",
+        "(built-in name or a FILE.py defining `vehicle`)",
     ),
 ]
 ModelOption = Annotated[
@@ -246,18 +248,37 @@ FixOption = Annotated[
 ]
 
 
-# Options shared by the discrepancy commands.
+# Tuning options of a vehicle's model (its registry entry's fields; a vehicle
+# without the field refuses the option).
 KnotsOption = Annotated[
-    int, typer.Option(help="Mach spline functions per coefficient term")
+    int | None,
+    typer.Option(
+        help="Mach spline functions per coefficient term (pegasus: 6)",
+        callback=at_least_one,
+    ),
 ]
 AlphaOrderOption = Annotated[
-    int, typer.Option(help="Highest power of alpha in the baseline coefficients")
+    int | None,
+    typer.Option(
+        help="Highest power of alpha in the baseline coefficients (pegasus: 3)",
+        callback=at_least_one,
+    ),
 ]
 RateOption = Annotated[
-    float, typer.Option(help="Model sample rate, Hz", callback=positive)
+    float | None,
+    typer.Option(help="Model sample rate, Hz (pegasus: 50)", callback=positive),
 ]
 NodeOption = Annotated[
-    float, typer.Option(help="Shooting nodes every S s", callback=positive)
+    float | None,
+    typer.Option(help="Shooting nodes every S s (pegasus: 1)", callback=positive),
+]
+MaxIterOption = Annotated[
+    int | None,
+    typer.Option(
+        help="Iteration bound of the fit (default: iterate until the cost settles, "
+        "up to 500; a fit that stops short says why)",
+        callback=at_least_one,
+    ),
 ]
 AddOption = Annotated[
     list[str] | None,
@@ -266,8 +287,9 @@ AddOption = Annotated[
 MethodOption = Annotated[
     str,
     typer.Option(
-        help="oem (output error) or fem (filter error: process noise such as "
-        "turbulence, estimated with the parameters; --vehicle/--model only)"
+        help="oem (output error), fem (filter error: process noise such as "
+        "turbulence, estimated with the parameters; --vehicle/--model only), eqe "
+        "(equation error, `fit` only) or another registered estimator"
     ),
 ]
 ProcessNoiseOption = Annotated[
@@ -282,19 +304,16 @@ ProcessNoiseOption = Annotated[
 ]
 
 
-def _settings(knots, alpha_order, rate, node_interval):
-    from .._diagnose import Settings
+def _entry(vehicle: str, model=None, **tuning):
+    """The registry entry of `--model FILE` or `--vehicle NAME|FILE`, with the
+    tuning options given (one error line for an option the vehicle does not
+    take)."""
+    from .._registry import vehicle_entry
 
-    if knots < 4:
-        _fail(f"--knots must be at least 4, got {knots}")
-    if alpha_order < 1:
-        _fail(f"--alpha-order must be at least 1, got {alpha_order}")
-    for option, value in (("--rate", rate), ("--node-interval", node_interval)):
-        if not (math.isfinite(value) and value > 0):
-            _fail(f"{option} {value}: must be a positive finite number")
-    return Settings(
-        knots=knots, alpha_order=alpha_order, rate=rate, node_interval=node_interval
-    )
+    try:
+        return vehicle_entry(str(model or vehicle), **tuning)
+    except LogError as e:
+        _fail(str(e))
 
 
 def _read(log: pathlib.Path, resample: bool):
@@ -303,15 +322,6 @@ def _read(log: pathlib.Path, resample: bool):
     try:
         return read_log(log, resample=resample)
     except LogError as e:
-        _fail(str(e))
-
-
-def _check_addable(names, settings):
-    from .._diagnose._workflow import check_addable
-
-    try:
-        check_addable(names, settings)
-    except ValueError as e:
         _fail(str(e))
 
 
@@ -395,29 +405,17 @@ def out_problem(path: pathlib.Path, kind: str) -> str | None:
     return None
 
 
-def vehicle_geometry(name_or_file: str) -> tuple[float, float] | None:
-    """Reference area (m^2) and length (m) of a vehicle: `None` for Pegasus (the
-    log's own sidecar, else Pegasus's values, as always)."""
-    if name_or_file == "pegasus":
-        return None
-    if name_or_file == "hfb320":
-        from .._vehicle._hfb320 import HFB320
-
-        vehicle = HFB320
-    else:
-        from .._vehicle._registry import vehicle_spec
-
-        try:
-            vehicle = vehicle_spec(name_or_file).vehicle
-        except LogError as e:
-            _fail(str(e))
-        if vehicle is None:
-            _fail(
-                f"--vehicle {name_or_file}: estimate needs the vehicle's reference "
-                "area and length, i.e. a file defining `vehicle = dp.FlightVehicle"
-                "(...)`; a bare `model` has no geometry"
-            )
-    return float(vehicle.geometry.s_ref), float(vehicle.geometry.c_ref)
+def vehicle_geometry(name_or_file: str) -> tuple[float, float]:
+    """Reference area (m^2) and length (m) of a vehicle: they belong to the
+    vehicle (its registry entry), not to a log."""
+    geometry = _entry(name_or_file).geometry()
+    if geometry is None:
+        _fail(
+            f"--vehicle {name_or_file}: estimate needs the vehicle's reference "
+            "area and length, i.e. a file defining `vehicle = dp.FlightVehicle"
+            "(...)`; a bare `model` has no geometry"
+        )
+    return geometry
 
 
 def with_vehicle(flight, name_or_file: str):
@@ -425,10 +423,7 @@ def with_vehicle(flight, name_or_file: str):
     it differs from the log's sidecar."""
     import dataclasses
 
-    geometry = vehicle_geometry(name_or_file)
-    if geometry is None:
-        return flight
-    s_ref, c_ref = geometry
+    s_ref, c_ref = vehicle_geometry(name_or_file)
     if "S_ref" in flight.metadata and (
         abs(flight.s_ref - s_ref) > 1e-9 * s_ref
         or abs(flight.c_ref - c_ref) > 1e-9 * c_ref
@@ -440,3 +435,15 @@ def with_vehicle(flight, name_or_file: str):
         )
     meta = {**flight.metadata, "S_ref": s_ref, "c_ref": c_ref}
     return dataclasses.replace(flight, metadata=meta)
+
+
+def _log_arg(log: pathlib.Path, resample: bool):
+    """The log as the entry reads it: a path, or a resampled [`FlightLog`][]."""
+    if not resample:
+        return log
+    from .._log._format import read_log
+
+    try:
+        return read_log(log, resample=True)
+    except LogError as e:
+        _fail(str(e))
