@@ -167,7 +167,7 @@ PLANTED = [
     pytest.param("thrust_misalignment", 0.03, 1000.0, 0, marks=pytest.mark.slow),
     # at the rule's detection limit on this generator: a planted CM0 of 0.01 gives
     # a score statistic of 29-40 (measured, seeds 3 and 2), about the threshold
-    # this generator's logs give at 200 Hz (28-50); a CM0 of 0.006 was found on
+    # this generator's logs give at 200 Hz (29-42); a CM0 of 0.006 was found on
     # seed 0 (52 against 31) and missed on seed 1 (27 against 46)
     pytest.param(
         "moment_offset",
