@@ -135,8 +135,9 @@ def test_rule_finds_one_effect_not_its_lookalikes_and_judges_delays():
     by = {r["effect"]: r for r in ranking}
     assert by["late"]["statistic"] > cals[0].threshold and by["late"]["lead"]
     assert not by["late"]["significant"]
-    # the look-alike alone then carries the signature (it is not the lead)
-    assert by["alike"]["significant"]
+    # its signature is in the residuals all the same: the look-alike, tested given
+    # it, is not found either
+    assert not by["alike"]["significant"] and by["alike"]["given"] == ["late"]
     # the same signature the other way round is a delay: found first, and the
     # look-alike, tested again given it, is not found too
     test = _score_test(rows, rng.normal(size=(n, 1)) - 0.5 * rows[..., 0], np.zeros(3))
