@@ -90,6 +90,7 @@ def main():
         name = folder.name
         t0 = time.perf_counter()
         from diffpegasus._log._rocketlogs import read_rocket_log
+
         from diffpegasus.rocket import read_rocket, run_flight
 
         rocket = read_rocket(folder / "rocket.toml")

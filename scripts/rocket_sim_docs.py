@@ -37,11 +37,17 @@ def main():
         )
     lines += ["", f"Coverage over both flights: {100 * d['coverage']:.0f}%.", ""]
     for name in ("clean", "planted"):
-        lines += [f"## {name}: diagnose", "", "| round | candidate | Wald | "
-                  "threshold | det(R) ratio |", "|---|---|---|---|---|"]
+        lines += [
+            f"## {name}: diagnose",
+            "",
+            "| round | candidate | Wald | threshold | det(R) ratio |",
+            "|---|---|---|---|---|",
+        ]
         for t in d[name].get("tests", []):
-            lines.append(f"| {t['round']} | {t['candidate']} | {t['statistic']:.1f} | "
-                         f"{t['threshold']:.1f} | {t['cost_ratio']:.3f} |")
+            lines.append(
+                f"| {t['round']} | {t['candidate']} | {t['statistic']:.1f} | "
+                f"{t['threshold']:.1f} | {t['cost_ratio']:.3f} |"
+            )
         lines.append("")
     (ROOT / "docs/rockets/simulated.md").write_text("\n".join(lines))
 
