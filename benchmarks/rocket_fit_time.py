@@ -18,7 +18,6 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 def main():
     from diffpegasus._log._rocketlogs import read_rocket_log
-
     from diffpegasus.rocket import fit_rocket, prepare, read_rocket
 
     out = {"load_average": os.getloadavg()[0]}

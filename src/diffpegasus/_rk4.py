@@ -6,34 +6,11 @@ codes do: with inputs interpolated linearly between samples, the two middle stag
 the inputs averaged over the step.
 """
 
-from collections.abc import Callable
-from typing import ClassVar
+import functools
 
-import diffrax
 import jax
 import jax.numpy as jnp
 import numpy as np
-
-
-_rk4_tableau = diffrax.ButcherTableau(
-    a_lower=(np.array([0.5]), np.array([0.0, 0.5]), np.array([0.0, 0.0, 1.0])),
-    b_sol=np.array([1 / 6, 1 / 3, 1 / 3, 1 / 6]),
-    b_error=np.zeros(4),
-    c=np.array([0.5, 0.5, 1.0]),
-)
-
-
-class RK4(diffrax.AbstractERK):
-    """The classical RK4 method (fixed step only: its error estimate is zero)."""
-
-    tableau: ClassVar[diffrax.ButcherTableau] = _rk4_tableau
-    interpolation_cls: ClassVar[Callable[..., diffrax.LocalLinearInterpolation]] = (
-        diffrax.ThirdOrderHermitePolynomialInterpolation.from_k
-    )
-
-    def order(self, terms):
-        del terms
-        return 4
 
 
 def rk4_scan(field, x0, ts, dt, u=None):
@@ -62,3 +39,42 @@ def rk4_scan(field, x0, ts, dt, u=None):
     inputs = (ts[:-1], u[:-1], 0.5 * (u[:-1] + u[1:]), u[1:])
     _, xs = jax.lax.scan(step, x0, inputs)
     return jnp.concatenate([x0[None], xs])
+
+
+@functools.cache
+def _diffrax_rk4() -> type:
+    # diffrax costs seconds to import: only the simulator and the tests need the
+    # solver class, so it is built on first use, not when a fit imports rk4_scan
+    from collections.abc import Callable
+    from typing import ClassVar
+
+    import diffrax
+
+    rk4_tableau = diffrax.ButcherTableau(
+        a_lower=(np.array([0.5]), np.array([0.0, 0.5]), np.array([0.0, 0.0, 1.0])),
+        b_sol=np.array([1 / 6, 1 / 3, 1 / 3, 1 / 6]),
+        b_error=np.zeros(4),
+        c=np.array([0.5, 0.5, 1.0]),
+    )
+
+    class RK4(diffrax.AbstractERK):
+        """The classical RK4 method as a diffrax solver (fixed step only: its error
+        estimate is zero); the same tableau as [`rk4_scan`][]."""
+
+        tableau: ClassVar[diffrax.ButcherTableau] = rk4_tableau
+        interpolation_cls: ClassVar[Callable[..., diffrax.LocalLinearInterpolation]] = (
+            diffrax.ThirdOrderHermitePolynomialInterpolation.from_k
+        )
+
+        def order(self, terms):
+            del terms
+            return 4
+
+    RK4.__module__, RK4.__qualname__ = __name__, "RK4"
+    return RK4
+
+
+def __getattr__(name: str):
+    if name == "RK4":
+        return _diffrax_rk4()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -8,6 +8,7 @@ import pathlib
 import jax
 import numpy as np
 
+from .._files import atomic_write, write_text
 from .._vehicle._pegasus._aerodynamics import DERIVATIVE_NAMES
 from ._settings import (
     Campaign,
@@ -16,7 +17,7 @@ from ._settings import (
     THESIS_SECONDS,
     THESIS_STD,
 )
-from ._storage import _read_chunk
+from ._storage import _IDENTITY_KEYS, _read_chunk
 
 
 def load_results(campaign: Campaign, out: pathlib.Path) -> dict[str, dict]:
@@ -28,7 +29,9 @@ def load_results(campaign: Campaign, out: pathlib.Path) -> dict[str, dict]:
             for c in range(campaign.chunks)
         ]
         merged = {
-            k: np.concatenate([p[k] for p in parts]) for k in parts[0] if k != "seconds"
+            k: np.concatenate([p[k] for p in parts])
+            for k in parts[0]
+            if k not in ("seconds", *_IDENTITY_KEYS)
         }
         merged["seconds"] = np.array([float(p["seconds"]) for p in parts])
         keep = np.arange(campaign.samples)
@@ -75,12 +78,15 @@ def write_reports(campaign, out, window_start) -> dict:
         m: flight_mse(r["values"], r["truth"], counted(r, window_start, campaign))
         for m, r in results.items()
     }
-    with open(out / "mse.csv", "w", newline="") as f:
+
+    def write_mse(f):
         w = csv.writer(f)
         w.writerow(["flight", "method", *DERIVATIVE_NAMES])
         for m in campaign.methods:
             for i in range(campaign.samples):
                 w.writerow([i, m, *(f"{x:.6e}" for x in mse[m][i])])
+
+    atomic_write(out / "mse.csv", write_mse)
     means = {m: np.nanmean(v, axis=0) for m, v in mse.items()}
     stds = {
         m: np.nanstd(v, axis=0, ddof=1) if len(v) > 1 else v[0] * np.nan
@@ -102,11 +108,14 @@ def write_reports(campaign, out, window_start) -> dict:
             ]
             for j, d in enumerate(DERIVATIVE_NAMES)
         ]
-        with open(out / f"mse_{name}.csv", "w", newline="") as f:
+
+        def write_table(f, cols=cols, rows=rows):
             w = csv.writer(f)
             w.writerow(["derivative", *cols])
             for r in rows:
                 w.writerow([r[0], *(f"{x:.3e}" for x in r[1:])])
+
+        atomic_write(out / f"mse_{name}.csv", write_table)
         md = [
             "| derivative | " + " | ".join(cols) + " |",
             "|---" * (len(cols) + 1) + "|",
@@ -124,8 +133,9 @@ def write_reports(campaign, out, window_start) -> dict:
     note = "Flights without any counted estimate (left out of the means): " + ", ".join(
         f"{LABELS[m]} {n}" for m, n in dropped.items()
     )
-    (out / "tables.md").write_text(
-        "\n\n".join(f"{title[k]}\n\n{v}" for k, v in tables.items()) + f"\n\n{note}\n"
+    write_text(
+        out / "tables.md",
+        "\n\n".join(f"{title[k]}\n\n{v}" for k, v in tables.items()) + f"\n\n{note}\n",
     )
     plot_campaign(mse, out)
     summary = {
@@ -187,7 +197,7 @@ def write_reports(campaign, out, window_start) -> dict:
         "processes": jax.process_count(),
         "thesis_s_per_100_flights": THESIS_SECONDS,
     }
-    (out / "times.json").write_text(json.dumps(timing, indent=2))
+    write_text(out / "times.json", json.dumps(timing, indent=2))
     summary["times"] = timing
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    write_text(out / "summary.json", json.dumps(summary, indent=2))
     return summary

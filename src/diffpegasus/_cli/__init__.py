@@ -5,8 +5,15 @@ import sys
 import typer
 
 from .._errors import LogError
-from . import _campaign, _diagnose, _estimate, _fit, _simulate  # noqa: F401 (registers)
-from . import _rocket  # noqa: F401 (registers)
+from . import (  # noqa: F401 (registers)
+    _campaign,
+    _diagnose,
+    _estimate,
+    _fit,
+    _recursive,  # noqa: F401 (registers `replay`)
+    _rocket,  # noqa: F401 (registers)
+    _simulate,
+)
 from ._common import _os_error, app
 
 

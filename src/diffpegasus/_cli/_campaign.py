@@ -6,15 +6,21 @@ from typing import Annotated
 
 import typer
 
+from .._files import write_text
 from ._common import (
     _fail,
     app,
+    at_least_one,
+    finite,
+    positive,
 )
 
 
 @app.command()
 def montecarlo(
-    samples: Annotated[int, typer.Option(help="Number of perturbed flights")] = 100,
+    samples: Annotated[
+        int, typer.Option(help="Number of perturbed flights", callback=at_least_one)
+    ] = 100,
     methods: Annotated[
         str, typer.Option(help="Comma-separated subset of lse,nn,oem")
     ] = "lse,nn,oem",
@@ -23,12 +29,22 @@ def montecarlo(
         pathlib.Path, typer.Option(help="Results folder (a rerun resumes it)")
     ] = pathlib.Path("montecarlo"),
     batch: Annotated[
-        int, typer.Option(help="Flights per chunk (sharded over the cores)")
+        int,
+        typer.Option(
+            help="Flights per chunk (sharded over the cores)", callback=at_least_one
+        ),
     ] = 10,
-    duration: Annotated[float, typer.Option(help="Flight length, s")] = 80.3,
-    sample_rate: Annotated[float, typer.Option(help="Log rate, Hz")] = 1000.0,
+    duration: Annotated[
+        float, typer.Option(help="Flight length, s", callback=positive)
+    ] = 80.3,
+    sample_rate: Annotated[
+        float, typer.Option(help="Log rate, Hz", callback=positive)
+    ] = 1000.0,
     nn_epochs: Annotated[
-        int, typer.Option(help="Maximum training epochs of the network")
+        int,
+        typer.Option(
+            help="Maximum training epochs of the network", callback=at_least_one
+        ),
     ] = 1000,
     processes: Annotated[
         int,
@@ -138,14 +154,28 @@ def design_input(
     criterion: Annotated[
         str, typer.Option(help="D (log det) or A (trace) of the relative CRB")
     ] = "D",
-    max_deflection: Annotated[float, typer.Option(help="Peak excitation, deg")] = 2.0,
-    max_rate: Annotated[float, typer.Option(help="Peak rate, deg/s")] = 40.0,
-    max_alpha: Annotated[
-        float, typer.Option(help="Peak alpha excursion from the unexcited flight, deg")
+    max_deflection: Annotated[
+        float, typer.Option(help="Peak excitation, deg", callback=positive)
     ] = 2.0,
-    start: Annotated[float, typer.Option(help="Segment start, s")] = 20.0,
-    length: Annotated[float, typer.Option(help="Segment length, s")] = 5.0,
-    steps: Annotated[int, typer.Option(help="Optimiser steps")] = 150,
+    max_rate: Annotated[
+        float, typer.Option(help="Peak rate, deg/s", callback=positive)
+    ] = 40.0,
+    max_alpha: Annotated[
+        float,
+        typer.Option(
+            help="Peak alpha excursion from the unexcited flight, deg",
+            callback=positive,
+        ),
+    ] = 2.0,
+    start: Annotated[
+        float, typer.Option(help="Segment start, s", callback=finite)
+    ] = 20.0,
+    length: Annotated[
+        float, typer.Option(help="Segment length, s", callback=positive)
+    ] = 5.0,
+    steps: Annotated[
+        int, typer.Option(help="Optimiser steps", callback=at_least_one)
+    ] = 150,
     out: Annotated[pathlib.Path, typer.Option(help="Folder for the results")] = (
         pathlib.Path("design")
     ),
@@ -155,8 +185,8 @@ def design_input(
     limits: design.json, design_inputs.png, design_stderr.png."""
     import numpy as np
 
-    from .._report._plotting import plot_design
     from .._design._optimal import Limits, pegasus_design, run_design
+    from .._report._plotting import plot_design
     from .._vehicle._pegasus._aerodynamics import DERIVATIVE_NAMES
 
     if criterion not in ("D", "A"):
@@ -174,7 +204,7 @@ def design_input(
     result = run_design(design, limits, kind=criterion, steps=steps)
     plot_design(design, result, out)
     report = _design_report(result, criterion, limits, (start, start + length))
-    (out / "design.json").write_text(json.dumps(report, indent=2))
+    write_text(out / "design.json", json.dumps(report, indent=2))
     typer.echo(
         f"predicted standard errors, 1/deg (criterion {criterion}, lower is better):"
     )

@@ -1,8 +1,10 @@
 """What every command shares: the Typer apps, failing with one line, shared options."""
 
 import json
+import math
 import os
 import pathlib
+import sys
 from typing import Annotated
 
 import typer
@@ -11,12 +13,39 @@ from .._errors import LogError
 
 
 app = typer.Typer(
-    help="Differentiable flight simulation and aerodynamic identification: Pegasus, "
-    "HFB-320 and your own vehicles.",
+    help="Identify aerodynamic derivatives from flight logs and find what a model is "
+    "missing: aircraft, launch vehicles and your own models.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     add_completion=False,
+    # docstrings are Markdown: paragraphs reflow to the terminal's width
+    rich_markup_mode="markdown",
 )
+
+
+def _version(value: bool) -> None:
+    if value:
+        from .. import __version__
+
+        typer.echo(f"diffpegasus {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version",
+            callback=_version,
+            is_eager=True,
+            help="Print the version and exit.",
+        ),
+    ] = False,
+) -> None:
+    del version
+
+
 estimate_app = typer.Typer(
     help="Estimate the six derivatives per window from a flight log.",
     no_args_is_help=True,
@@ -31,6 +60,114 @@ def _fail(message: str) -> None:
 
 # Exit code of a command whose input was fine but whose fit failed (nothing estimated).
 FIT_FAILED = 3
+
+
+# Option validators: typer callbacks that refuse a value in one `error:` line while
+# the command line is parsed, before any file is read or anything compiled. Use as
+# `typer.Option(..., callback=positive)`.
+
+
+def _option(param) -> str:
+    names = [n for n in getattr(param, "opts", ()) if n.startswith("--")]
+    return names[0] if names else f"--{param.name.replace('_', '-')}"
+
+
+def _skip(ctx) -> bool:
+    return ctx is not None and getattr(ctx, "resilient_parsing", False)
+
+
+def finite(ctx: typer.Context, param: typer.CallbackParam, value):
+    """A finite number (or `None`)."""
+    if _skip(ctx) or value is None:
+        return value
+    if not math.isfinite(value):
+        _fail(f"{_option(param)} {value}: not a finite number")
+    return value
+
+
+def positive(ctx: typer.Context, param: typer.CallbackParam, value):
+    """A finite number above zero (or `None`)."""
+    if _skip(ctx) or value is None:
+        return value
+    if not (math.isfinite(value) and value > 0):
+        _fail(f"{_option(param)} {value}: must be a positive finite number")
+    return value
+
+
+def at_least_one(ctx: typer.Context, param: typer.CallbackParam, value):
+    """An integer of at least 1 (or `None`)."""
+    if _skip(ctx) or value is None:
+        return value
+    if value < 1:
+        _fail(f"{_option(param)} {value}: must be at least 1")
+    return value
+
+
+def parse_assignment_text(option: str, text: str, *, need_value: bool):
+    """`NAME` or `NAME=VALUE` of `option`: `(name, float or None)`; one `error:` line
+    for an empty name, a missing `=VALUE` where one is needed, or a VALUE that is not
+    a finite number."""
+    name, sep, value = text.partition("=")
+    name = name.strip()
+    if not name:
+        _fail(f"{option} {text!r}: no name before '='")
+    if not sep:
+        if need_value:
+            _fail(f"{option} {text}: expected NAME=VALUE")
+        return name, None
+    try:
+        number = float(value)
+    except ValueError:
+        _fail(f"{option} {text}: {value.strip()!r} is not a number")
+    if not math.isfinite(number):
+        _fail(f"{option} {text}: {value.strip()!r} is not a finite number")
+    return name, number
+
+
+def assignments(ctx: typer.Context, param: typer.CallbackParam, value):
+    """Repeatable `NAME=VALUE` (VALUE finite), each NAME once (`--hidden`)."""
+    return _assignments(ctx, param, value, need_value=True)
+
+
+def holds(ctx: typer.Context, param: typer.CallbackParam, value):
+    """Repeatable `NAME` or `NAME=VALUE` (VALUE finite), each NAME once (`--fix`,
+    `--process-noise`)."""
+    return _assignments(ctx, param, value, need_value=False)
+
+
+def _assignments(ctx, param, value, *, need_value):
+    if _skip(ctx) or not value:
+        return value
+    texts = [value] if isinstance(value, str) else list(value)
+    seen: dict[str, str] = {}
+    for text in texts:
+        name, _ = parse_assignment_text(_option(param), text, need_value=need_value)
+        if name in seen:
+            _fail(
+                f"{_option(param)} is given twice for {name!r} ({seen[name]} and "
+                f"{text}); give it once"
+            )
+        seen[name] = text
+    return value
+
+
+def model_or_vehicle(ctx: typer.Context, param: typer.CallbackParam, value):
+    """`--model FILE` and `--vehicle NAME` name the same thing: refuse both."""
+    if _skip(ctx) or value is None:
+        return value
+    other = "vehicle" if param.name == "model" else "model"
+    given = ctx.params.get(other)
+    on_line = [
+        getattr(ctx.get_parameter_source(name), "name", None) == "COMMANDLINE"
+        for name in (param.name, other)
+    ]
+    if all(on_line) and given is not None:
+        model, vehicle = (value, given) if param.name == "model" else (given, value)
+        _fail(
+            f"--model {model} and --vehicle {vehicle} both say what to fit; give one "
+            "(a model file defines its own vehicle or model)"
+        )
+    return value
 
 
 def _check_out(out: pathlib.Path | None, kind: str) -> None:
@@ -52,23 +189,51 @@ def _check_units(units: str) -> None:
 # Options shared by the `estimate` commands.
 UnitsOption = Annotated[str, typer.Option(help="deg or rad")]
 OutOption = Annotated[pathlib.Path | None, typer.Option(help="Folder for CSV and PNG")]
-JsonOption = Annotated[bool, typer.Option("--json", help="Print one JSON object")]
+
+
+def json_mode(ctx: typer.Context, param: typer.CallbackParam, value: bool):
+    """With `--json`, stdout carries the one JSON object and nothing else: whatever
+    else is printed while the command runs (a model file's prints, progress) goes to
+    stderr until the command ends."""
+    if _skip(ctx) or not value:
+        return value
+    _JSON_STDOUT.append(sys.stdout)
+    sys.stdout = sys.stderr
+
+    def restore():
+        sys.stdout = _JSON_STDOUT.pop()
+
+    ctx.call_on_close(restore)
+    return value
+
+
+_JSON_STDOUT: list = []
+JsonOption = Annotated[
+    bool,
+    typer.Option("--json", help="Print one JSON object", callback=json_mode),
+]
 ResampleOption = Annotated[bool, typer.Option(help="Resample a non-uniform log")]
 VehicleOption = Annotated[
     str,
-    typer.Option(help="Built-in vehicle (see `diffpegasus vehicles`) or a FILE.py"),
+    typer.Option(
+        help="Built-in vehicle (see `diffpegasus vehicles`) or a FILE.py",
+        callback=model_or_vehicle,
+    ),
 ]
 EstimateVehicleOption = Annotated[
     str,
     typer.Option(
         "--vehicle",
         help="Vehicle whose reference area and length scale the coefficients "
-        "(built-in name or a FILE.py defining `vehicle`); default: the log's sidecar",
+        "(built-in name or a FILE.py defining `vehicle`)",
     ),
 ]
 ModelOption = Annotated[
     pathlib.Path | None,
-    typer.Option(help="Model-definition file (Python; see the README)"),
+    typer.Option(
+        help="Model-definition file (Python; see the README)",
+        callback=model_or_vehicle,
+    ),
 ]
 ColumnsOption = Annotated[
     pathlib.Path | None,
@@ -76,19 +241,45 @@ ColumnsOption = Annotated[
 ]
 FixOption = Annotated[
     list[str] | None,
-    typer.Option(help="Hold a parameter: NAME=VALUE, or NAME at its start value"),
+    typer.Option(
+        help="Hold a parameter: NAME=VALUE, or NAME at its start value",
+        callback=holds,
+    ),
 ]
 
 
-# Options shared by the discrepancy commands.
+# Tuning options of a vehicle's model (its registry entry's fields; a vehicle
+# without the field refuses the option).
 KnotsOption = Annotated[
-    int, typer.Option(help="Mach spline functions per coefficient term")
+    int | None,
+    typer.Option(
+        help="Mach spline functions per coefficient term (pegasus: 6)",
+        callback=at_least_one,
+    ),
 ]
 AlphaOrderOption = Annotated[
-    int, typer.Option(help="Highest power of alpha in the baseline coefficients")
+    int | None,
+    typer.Option(
+        help="Highest power of alpha in the baseline coefficients (pegasus: 3)",
+        callback=at_least_one,
+    ),
 ]
-RateOption = Annotated[float, typer.Option(help="Model sample rate, Hz")]
-NodeOption = Annotated[float, typer.Option(help="Shooting nodes every S s")]
+RateOption = Annotated[
+    float | None,
+    typer.Option(help="Model sample rate, Hz (pegasus: 50)", callback=positive),
+]
+NodeOption = Annotated[
+    float | None,
+    typer.Option(help="Shooting nodes every S s (pegasus: 1)", callback=positive),
+]
+MaxIterOption = Annotated[
+    int | None,
+    typer.Option(
+        help="Iteration bound of the fit (default: iterate until the cost settles, "
+        "up to 500; a fit that stops short says why)",
+        callback=at_least_one,
+    ),
+]
 AddOption = Annotated[
     list[str] | None,
     typer.Option("--add", help="Effect to estimate (repeatable), e.g. pitch_damping"),
@@ -96,8 +287,9 @@ AddOption = Annotated[
 MethodOption = Annotated[
     str,
     typer.Option(
-        help="oem (output error) or fem (filter error: process noise such as "
-        "turbulence, estimated with the parameters; --vehicle/--model only)"
+        help="oem (output error), fem (filter error: process noise such as "
+        "turbulence, estimated with the parameters; --vehicle/--model only), eqe "
+        "(equation error, `fit` only) or another registered estimator"
     ),
 ]
 ProcessNoiseOption = Annotated[
@@ -106,21 +298,22 @@ ProcessNoiseOption = Annotated[
         help="--method fem: a state with process noise, STATE or STATE=F0 (start "
         "intensity, state units/sqrt(s)), repeatable; default the vehicle's or model "
         "file's process_noise (hfb320: V, alpha, theta, q from FVSysID's starts), "
-        "else every state"
+        "else every state",
+        callback=holds,
     ),
 ]
 
 
-def _settings(knots, alpha_order, rate, node_interval):
-    from .._diagnose import Settings
+def _entry(vehicle: str, model=None, **tuning):
+    """The registry entry of `--model FILE` or `--vehicle NAME|FILE`, with the
+    tuning options given (one error line for an option the vehicle does not
+    take)."""
+    from .._registry import vehicle_entry
 
-    if knots < 4:
-        _fail(f"--knots must be at least 4, got {knots}")
-    if alpha_order < 1:
-        _fail(f"--alpha-order must be at least 1, got {alpha_order}")
-    return Settings(
-        knots=knots, alpha_order=alpha_order, rate=rate, node_interval=node_interval
-    )
+    try:
+        return vehicle_entry(str(model or vehicle), **tuning)
+    except LogError as e:
+        _fail(str(e))
 
 
 def _read(log: pathlib.Path, resample: bool):
@@ -129,15 +322,6 @@ def _read(log: pathlib.Path, resample: bool):
     try:
         return read_log(log, resample=resample)
     except LogError as e:
-        _fail(str(e))
-
-
-def _check_addable(names, settings):
-    from .._diagnose._workflow import check_addable
-
-    try:
-        check_addable(names, settings)
-    except ValueError as e:
         _fail(str(e))
 
 
@@ -156,7 +340,8 @@ def _finite(x):
 
 
 def _json_out(result):
-    typer.echo(json.dumps(_finite(result), allow_nan=False, default=float))
+    stream = _JSON_STDOUT[-1] if _JSON_STDOUT else sys.stdout
+    typer.echo(json.dumps(_finite(result), allow_nan=False, default=float), file=stream)
 
 
 def _global_fit_failed(result: dict, what: str) -> str | None:
@@ -180,7 +365,9 @@ def _banner(report: pathlib.Path, message: str) -> None:
     estimates."""
     try:
         if report.exists():
-            report.write_text(f"> **{message}**\n\n{report.read_text()}")
+            from .._files import write_text
+
+            write_text(report, f"> **{message}**\n\n{report.read_text()}")
     except OSError as e:
         _fail(_os_error(e))
 
@@ -218,29 +405,17 @@ def out_problem(path: pathlib.Path, kind: str) -> str | None:
     return None
 
 
-def vehicle_geometry(name_or_file: str) -> tuple[float, float] | None:
-    """Reference area (m^2) and length (m) of a vehicle: `None` for Pegasus (the
-    log's own sidecar, else Pegasus's values, as always)."""
-    if name_or_file == "pegasus":
-        return None
-    if name_or_file == "hfb320":
-        from .._vehicle._hfb320 import HFB320
-
-        vehicle = HFB320
-    else:
-        from .._vehicle._registry import vehicle_spec
-
-        try:
-            vehicle = vehicle_spec(name_or_file).vehicle
-        except LogError as e:
-            _fail(str(e))
-        if vehicle is None:
-            _fail(
-                f"--vehicle {name_or_file}: estimate needs the vehicle's reference "
-                "area and length, i.e. a file defining `vehicle = dp.FlightVehicle"
-                "(...)`; a bare `model` has no geometry"
-            )
-    return float(vehicle.geometry.s_ref), float(vehicle.geometry.c_ref)
+def vehicle_geometry(name_or_file: str) -> tuple[float, float]:
+    """Reference area (m^2) and length (m) of a vehicle: they belong to the
+    vehicle (its registry entry), not to a log."""
+    geometry = _entry(name_or_file).geometry()
+    if geometry is None:
+        _fail(
+            f"--vehicle {name_or_file}: estimate needs the vehicle's reference "
+            "area and length, i.e. a file defining `vehicle = dp.FlightVehicle"
+            "(...)`; a bare `model` has no geometry"
+        )
+    return geometry
 
 
 def with_vehicle(flight, name_or_file: str):
@@ -248,10 +423,7 @@ def with_vehicle(flight, name_or_file: str):
     it differs from the log's sidecar."""
     import dataclasses
 
-    geometry = vehicle_geometry(name_or_file)
-    if geometry is None:
-        return flight
-    s_ref, c_ref = geometry
+    s_ref, c_ref = vehicle_geometry(name_or_file)
     if "S_ref" in flight.metadata and (
         abs(flight.s_ref - s_ref) > 1e-9 * s_ref
         or abs(flight.c_ref - c_ref) > 1e-9 * c_ref
@@ -263,3 +435,15 @@ def with_vehicle(flight, name_or_file: str):
         )
     meta = {**flight.metadata, "S_ref": s_ref, "c_ref": c_ref}
     return dataclasses.replace(flight, metadata=meta)
+
+
+def _log_arg(log: pathlib.Path, resample: bool):
+    """The log as the entry reads it: a path, or a resampled [`FlightLog`][]."""
+    if not resample:
+        return log
+    from .._log._format import read_log
+
+    try:
+        return read_log(log, resample=True)
+    except LogError as e:
+        _fail(str(e))

@@ -1,4 +1,5 @@
-"""`compare` and `diagnose`: where a fit fails and which missing term explains it."""
+"""`compare` and `diagnose`: where a fit fails and which missing term explains it,
+for any vehicle (its registry entry builds the model and the records)."""
 
 import pathlib
 from typing import Annotated
@@ -8,14 +9,13 @@ import typer
 from .._errors import LogError
 from ._common import (
     _banner,
-    _check_addable,
     _check_out,
+    _entry,
     _fail,
     _global_fit_failed,
     _json_out,
+    _log_arg,
     _os_error,
-    _read,
-    _settings,
     AddOption,
     AlphaOrderOption,
     app,
@@ -24,6 +24,7 @@ from ._common import (
     FixOption,
     JsonOption,
     KnotsOption,
+    MaxIterOption,
     MethodOption,
     ModelOption,
     NodeOption,
@@ -42,10 +43,10 @@ def compare(
     model: ModelOption = None,
     columns: ColumnsOption = None,
     fix: FixOption = None,
-    knots: KnotsOption = 6,
-    alpha_order: AlphaOrderOption = 3,
-    rate: RateOption = 50.0,
-    node_interval: NodeOption = 1.0,
+    knots: KnotsOption = None,
+    alpha_order: AlphaOrderOption = None,
+    rate: RateOption = None,
+    node_interval: NodeOption = None,
     out: Annotated[
         pathlib.Path | None, typer.Option(help="Folder for the report")
     ] = None,
@@ -53,14 +54,23 @@ def compare(
     resample: ResampleOption = False,
     method: MethodOption = "oem",
     process_noise: ProcessNoiseOption = None,
+    max_iter: MaxIterOption = None,
 ):
-    """Fit the model by output error (or, --vehicle/--model with --method fem, by
-    filter error: process noise such as turbulence) and show where it fails:
-    per-channel metrics (of the residuals, or of the filter's innovations),
-    whiteness, misfit by flight regime, fitted derivatives with standard errors."""
-    if model is not None or vehicle != "pegasus":
+    """Fit the vehicle's model by output error and show where it fails:
+    per-channel metrics, whiteness, misfit by flight regime, fitted derivatives
+    with standard errors (or, with --method fem, by filter error: process noise
+    such as turbulence, with per-channel metrics of the filter's innovations)."""
+    entry = _entry(
+        vehicle,
+        model,
+        knots=knots,
+        alpha_order=alpha_order,
+        rate=rate,
+        node_interval=node_interval,
+    )
+    if method != "oem" or process_noise or columns is not None or fix:
         _fit_model(
-            model or vehicle,
+            entry,
             [log],
             columns,
             fix,
@@ -72,21 +82,17 @@ def compare(
             show_channels=True,
             method=method,
             process_noise=tuple(process_noise or ()),
+            max_iter=max_iter,
         )
         return
-    if method != "oem" or process_noise:
-        _fail(
-            "--method fem goes with --vehicle NAME or --model FILE: the Pegasus "
-            "workflow's multiple-shooting spline baseline has no filter-error fit"
-        )
-    from .._diagnose import run_compare
+    from .._report import _runs
 
-    settings = _settings(knots, alpha_order, rate, node_interval)
     _check_out(out, "folder")
-    flight = _read(log, resample)
     try:
-        result, _ = run_compare(flight, settings, out)
-    except ValueError as e:
+        result, _ = _runs.run_compare(
+            entry, _log_arg(log, resample), out, max_iter=max_iter
+        )
+    except LogError as e:
         _fail(str(e))
     except OSError as e:
         _fail(_os_error(e))
@@ -105,7 +111,10 @@ def compare(
 
 
 def _print_compare(result):
-    typer.echo(f"output-error cost det(R) = {result['cost']:.4g}")
+    typer.echo(
+        f"output-error cost det(R) = {result['cost']:.4g} ({result['iterations']} "
+        "iterations)"
+    )
     typer.echo(
         f"{'channel':>8s} {'rms':>10s} {'TIC':>7s} {'R^2':>8s} {'rms/noise':>9s} {'white p':>8s}"
     )
@@ -121,48 +130,41 @@ def _print_compare(result):
         )
 
 
-def _diagnose_model(which, log, columns, fix, add, as_json, process_noise=()):
-    from .._vehicle import vehicle_spec
-    from ._fem import diagnosis_states
-    from ._runners import run_model_diagnose
+def _print_ranking(report):
+    from .._diagnose._rule import ranking_lines
 
-    try:
-        spec = vehicle_spec(str(which), add=add, candidates=True)
-        report = run_model_diagnose(
-            spec,
-            [log],
-            columns=columns,
-            holds=fix or (),
-            process_noise=diagnosis_states(process_noise, spec),
-        )
-    except LogError as e:
-        _fail(str(e))
-    if as_json:
-        _json_out(report)
-    else:
-        for r in report["ranking"]:
+    typer.echo(report["message"])
+    if isinstance(report.get("rule"), dict):
+        typer.echo(f"decision rule: {report['rule']['text']}")
+    effects = [r for r in report["ranking"] if r["effect"] != "process_noise"]
+    for r in report["ranking"]:
+        if r["effect"] == "process_noise":
             mark = "*" if r["significant"] else " "
-            if r["effect"] == "process_noise":
-                typer.echo(
-                    f"{mark} {'process_noise':24s} statistic {r['statistic']:8.1f}  "
-                    f"p = {r['p_value']:.2g}  cost fall "
-                    f"{100 * r['cost_reduction']:5.1f}%  (likelihood ratio, "
-                    f"{r['dof']} dof) F = "
-                    + ", ".join(f"{k} {v:.3g}" for k, v in r["intensities"].items())
-                )
-                continue
             typer.echo(
-                f"{mark} {r['effect']:24s} statistic {r['statistic']:8.1f}  "
-                f"p = {r['p_value']:.2g}  cost fall {100 * r['cost_reduction']:5.1f}%  "
-                f"estimate {r['estimate']:.4g} +/- {r['stderr']:.2g}"
+                f"{mark} {'process_noise':24s} statistic {r['statistic']:8.1f}  "
+                f"p = {r['p_value']:.2g}  cost fall "
+                f"{100 * r['cost_reduction']:5.1f}%  (likelihood ratio, "
+                f"{r['dof']} dof) F = "
+                + ", ".join(f"{k} {v:.3g}" for k, v in r["intensities"].items())
             )
-        typer.echo(report["message"])
-    # an output-error fit stopped by turbulence is no failure when the filter-error
-    # fit explains the record
-    explained = report.get("filter_error", {}).get("converged", False)
-    if not report["fit"]["converged"] and not explained:
-        typer.echo(f"error: {log}: {report['message']}", err=True)
-        raise typer.Exit(code=FIT_FAILED)
+    typer.echo("\n".join(ranking_lines(effects, top=len(effects))))
+
+
+def _write_diagnosis(report: dict, out: pathlib.Path, name: str) -> None:
+    from .._report._discrepancy_plots import plot_ranking
+    from .._report._markdown import ranking_table, write_report
+
+    out.mkdir(parents=True, exist_ok=True)
+    plot_ranking(report, out / "diagnose.png")
+    write_report(
+        out / "diagnose.md",
+        f"diagnose: {name}",
+        [
+            ("Verdict", report["message"]),
+            ("Ranking", ranking_table(report) + "\n\n![ranking](diagnose.png)"),
+        ],
+    )
+    typer.echo(f"wrote {out / 'diagnose.md'} and diagnose.png", err=True)
 
 
 @app.command()
@@ -173,10 +175,10 @@ def diagnose(
     columns: ColumnsOption = None,
     fix: FixOption = None,
     add: AddOption = None,
-    knots: KnotsOption = 6,
-    alpha_order: AlphaOrderOption = 3,
-    rate: RateOption = 50.0,
-    node_interval: NodeOption = 1.0,
+    knots: KnotsOption = None,
+    alpha_order: AlphaOrderOption = None,
+    rate: RateOption = None,
+    node_interval: NodeOption = None,
     out: Annotated[
         pathlib.Path | None, typer.Option(help="Folder for the report")
     ] = None,
@@ -185,73 +187,60 @@ def diagnose(
     process_noise: Annotated[
         list[str] | None,
         typer.Option(
-            help="--vehicle/--model: score process noise (turbulence) on this state "
-            "too (repeatable; default the vehicle's or model file's process_noise, "
-            "hfb320: V, alpha, theta, q; `none` skips it). Not for the Pegasus "
-            "workflow (its 72-parameter spline baseline is fitted by multiple "
-            "shooting, which the filter-error method does not take)"
+            help="Score process noise (turbulence) on this state too (repeatable; "
+            "default the vehicle's or model file's process_noise, hfb320: V, "
+            "alpha, theta, q; `none` skips it)"
         ),
     ] = None,
+    max_iter: MaxIterOption = None,
 ):
-    """Rank the library's effects by how much of the misfit each would explain
-    (score test with exact Jacobians); say when none is significant. With
-    --vehicle/--model and process noise declared, process noise (turbulence) is a
-    candidate too: the filter-error fit's likelihood ratio, and every effect tested
-    again at that fit (a term missing even under process noise ranks first)."""
-    if model is not None or vehicle != "pegasus":
-        _diagnose_model(
-            model or vehicle,
-            log,
-            columns,
-            fix,
-            tuple(add or ()),
-            as_json,
-            tuple(process_noise or ()),
-        )
-        return
-    if process_noise:
-        _fail(
-            "--process-noise goes with --vehicle NAME or --model FILE: the Pegasus "
-            "workflow's multiple-shooting spline baseline has no filter-error fit"
-        )
-    from .._diagnose import run_diagnose
+    """Rank the vehicle's candidate effects by how much of the misfit each would
+    explain (score test with exact Jacobians); say when none is significant.
+    With process noise declared, process noise (turbulence) is a candidate too:
+    the filter-error fit's likelihood ratio, and every effect tested again at
+    that fit (a term missing even under process noise ranks first)."""
+    from ._fem import diagnosis_states, process_noise_diagnosis
+    from ._runners import run_model_diagnose
 
-    add = tuple(add or ())
-    settings = _settings(knots, alpha_order, rate, node_interval)
-    _check_addable(add, settings)
+    entry = _entry(
+        vehicle,
+        model,
+        knots=knots,
+        alpha_order=alpha_order,
+        rate=rate,
+        node_interval=node_interval,
+    )
     _check_out(out, "folder")
-    flight = _read(log, resample)
     try:
-        result, base = run_diagnose(flight, settings, out, add)
-    except ValueError as e:
+        spec, records = entry.problem(
+            [_log_arg(log, resample)],
+            columns=columns,
+            add=tuple(add or ()),
+            candidates=True,
+        )
+        report = run_model_diagnose(
+            spec,
+            [log],
+            holds=fix or (),
+            process_noise=diagnosis_states(tuple(process_noise or ()), spec),
+            records=records,
+            max_iter=max_iter,
+            score_process_noise=process_noise_diagnosis,
+        )
+        report["model_effects"] = list(add or ())
+        if out is not None and report["ranking"]:
+            _write_diagnosis(report, out, log.name)
+    except LogError as e:
         _fail(str(e))
     except OSError as e:
         _fail(_os_error(e))
-    if not bool(base.result.converged):
-        failed = (
-            f"the output-error fit of the model did not converge after "
-            f"{int(base.result.iterations)} iterations, so the ranking of effects "
-            "measures nothing: none is reported"
-        )
-        result.update(message=failed, ranking=[], significant=[])
-        if out is not None:
-            _banner(out / "diagnose.md", failed)
-        if as_json:
-            _json_out(result)
-        typer.echo(f"error: {log}: {failed}", err=True)
-        raise typer.Exit(code=FIT_FAILED)
     if as_json:
-        _json_out(result)
-        return
-    typer.echo(result["message"])
-    typer.echo(
-        f"{'effect':>24s} {'statistic':>9s} {'p-value':>9s} {'cost fall':>9s} "
-        f"{'estimate':>12s} {'std err':>9s}"
-    )
-    for r in result["ranking"][:8]:
-        mark = " *" if r["significant"] else ""
-        typer.echo(
-            f"{r['effect']:>24s} {r['statistic']:9.1f} {r['p_value']:9.2g} "
-            f"{100 * r['cost_reduction']:8.1f}% {r['estimate']:12.4g} "
-            f"{r['stderr']:9.2g}{mark}"
-        )
+        _json_out(report)
+    else:
+        _print_ranking(report)
+    # an output-error fit stopped by turbulence is no failure when the filter-error
+    # fit explains the record
+    explained = report.get("filter_error", {}).get("converged", False)
+    if not report["fit"]["converged"] and not explained:
+        typer.echo(f"error: {log}: {report['message']}", err=True)
+        raise typer.Exit(code=FIT_FAILED)

@@ -1,6 +1,5 @@
 """`estimate lse|oem|nn`: per-window derivatives from a flight log."""
 
-import json
 import pathlib
 from typing import Annotated
 
@@ -11,13 +10,16 @@ from ._common import (
     _check_out,
     _check_units,
     _fail,
-    _finite,
+    _json_out,
     _os_error,
+    at_least_one,
     estimate_app,
     EstimateVehicleOption,
+    finite,
     FIT_FAILED,
     JsonOption,
     OutOption,
+    positive,
     ResampleOption,
     UnitsOption,
     with_vehicle,
@@ -85,7 +87,7 @@ def _emit_estimates(est, out: pathlib.Path | None, as_json: bool, units: str) ->
             _fail(_os_error(e))
         typer.echo(f"wrote {out / f'{est.method}_estimates.csv'} and .png", err=True)
     if as_json:
-        typer.echo(json.dumps(_finite(d), allow_nan=False))
+        _json_out(d)
     else:
         _print_estimates(est, d, units, failed)
     if level != "ok":
@@ -114,11 +116,15 @@ def _print_estimates(est, d: dict, units: str, failed: bool) -> None:
 def estimate_lse_command(
     log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
     vehicle: EstimateVehicleOption = "pegasus",
-    window: Annotated[float, typer.Option(help="Window length, s")] = 0.5,
+    window: Annotated[
+        float, typer.Option(help="Window length, s", callback=positive)
+    ] = 0.5,
     intercept: Annotated[
         bool, typer.Option(help="Also estimate CL0, CD0, CM0 per window")
     ] = False,
-    tol: Annotated[float, typer.Option(help="Rank tolerance for A and A^T A")] = 1e-2,
+    tol: Annotated[
+        float, typer.Option(help="Rank tolerance for A and A^T A", callback=positive)
+    ] = 1e-2,
     units: UnitsOption = "deg",
     out: OutOption = None,
     as_json: JsonOption = False,
@@ -143,12 +149,18 @@ def estimate_oem_command(
     log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
     vehicle: EstimateVehicleOption = "pegasus",
     shooting: Annotated[str, typer.Option(help="single or multiple")] = "multiple",
-    window: Annotated[float, typer.Option(help="Parameter window, s")] = 0.5,
+    window: Annotated[
+        float, typer.Option(help="Parameter window, s", callback=positive)
+    ] = 0.5,
     node_interval: Annotated[
-        float, typer.Option(help="Shooting nodes every S s")
+        float, typer.Option(help="Shooting nodes every S s", callback=positive)
     ] = 2.0,
     decimate: Annotated[
-        int, typer.Option(help="Fit at 1/n of the log rate (means of n samples)")
+        int,
+        typer.Option(
+            help="Fit at 1/n of the log rate (means of n samples)",
+            callback=at_least_one,
+        ),
     ] = 5,
     start: Annotated[
         str, typer.Option(help="Starting values: lse, database or truth10")
@@ -170,7 +182,8 @@ def estimate_oem_command(
     min_qbar: Annotated[
         float,
         typer.Option(
-            help="Windows below this mean dynamic pressure (Pa) are not fitted"
+            help="Windows below this mean dynamic pressure (Pa) are not fitted",
+            callback=finite,
         ),
     ] = 2000.0,
     units: UnitsOption = "deg",
@@ -251,7 +264,9 @@ def estimate_nn_command(
         pathlib.Path | None, typer.Option(help="Where to save a newly trained network")
     ] = None,
     derivatives: Annotated[str, typer.Option(help="lse or central")] = "lse",
-    window: Annotated[float, typer.Option(help="Window length, s")] = 0.5,
+    window: Annotated[
+        float, typer.Option(help="Window length, s", callback=positive)
+    ] = 0.5,
     units: UnitsOption = "deg",
     out: OutOption = None,
     as_json: JsonOption = False,

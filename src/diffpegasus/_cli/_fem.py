@@ -6,7 +6,7 @@ import sys
 import numpy as np
 
 from .._errors import LogError
-from .._estimate._filter_error import FilterErrorFit, fit_filter_error
+from .._estimate._filter_error import filter_error, FilterErrorFit
 from .._estimate._fit import SingleShooting
 from .._estimate._modelfile import ModelSpec
 from ._runners import (
@@ -19,29 +19,31 @@ from ._runners import (
 )
 
 
-METHODS = ("oem", "fem")
-
-
 def _say(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
 def check_method(method: str) -> str:
-    if method not in METHODS:
-        raise LogError(
-            f"--method must be oem (output error) or fem (filter error), got {method!r}"
-        )
+    """`method` if the estimator registry has it, else a `LogError` listing the
+    names."""
+    from .._estimate._methods import ESTIMATORS
+
+    if method not in ESTIMATORS:
+        names = ", ".join(ESTIMATORS)
+        raise LogError(f"--method must be one of {names}, got {method!r}")
     return method
 
 
 def parse_process_noise(texts, spec: ModelSpec):
     """`--process-noise STATE` / `STATE=F0` (repeatable) or, without any, the
-    spec's `process_noise` (a model file's, or the vehicle's: the HFB-320's is
-    FVSysID's four state equations and start intensities), else every state."""
+    states of the spec's `process_noise` (a model file's, or the vehicle's: the
+    HFB-320's four state equations), else every state. Without `=F0` the start
+    intensities are scaled to an output-error fit's residuals (a spec's book start
+    values can be far too large for a record the model already fits)."""
     model = spec.model
     if not texts:
         if spec.process_noise is not None:
-            return spec.process_noise
+            return tuple(spec.process_noise)
         return tuple(model.states)
     starts, names = {}, []
     for text in texts:
@@ -155,12 +157,14 @@ def run_model_fem(
     holds=(),
     process_noise=(),
     channels: bool = True,
+    records=None,
+    max_iter: int | None = None,
 ) -> dict:
     """Fit `spec`'s model to `files` by the filter-error method (process noise on
     `--process-noise` states, else the spec's), as the library's
-    `fit_filter_error(model, records, process_noise=..., full_R=False, rtol=1e-6,
-    max_iter=60, throw=False)`; the JSON-ready report, with per-channel metrics of
-    the innovations when `channels`."""
+    `estimate(model, records, FilterError(process_noise=...), max_iter=max_iter,
+    throw=False)`; the JSON-ready report, with per-channel metrics of the
+    innovations when `channels`."""
     spec = parse_holds(list(holds), spec)
     noise = parse_process_noise(process_noise, spec)
     if (
@@ -174,20 +178,22 @@ def run_model_fem(
             "model file asks for biases, estimated initial states or multiple "
             "shooting (use --method oem)"
         )
-    records = load_records(spec, files, columns)
+    if records is None:
+        records = load_records(spec, files, columns)
     _say(
         f"fitting {spec.name} ({sum(spec.model.free)} free parameters, process noise "
         f"on {', '.join(noise)}) to {len(records)} record(s) by filter error"
     )
     try:
-        result = fit_filter_error(
+        result = filter_error(
             spec.model,
             records,
             process_noise=noise,
             full_R=False,
             rtol=1e-6,
-            max_iter=60,
+            max_iter=max_iter,
             throw=False,
+            progress=sys.stderr.isatty(),
         )
     except ValueError as e:
         raise LogError(str(e)) from None

@@ -9,35 +9,35 @@ import typer
 from .._errors import LogError
 from ._common import (
     _banner,
-    _check_addable,
     _check_out,
+    _entry,
     _fail,
     _global_fit_failed,
     _json_out,
     _os_error,
-    _read,
-    _settings,
     AddOption,
     AlphaOrderOption,
     app,
+    assignments,
     ColumnsOption,
     FIT_FAILED,
     FixOption,
     JsonOption,
     KnotsOption,
+    MaxIterOption,
     MethodOption,
     ModelOption,
     NodeOption,
+    positive,
     ProcessNoiseOption,
     RateOption,
     ResampleOption,
     VehicleOption,
 )
-from ._simulate import _simulate_to_log
 
 
 def _fit_model(
-    which,
+    entry,
     logs,
     columns,
     fix,
@@ -50,9 +50,11 @@ def _fit_model(
     show_channels=False,
     method="oem",
     process_noise=(),
+    max_iter=None,
 ):
+    """Fit `entry`'s model (a vehicle's registry entry) to `logs` (one manoeuvre
+    each) by output or filter error; print or `--json` the report."""
     from .._estimate import MultipleShooting
-    from .._vehicle import vehicle_spec
     from ._fem import check_method, format_fem_table, run_model_fem
     from ._runners import format_channels, format_table, run_model_fit
 
@@ -74,6 +76,13 @@ def _fit_model(
             )
     elif process_noise:
         _fail("--process-noise goes with --method fem")
+    if method not in ("oem", "fem") and (
+        bias or initial_state or shooting_interval is not None or out is not None
+    ):
+        _fail(
+            f"--method {method} runs with its default settings: --bias, "
+            "--initial-state, --shooting-interval and --out go with --method oem"
+        )
 
     if initial_state not in (None, "fixed", "estimated"):
         _fail(f"--initial-state must be fixed or estimated, got {initial_state!r}")
@@ -83,17 +92,20 @@ def _fit_model(
     try:
         # with --add, compose every candidate (the others held at zero, left out of
         # the report): the same program as `diagnose` of this vehicle compiled
-        spec = vehicle_spec(
-            str(which), add=add, candidates=bool(add), manoeuvres=len(logs)
+        spec, records = entry.problem(
+            logs, columns=columns, add=tuple(add), candidates=bool(add)
         )
         if method == "fem":
             report = run_model_fem(
                 spec,
                 logs,
-                columns=columns,
                 holds=fix or (),
                 process_noise=process_noise,
+                records=records,
+                max_iter=max_iter,
             )
+        elif method != "oem":
+            report = _run_registered(spec, logs, columns, fix or (), method, max_iter)
         else:
             report = run_model_fit(
                 spec,
@@ -106,6 +118,8 @@ def _fit_model(
                 if shooting_interval is None
                 else MultipleShooting(interval=shooting_interval),
                 out=out,
+                records=records,
+                max_iter=max_iter,
             )
     except LogError as e:
         _fail(str(e))
@@ -114,9 +128,12 @@ def _fit_model(
     if as_json:
         _json_out(report)
     else:
-        typer.echo(
-            format_fem_table(report) if method == "fem" else format_table(report)
-        )
+        if method == "fem":
+            typer.echo(format_fem_table(report))
+        elif method == "oem":
+            typer.echo(format_table(report))
+        else:
+            typer.echo(_format_registered(report))
         if show_channels and "channels" in report:
             typer.echo(format_channels(report["channels"]))
     if not report["converged"]:
@@ -124,15 +141,87 @@ def _fit_model(
         raise typer.Exit(code=FIT_FAILED)
 
 
+def _run_registered(spec, logs, columns, holds, method, max_iter) -> dict:
+    """Any registered estimator with its default settings: the report of the
+    fields every result has ([`AbstractFit`][])."""
+    import sys
+
+    import numpy as np
+
+    from .._estimate._entry import estimate
+    from .._estimate._methods import ESTIMATORS
+    from ._runners import load_records, num, parse_holds
+
+    spec = parse_holds(list(holds), spec)
+    records = load_records(spec, logs, columns)
+    try:
+        result = estimate(
+            spec.model,
+            records,
+            ESTIMATORS[method](),
+            max_iter=max_iter,
+            throw=False,
+            progress=sys.stderr.isatty(),
+        )
+    except ValueError as e:
+        raise LogError(str(e)) from None
+    ok = result.converged
+    names = spec.model.parameters
+    hidden = set(spec.candidates)
+    shown = [i for i, n in enumerate(names) if n not in hidden]
+    return {
+        "method": method,
+        "converged": ok,
+        "message": result.message,
+        "cost": num(result.cost),
+        "iterations": int(result.iterations),
+        "estimates": {names[i]: num(result.params[i]) if ok else None for i in shown},
+        "stderr": {
+            names[i]: num(result.stderr_corrected[i]) if ok and result.free[i] else None
+            for i in shown
+        },
+        "stderr_crb": {
+            names[i]: num(result.stderr[i]) if ok and result.free[i] else None
+            for i in shown
+        },
+        "fixed": [names[i] for i in shown if not result.free[i]],
+        "high_correlations": [
+            {"a": a, "b": b, "correlation": c}
+            for a, b, c in (result.high_correlations() if ok else [])
+            if a not in hidden and b not in hidden and np.isfinite(c)
+        ],
+    }
+
+
+def _format_registered(report: dict) -> str:
+    lines = [f"{'parameter':>12s} {'estimate':>14s} {'std. error':>12s}"]
+    for name, est in report["estimates"].items():
+        sd = report["stderr"][name]
+        if est is None:
+            lines.append(f"{name:>12s} {'-':>14s}")
+        elif sd is None:
+            lines.append(f"{name:>12s} {est:14.6g} {'(held)':>12s}")
+        else:
+            lines.append(f"{name:>12s} {est:14.6g} {sd:12.4g}")
+    lines.append(
+        f"{report['method']}: cost {report['cost']:.6e}   iterations: "
+        f"{report['iterations']}"
+    )
+    for c in report["high_correlations"]:
+        lines.append(f"correlation {c['a']} / {c['b']}: {c['correlation']:+.3f}")
+    return "\n".join(lines)
+
+
 @app.command()
 def vehicles(as_json: JsonOption = False):
     """List the built-in vehicles (use with --vehicle)."""
-    from .._vehicle import VEHICLES
+    from .._registry import vehicle_descriptions
 
+    descriptions = vehicle_descriptions()
     if as_json:
-        _json_out(VEHICLES)
+        _json_out(descriptions)
         return
-    for name, text in VEHICLES.items():
+    for name, text in descriptions.items():
         typer.echo(f"{name:15s} {text}")
 
 
@@ -155,13 +244,15 @@ def fit(
     ] = None,
     shooting_interval: Annotated[
         float | None,
-        typer.Option(help="Multiple shooting with a node every this many s"),
+        typer.Option(
+            help="Multiple shooting with a node every this many s", callback=positive
+        ),
     ] = None,
     add: AddOption = None,
-    knots: KnotsOption = 6,
-    alpha_order: AlphaOrderOption = 3,
-    rate: RateOption = 50.0,
-    node_interval: NodeOption = 1.0,
+    knots: KnotsOption = None,
+    alpha_order: AlphaOrderOption = None,
+    rate: RateOption = None,
+    node_interval: NodeOption = None,
     out: Annotated[
         pathlib.Path | None, typer.Option(help="Folder for the report")
     ] = None,
@@ -169,16 +260,36 @@ def fit(
     resample: ResampleOption = False,
     method: MethodOption = "oem",
     process_noise: ProcessNoiseOption = None,
+    max_iter: MaxIterOption = None,
 ):
     """Fit a vehicle's or model file's parameters to one or several logs (output
-    error; estimates, standard errors, correlations, cost; --method fem: filter
-    error, for logs flown through turbulence, with the process-noise intensities and
-    whether the filter's gain constraint binds), or, for Pegasus logs, refit with
-    the named effects added (--add): before/after metrics and the effects' fitted
-    values with standard errors (output error only)."""
-    if model is not None or vehicle != "pegasus":
+    error: estimates, standard errors, correlations, cost; --method fem: filter
+    error, for logs flown through turbulence, with the process-noise intensities
+    and whether the filter's gain constraint binds). With --add on one log: refit
+    with the named effects added, before/after metrics and the effects' fitted
+    values with standard errors."""
+    entry = _entry(
+        vehicle,
+        model,
+        knots=knots,
+        alpha_order=alpha_order,
+        rate=rate,
+        node_interval=node_interval,
+    )
+    add = tuple(add or ())
+    generic = (
+        not add
+        or len(logs) != 1
+        or method != "oem"
+        or columns is not None
+        or fix
+        or bias
+        or initial_state
+        or shooting_interval
+    )
+    if generic:
         _fit_model(
-            model or vehicle,
+            entry,
             logs,
             columns,
             fix,
@@ -187,39 +298,30 @@ def fit(
             shooting_interval,
             out,
             as_json,
-            tuple(add or ()),
+            add,
             method=method,
             process_noise=tuple(process_noise or ()),
+            max_iter=max_iter,
         )
         return
-    if method != "oem" or process_noise:
-        _fail(
-            "--method fem goes with --vehicle NAME or --model FILE: the Pegasus "
-            "effect refit's multiple-shooting spline baseline has no filter-error fit"
-        )
-    if columns is not None or fix or bias or initial_state or shooting_interval:
-        _fail(
-            "--columns, --fix, --bias, --initial-state and --shooting-interval go "
-            "with --model FILE or --vehicle NAME"
-        )
-    if len(logs) != 1:
-        _fail("the Pegasus effect refit takes one log")
     log = logs[0]
-    from .._diagnose import run_fit
+    from .._report import _runs
+    from ._common import _log_arg
+    from ._runners import fit_report
 
-    add = tuple(add or ())
-    if not add:
-        _fail("name at least one effect with --add NAME (see `diffpegasus effects`)")
-    settings = _settings(knots, alpha_order, rate, node_interval)
-    _check_addable(add, settings)
     _check_out(out, "folder")
-    flight = _read(log, resample)
     try:
-        result = run_fit(flight, add, settings, out)
-    except ValueError as e:
+        result, after = _runs.run_fit(
+            entry, _log_arg(log, resample), add, out, max_iter=max_iter
+        )
+    except LogError as e:
         _fail(str(e))
     except OSError as e:
         _fail(_os_error(e))
+    # the refit as any fit reports it (estimates, standard errors, cost) beside
+    # the before/after comparison
+    result = {**fit_report(after.result, after.spec), **result}
+    result["cost"] = result["after"]["cost"]
     failed = _global_fit_failed(
         result["after"], "the output-error fit with the added effects"
     )
@@ -266,40 +368,47 @@ def demo(
         pathlib.Path("demo")
     ),
     hidden: Annotated[
-        str, typer.Option(help="The effect hidden in the simulated flight, NAME=VALUE")
+        str,
+        typer.Option(
+            help="The effect hidden in the simulated flight, NAME=VALUE",
+            callback=assignments,
+        ),
     ] = "actuator_delay=0.02",
     seed: Annotated[int, typer.Option(help="Seed of the simulated flight")] = 1,
     duration: Annotated[
-        float | None, typer.Option(help="Flight length, s (default: to burnout)")
+        float | None,
+        typer.Option(help="Flight length, s (default: to burnout)", callback=positive),
     ] = None,
 ):
     """The discrepancy workflow end to end: simulate a flight with a hidden effect,
     show the model failing, diagnose, add the top effect, refit, report."""
-    from .._diagnose import run_compare, run_diagnose, run_fit, Settings
     from .._log._format import write_log
     from .._report._plotting import plot_trajectory
+    from .._report._runs import run_compare, run_diagnose, run_fit
 
+    entry = _entry("pegasus")
     out.mkdir(parents=True, exist_ok=True)
     typer.echo(
         f"1. simulating a Pegasus flight (drop to burnout) with a hidden effect ({hidden})..."
     )
     try:
-        log = _simulate_to_log(seed, "pulse", [hidden], False, duration, 100.0, True)
-    except ValueError as e:
+        log = entry.simulate(
+            seed=seed, hidden=[hidden], duration=duration, sample_rate=100.0
+        )
+    except LogError as e:
         _fail(str(e))
     path = write_log(out / "flight.csv", log)
     log = dataclasses.replace(log, path=path)  # reports name the file
     plot_trajectory(log, out / "trajectory.png")
-    settings = Settings()
     typer.echo("2. compare: fitting the model without it (compiles on first use)...")
-    metrics, base = run_compare(log, settings, out)
+    metrics, base = run_compare(entry, log, out)
     for name, m in metrics["channels"].items():
         if m["misfit_ratio"] > 1.5:
             typer.echo(
                 f"   {name}: residual rms {m['misfit_ratio']:.1f} x noise, not white (p {m['ljung_box_p']:.1g})"
             )
     typer.echo("3. diagnose: which library effect explains the misfit?")
-    diag, _ = run_diagnose(log, settings, out, (), base)
+    diag, _ = run_diagnose(entry, log, out, (), base)
     typer.echo(f"   {diag['message']}")
     for r in diag["ranking"][:3]:
         typer.echo(
@@ -310,7 +419,7 @@ def demo(
         return
     top = diag["significant"][0]
     typer.echo(f"4. fit --add {top}: refitting...")
-    result = run_fit(log, (top,), settings, out, base)
+    result, _ = run_fit(entry, log, (top,), out, base)
     _print_before_after(result)
     typer.echo(
         f"wrote {path}, trajectory.png and the reports compare.md, diagnose.md, "

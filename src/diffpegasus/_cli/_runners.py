@@ -8,12 +8,12 @@ import sys
 import numpy as np
 
 from .._diagnose._candidates import diagnosis_message, score_candidates
-from .._diagnose._rule import DecisionRule
+from .._diagnose._rule import rule_summary
 from .._errors import LogError
-from .._estimate._fit import Fit, fit
+from .._estimate._fit import Fit, output_error
 from .._estimate._modelfile import ModelSpec
-from .._log._columns import load_columns, load_record
-from .._model import Record
+from .._files import save_figure
+from .._registry._records import load_records as load_records
 
 
 def _say(message: str) -> None:
@@ -31,9 +31,12 @@ def parse_name_value(option: str, text: str, names, what: str):
     if not sep:
         return name, None
     try:
-        return name, float(value)
+        number = float(value)
     except ValueError:
         raise LogError(f"{option} {text}: {value!r} is not a number") from None
+    if not np.isfinite(number):
+        raise LogError(f"{option} {text}: {value!r} is not a finite number")
+    return name, number
 
 
 def parse_holds(holds: list[str], spec: ModelSpec) -> ModelSpec:
@@ -56,80 +59,6 @@ def parse_holds(holds: list[str], spec: ModelSpec) -> ModelSpec:
         else model.replace(fixed=tuple(fixed))
     )
     return dataclasses.replace(spec, model=model)
-
-
-def load_records(spec: ModelSpec, files, columns=None):
-    """One record per file, through the model's column map updated by `columns`
-    (or the model file's `read` function when it has one and no `columns` given)."""
-    user = dict(load_columns(columns))
-    if spec.name.endswith(".py") and spec.columns:
-        _check_map_keys(spec.model, load_columns(spec.columns), spec.name)
-    _check_map_keys(spec.model, user, "--columns")
-    cmap = dict(load_columns(spec.columns)) if spec.columns else {}
-    cmap.update(user)
-    reader = spec.read if columns is None else None
-    model = spec.model
-    records = _load(spec, model, files, cmap, reader)
-    # two files of one name (run1/data.csv, run2/data.csv) keep apart in reports
-    names = [r.name for r in records]
-    if len(set(names)) < len(names):
-        records = [
-            Record(r.t, r.inputs, r.measured, x0=r.x0, name=str(f))
-            for r, f in zip(records, files, strict=True)
-        ]
-    return records
-
-
-def _check_map_keys(model, cmap: dict, where: str) -> None:
-    """A column-map key that is no channel of the model is a typo, not a no-op."""
-    known = {"t", *model.states, *model.inputs, *model.outputs}
-    unknown = sorted(k for k in cmap if k not in known)
-    if unknown:
-        raise LogError(
-            f"{where}: column map names {', '.join(map(repr, unknown))}, not a "
-            f"channel of the model (t, {', '.join(sorted(known - {'t'}))})"
-        )
-
-
-def _x0(spec: ModelSpec, path):
-    """The model file's initial state for `path`: one for every record, or a dict
-    by file name."""
-    if not isinstance(spec.x0, dict):
-        return spec.x0
-    path = pathlib.Path(path)
-    for key in (str(path), path.name, path.stem):
-        if key in spec.x0:
-            return spec.x0[key]
-    return None
-
-
-def _load(spec, model, files, cmap, reader):
-    # inputs `manoeuvre_k` select per-manoeuvre parameters (e.g. the state biases
-    # of `dp.lateral_model(manoeuvres=n)`): 1 on the k-th file, 0 on the others
-    selectors = [n for n in model.inputs if n.startswith("manoeuvre_")]
-    if not selectors:
-        return [
-            load_record(model, f, cmap, x0=_x0(spec, f), reader=reader) for f in files
-        ]
-    if len(selectors) != len(files):
-        raise LogError(
-            f"{spec.name} selects {len(selectors)} manoeuvres (inputs "
-            f"{', '.join(selectors)}), but {len(files)} files were given"
-        )
-    base = model.replace(inputs=tuple(n for n in model.inputs if n not in selectors))
-    records = []
-    for k, f in enumerate(files):
-        rec = load_record(base, f, cmap, x0=_x0(spec, f), reader=reader)
-        inputs = np.column_stack(
-            [
-                rec.inputs[:, base.inputs.index(n)]
-                if n in base.inputs
-                else np.full(len(rec.t), float(n == selectors[k]))
-                for n in model.inputs
-            ]
-        )
-        records.append(Record(rec.t, inputs, rec.measured, x0=rec.x0, name=rec.name))
-    return records
 
 
 def num(x) -> float | None:
@@ -287,27 +216,63 @@ def plot_fit(result: Fit, out: pathlib.Path) -> list[pathlib.Path]:
         fig.suptitle(f"{rec.name}: output-error fit, det(R) = {result.cost:.4e}")
         fig.tight_layout()
         path = out / f"fit_{i + 1}_{pathlib.Path(rec.name).stem}.png"
-        fig.savefig(path, dpi=100)
+        save_figure(fig, path, dpi=100)
         plt.close(fig)
         paths.append(path)
     return paths
 
 
-def _fit_spec(spec, files, columns, holds, initial_state, biases, shooting):
+def excitation_note(model, records) -> str | None:
+    """Words for a fit whose inputs never move: the likely reason it failed."""
+    if not model.inputs:
+        return None
+    if all(np.all(r.inputs == r.inputs[0]) for r in records):
+        return (
+            f"the input(s) {', '.join(model.inputs)} are constant in every record: "
+            "nothing excites the vehicle, so the derivatives of the inputs (and often "
+            "the others) cannot be identified; fit records with control inputs "
+            "(a doublet, a 3-2-1-1) rather than more iterations"
+        )
+    return None
+
+
+def _fit_spec(
+    spec,
+    files,
+    columns,
+    holds,
+    initial_state,
+    biases,
+    shooting,
+    records=None,
+    max_iter=None,
+):
     spec = parse_holds(list(holds), spec)
-    records = load_records(spec, files, columns)
+    if records is None:
+        records = load_records(spec, files, columns)
+    interval = getattr(shooting or spec.shooting, "interval", None)
+    if interval is not None:
+        for rec, f in zip(records, files, strict=True):
+            if interval < 2 * rec.dt * (1 - 1e-9):
+                raise LogError(
+                    f"{f}: shooting interval {interval:g} s is shorter than two sample "
+                    f"steps ({2 * rec.dt:g} s): each segment needs samples to fit "
+                    "(--shooting-interval, or the model file's MultipleShooting)"
+                )
     _say(
         f"fitting {spec.name} ({sum(spec.model.free)} free parameters) to "
         f"{len(records)} record(s) by output error"
     )
     try:
-        result = fit(
+        result = output_error(
             spec.model,
             records,
             shooting=shooting or spec.shooting,
             initial_state=initial_state or spec.initial_state,
             biases=spec.biases if biases is None else biases,
+            max_iter=max_iter,
             throw=False,
+            progress=sys.stderr.isatty(),
         )
     except ValueError as e:
         raise LogError(str(e)) from None
@@ -324,28 +289,43 @@ def run_model_diagnose(
     biases=None,
     shooting=None,
     process_noise: tuple[str, ...] | None = None,
+    records=None,
+    max_iter: int | None = None,
+    score_process_noise=None,
 ) -> dict:
     """Fit `spec`'s model with its candidates held, then rank the candidates by
     score test; the JSON-ready report (`ranking`, `significant`, `message`). With
-    `process_noise` (states), process noise is scored too (`_fem.py`)."""
+    `process_noise` (states), process noise is scored too, by
+    `score_process_noise(spec, result, ranking, report, states)` (the filter-error
+    fit's `process_noise_diagnosis`, which the command passes in)."""
     if not spec.candidates:
         raise LogError(
             f"{spec.name} names no candidate terms to test (a model file lists held "
             "parameters in `candidates`)"
         )
     spec, result = _fit_spec(
-        spec, files, columns, holds, initial_state, biases, shooting
+        spec,
+        files,
+        columns,
+        holds,
+        initial_state,
+        biases,
+        shooting,
+        records,
+        max_iter,
     )
     report = {"fit": fit_report(result, spec), "ranking": [], "significant": []}
     if not result.converged and not (process_noise and np.isfinite(result.cost)):
+        note = excitation_note(spec.model, result.records)
         report["message"] = (
             f"the output-error fit did not converge ({result.message}): no ranking"
+            + (f"; {note}" if note else "")
         )
         return report
     ranking = score_candidates(result, spec.candidates)
-    # the workflow's measured decision rule and verdict (see _diagnose/_rule.py)
+    # the decision rule shared with the Pegasus workflow (see _diagnose/_rule.py)
     report["message"] = diagnosis_message(ranking, result)
-    report["rule"] = DecisionRule().describe()
+    report["rule"] = rule_summary(ranking)
     for row in ranking:
         row["hard_to_tell_from"] = [n.split(".")[0] for n in row["hard_to_tell_from"]]
     report["ranking"] = ranking
@@ -357,9 +337,7 @@ def run_model_diagnose(
             "file asks for them)"
         )
     elif process_noise:
-        from ._fem import process_noise_diagnosis
-
-        process_noise_diagnosis(spec, result, ranking, report, process_noise)
+        score_process_noise(spec, result, ranking, report, process_noise)
     if not result.converged:
         report["message"] = (
             f"the output-error fit did not converge ({result.message}); "
@@ -378,12 +356,25 @@ def run_model_fit(
     biases: tuple[str, ...] | None = None,
     shooting=None,
     out: pathlib.Path | None = None,
+    records=None,
+    max_iter: int | None = None,
 ) -> dict:
-    """Fit `spec`'s model to `files` (one manoeuvre each); the JSON-ready report."""
+    """Fit `spec`'s model to `files` (one manoeuvre each, or the `records` a
+    vehicle's entry built from them); the JSON-ready report."""
     spec, result = _fit_spec(
-        spec, files, columns, holds, initial_state, biases, shooting
+        spec,
+        files,
+        columns,
+        holds,
+        initial_state,
+        biases,
+        shooting,
+        records,
+        max_iter,
     )
     report = fit_report(result, spec)
+    if not result.converged and (note := excitation_note(spec.model, result.records)):
+        report["message"] = f"{report['message']}; {note}"
     if result.converged:
         report["channels"] = channel_report(result)
     if out is not None:

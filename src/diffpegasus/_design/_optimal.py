@@ -327,9 +327,14 @@ def pegasus_design(
         to_body,
         to_lift_drag,
     )
-    from .._vehicle._pegasus._aerodynamics import load_database
     from .._simulate._sensors import DEFAULT_SIGMA, SensorModel
-    from .._simulate._solve import elevator_command, flight_to_log, PegasusConfig, simulate
+    from .._simulate._solve import (
+        elevator_command,
+        flight_to_log,
+        PegasusConfig,
+        simulate,
+    )
+    from .._vehicle._pegasus._aerodynamics import load_database
 
     config = PegasusConfig(
         elevator=elevator_command("none"),

@@ -1,6 +1,6 @@
 """Diagnosis: which held term or physical effect explains a misfit. The score test
-of candidates for any model, and the Pegasus discrepancy workflow (compare, localise,
-diagnose, add, refit)."""
+of candidates for any model, and the discrepancy workflow (compare, localise,
+diagnose, add, refit) on any vehicle's registry entry."""
 
 from .._lazy import attach
 
@@ -13,29 +13,14 @@ __getattr__, __dir__, __all__ = attach(
             "diagnose_model",
             "score_candidates",
         ),
-        "_fit": (
-            "fit_model",
-            "ModelFit",
-        ),
         "_metrics": ("channel_metrics",),
-        "_model": (
-            "make_model",
-            "ModelSpec",
-            "OUTPUTS",
-        ),
-        "_run": (
-            "run_compare",
-            "run_diagnose",
-            "run_fit",
-        ),
         "_workflow": (
-            "default_candidates",
             "derivative_table",
             "diagnose",
-            "fit",
+            "fit_log",
             "fit_metrics",
+            "FlightFit",
             "localise",
-            "Settings",
         ),
     },
 )

@@ -1,210 +1,203 @@
-"""Compare, localise, diagnose, add and refit: the discrepancy workflow on a log."""
+"""Compare, localise, diagnose, add and refit: the discrepancy workflow on any
+vehicle's model, the one engine ([`fit`][]) and the one diagnosis
+([`diagnose_model`][], [`score_candidates`][]).
+
+A vehicle's registry entry ([`AbstractVehicleEntry`][]) builds the model and the
+records from the logs (with every candidate effect composed and held at zero, so
+the baseline, the diagnosis and every refit share one compiled program); these
+functions fit it, measure the fit per channel and by flight regime, rank the
+candidates and refit with effects added.
+"""
 
 import dataclasses
+from collections.abc import Sequence
 
-import jax
 import numpy as np
 
-from .._estimate._global_oem import score_test
-from .._log._format import FlightLog
-from .._vehicle._effects import EFFECTS, make_effect
-from ._fit import block_weights, fit_model, ModelFit
+from .._estimate._fit import Fit, fit as engine_fit
+from .._estimate._modelfile import ModelSpec
+from ._candidates import diagnosis_message, score_candidates
 from ._metrics import binned_misfit, channel_metrics, residual_noise_sigma
-from ._model import ModelSpec, OUTPUTS
-from ._rule import DecisionRule, DELAY_EFFECT, verdict
+from ._rule import rule_summary
 
 
-# Absorbed by a baseline with alpha^2 terms (alpha_order >= 2); and a bias on the
-# altitude channel is the same as a shift of the (estimated) initial altitude.
-_ALPHA_SQUARED = ("lift_alpha_squared", "drag_alpha_squared", "moment_alpha_squared")
-_NOT_IDENTIFIABLE = ("sensor_bias:h",)
+# A fit runs to convergence: None is the engine's adaptive budget (it stops when the
+# cost settles; the launch vehicle's baselines converge in 4-10 iterations at 50 Hz)
+MAX_ITER = None
 
 
-def default_candidates(alpha_order: int = 3) -> tuple[str, ...]:
-    """The library effects a diagnosis tests: every effect, `sensor_bias` on every
-    output channel; minus those the baseline already contains (the alpha^2 effects
-    when `alpha_order >= 2`) and `sensor_bias:h` (indistinguishable from the initial
-    altitude, which is estimated)."""
-    names = [n for n in EFFECTS if n != "sensor_bias"]
-    names += [f"sensor_bias:{c}" for c in OUTPUTS]
-    drop = set(_NOT_IDENTIFIABLE) | (set(_ALPHA_SQUARED) if alpha_order >= 2 else set())
-    return tuple(n for n in names if n not in drop)
+@dataclasses.dataclass(frozen=True)
+class FlightFit:
+    """A fit of a vehicle's model to one log, with what the workflow reports.
+
+    **Fields:** `spec` (the model and its candidates), `result` (the engine's
+    [`Fit`][]), `added` (the library effects estimated with the model).
+    """
+
+    spec: ModelSpec
+    result: Fit
+    added: tuple[str, ...] = ()
+
+    @property
+    def record(self):
+        return self.result.records[0]
+
+    @property
+    def name(self) -> str:
+        return self.record.name
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        return self.result.model.outputs
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.record.t
+
+    @property
+    def measured(self) -> np.ndarray:
+        return self.record.measured
+
+    @property
+    def model(self) -> np.ndarray:
+        return self.result.outputs[0]
+
+    @property
+    def residuals(self) -> np.ndarray:
+        """Measured minus model outputs, `(samples, outputs)`, SI units."""
+        return self.measured - self.model
+
+    @property
+    def cost(self) -> float:
+        return float(self.result.cost)
+
+    @property
+    def converged(self) -> bool:
+        return self.result.converged
+
+    def channel(self, name: str) -> np.ndarray | None:
+        """An input or output of the record by name, `(samples,)`, or `None`."""
+        m = self.result.model
+        if name in m.outputs:
+            return self.measured[:, m.outputs.index(name)]
+        if name in m.inputs:
+            return self.record.inputs[:, m.inputs.index(name)]
+        return None
+
+    def effect_estimates(self) -> dict[str, dict]:
+        """Each added effect: its parameter's estimate and standard error
+        (corrected for coloured residuals; the plain Cramér-Rao bound beside it)."""
+        from .._vehicle._parts import effect_parameter
+
+        names = list(self.result.model.parameters)
+        out = {}
+        for effect in self.added:
+            k = names.index(effect_parameter(effect))
+            out[effect] = {
+                "parameter": names[k].split(".", 1)[1],
+                "estimate": float(self.result.params[k]),
+                "stderr": float(self.result.stderr_corrected[k]),
+                "stderr_crb": float(self.result.stderr[k]),
+            }
+        return out
 
 
-@dataclasses.dataclass
-class Settings:
-    """How the model is built and fitted (see `diffpegasus compare --help`), and
-    the decision rule of [`diagnose`][]: `significance` (family-wise level of the
-    Bonferroni-corrected score test) and `min_statistic` (the penalty: the
-    coloured-residual score statistic a candidate must exceed, set above the
-    largest value measured on clean flights of two independent simulators; see the
-    README, "A decision rule that holds on other data")."""
+def fit_log(
+    entry,
+    log,
+    add: Sequence[str] = (),
+    *,
+    start: FlightFit | None = None,
+    max_iter: int | None = MAX_ITER,
+    say=None,
+) -> FlightFit:
+    """Fit `entry`'s model (a vehicle's registry entry) to one log with the
+    library effects `add` estimated and the vehicle's other candidates held at
+    zero; `start`: a previous fit whose estimates start this one; `say(text)`: told
+    when the log has been read and the fit begins."""
+    add = tuple(add)
+    spec, records = entry.problem([log], add=add, candidates=True)
+    if say is not None:
+        say(spec.model)
+    model = spec.model
+    if start is not None:
+        model = model.replace(start=start.result.estimates())
+    result = engine_fit(
+        model,
+        records,
+        shooting=spec.shooting,
+        initial_state=spec.initial_state,
+        biases=spec.biases,
+        max_iter=max_iter,
+        throw=False,
+    )
+    return FlightFit(dataclasses.replace(spec, model=model), result, add)
 
-    knots: int = 6
-    knot_placement: str = "quantile"
-    alpha_order: int = 3
-    alpha_elevator: bool = True
-    rate: float = 50.0
-    node_interval: float = 1.0
-    max_iter: int = 30
-    significance: float = 0.01
-    min_statistic: float = 150.0
 
-    def spec(self, log: FlightLog, extra: tuple[str, ...] = ()) -> ModelSpec:
-        effects = tuple(dict.fromkeys(default_candidates(self.alpha_order) + extra))
-        return ModelSpec(
-            s_ref=log.s_ref,
-            c_ref=log.c_ref,
-            knots=self.knots,
-            knot_placement=self.knot_placement,
-            alpha_order=self.alpha_order,
-            alpha_elevator=self.alpha_elevator,
-            effects=effects,
-        )
-
-
-def fit(
-    log: FlightLog,
-    add: tuple[str, ...] = (),
-    settings: Settings | None = None,
-    start: ModelFit | None = None,
-) -> ModelFit:
-    """Fit the global model with the effects `add` estimated (canonical names)."""
-    settings = settings or Settings()
-    check_addable(add, settings)
-    return fit_model(
-        log,
-        settings.spec(log, tuple(add)),
-        tuple(add),
-        rate=settings.rate,
-        node_interval=settings.node_interval,
-        start=start,
-        max_iter=settings.max_iter,
+def channel_noise(ff: FlightFit) -> np.ndarray:
+    """White-noise sigma of every output, SI units: [`residual_noise_sigma`][] of
+    the fit's residual (its spectrum above the model's bandwidth), from the log
+    itself, whatever its sidecar says."""
+    return np.array(
+        [residual_noise_sigma(ff.residuals[:, i]) for i in range(len(ff.outputs))]
     )
 
 
-def check_addable(add: tuple[str, ...], settings: Settings) -> None:
-    """A clear error for an effect that cannot be added to the model."""
-    for name in add:
-        make_effect(name)
-        if name in _NOT_IDENTIFIABLE:
-            raise ValueError(
-                f"{name} cannot be estimated: it is the same unknown as the initial "
-                "altitude, which the fit estimates"
-            )
-        if name in _ALPHA_SQUARED and settings.alpha_order >= 2:
-            raise ValueError(
-                f"{name} is already in the baseline (its alpha^2 terms); to test it "
-                "as an effect use --alpha-order 1"
-            )
-
-
-def channel_noise(fit: ModelFit) -> np.ndarray:
-    """White-noise sigma of every output at the model's samples, SI units: the
-    sidecar's `noise_sigmas` (per log sample) scaled to a block mean, where given
-    and positive; else [`residual_noise_sigma`][] of the fit's residual (its
-    spectrum above the model's bandwidth), which does not count real signal."""
-    given = fit.log.metadata.get("noise_sigmas") or {}
-    w = block_weights(fit.step) if fit.step > 1 else np.ones(1)
-    scale = np.sqrt(np.sum(w**2)) / np.sum(w)
-    r = fit.residuals
-    out = []
-    for i, name in enumerate(OUTPUTS):
-        sigma = given.get(name) if isinstance(given, dict) else None
-        if isinstance(sigma, int | float) and sigma > 0:
-            out.append(float(sigma) * scale)
-        else:
-            out.append(residual_noise_sigma(r[:, i]))
-    return np.array(out)
-
-
-def fit_metrics(fit: ModelFit) -> dict:
-    """`{"cost": det R, "converged": .., "channels": {name: metrics}}`."""
-    de = np.asarray(fit.problem.inputs[:, 0])
-    noise = channel_noise(fit)
+def fit_metrics(ff: FlightFit) -> dict:
+    """`{"cost": det R, "converged", "iterations", "message", "channels": {name:
+    metrics}}` (see [`channel_metrics`][]; the residual-input cross-correlation
+    with the model's first input)."""
+    first = ff.record.inputs[:, 0]
+    noise = channel_noise(ff)
     channels = {
-        name: channel_metrics(fit.measured[:, i], fit.model[:, i], de, noise[i])
-        for i, name in enumerate(OUTPUTS)
+        name: channel_metrics(ff.measured[:, i], ff.model[:, i], first, noise[i])
+        for i, name in enumerate(ff.outputs)
     }
     return {
-        "cost": fit.cost,
-        "converged": bool(fit.result.converged),
-        "iterations": int(fit.result.iterations),
+        "cost": ff.cost,
+        "converged": ff.converged,
+        "iterations": int(ff.result.iterations),
+        "message": ff.result.message,
+        "defect": float(ff.result.defect),
         "channels": channels,
     }
 
 
-def derivative_table(fit: ModelFit, points: int = 5) -> list[dict]:
-    """The fitted derivatives (1/rad) with Cramér-Rao standard errors at `points`
-    Mach numbers spread over the record, each at the record's mean alpha there, in
-    the database's (secant) form `CL = CLa(alpha, M) alpha + CLde de`, so
-    `CLa = a_1 + a_2 alpha + ...` and `CLde = b + c alpha`, comparable with a log's `true_*` columns:
-    `{"mach", "alpha", "CLa": [est, sd], ...}`."""
-    spec = fit.spec
-    mach = fit.log["mach"][fit.index]
-    alpha = fit.log["alpha"][fit.index]
-    order = np.argsort(mach)
-    chunks = np.array_split(order, points)
-    theta = np.asarray(fit.result.params[: spec.n_aero])
-    sd = np.asarray(fit.result.stderr[: spec.n_aero])
-    cov = np.asarray(fit.result.correlation[: spec.n_aero, : spec.n_aero]) * np.outer(
-        sd, sd
-    )
-    basis_all = np.asarray(fit.problem.inputs[:, -spec.knots :])
-    per = len(spec.terms) * spec.knots
-    rows = []
-    for chunk in chunks:
-        b = basis_all[chunk].mean(axis=0)
-        a = float(alpha[chunk].mean())
-        row = {"mach": float(mach[chunk].mean()), "alpha": a}
-        for j, coef in enumerate(("CL", "CD", "CM")):
-            # sum_p a_p alpha^(p-1) (the secant slope), and the elevator term
-            g_alpha = np.zeros(spec.n_aero)
-            g_de = np.zeros(spec.n_aero)
-            for p in range(1, spec.alpha_order + 1):
-                sl = slice(j * per + (p - 1) * spec.knots, j * per + p * spec.knots)
-                g_alpha[sl] = a ** (p - 1) * b
-            start = j * per + spec.alpha_order * spec.knots
-            g_de[start : start + spec.knots] = b
-            if spec.alpha_elevator:  # CLde(alpha) = b + c alpha
-                g_de[start + spec.knots : start + 2 * spec.knots] = a * b
-            for name, gvec in ((f"{coef}a", g_alpha), (f"{coef}de", g_de)):
-                row[name] = [
-                    float(gvec @ theta),
-                    float(np.sqrt(max(gvec @ cov @ gvec, 0.0))),
-                ]
-        rows.append(row)
-    return rows
+# Flight-condition channels a misfit is binned by, where the model has them.
+REGIMES = {
+    "alpha": ("alpha_deg", np.rad2deg(1.0)),
+    "V": ("V", 1.0),
+    "h": ("h_km", 1e-3),
+}
 
 
-def localise(fit: ModelFit, bins: int = 5, segment: float = 5.0) -> dict:
-    """Where the misfit is: residual RMS over the noise sigma (1 = noise only) per
-    channel, by time segment, and by bins of Mach, alpha, dynamic pressure and thrust
-    on/off."""
-    r = fit.residuals
-    noise = channel_noise(fit)
+def localise(ff: FlightFit, bins: int = 5, segment: float = 5.0) -> dict:
+    """Where the misfit is: residual RMS over the noise sigma (1: noise only) per
+    channel, by time segment, by bins of the flight condition (alpha, airspeed,
+    altitude, where the model has them) and by thrust on and off (where the
+    model reads thrust)."""
+    r = ff.residuals
+    noise = channel_noise(ff)
     noise = np.where(noise > 0, noise, 1.0)
-    t = fit.t
-    log = fit.log
-    idx = fit.index
-    quant = lambda x: np.unique(np.quantile(x, np.linspace(0, 1, bins + 1)))  # noqa: E731
-    thrust = log["thrust"][idx]
-    on = thrust > 0.01 * np.max(np.abs(thrust))
+    t = ff.t
     out = {
-        "channels": list(OUTPUTS),
+        "channels": list(ff.outputs),
         "noise": noise.tolist(),
         "time": binned_misfit(r, noise, t, np.arange(t[0], t[-1] + segment, segment)),
-        "mach": binned_misfit(r, noise, log["mach"][idx], quant(log["mach"][idx])),
-        "alpha_deg": binned_misfit(
-            r,
-            noise,
-            np.rad2deg(log["alpha"][idx]),
-            quant(np.rad2deg(log["alpha"][idx])),
-        ),
-        "qbar_kpa": binned_misfit(
-            r, noise, log["qbar"][idx] / 1e3, quant(log["qbar"][idx] / 1e3)
-        ),
-        "thrust": [
+    }
+
+    def quant(x):
+        return np.unique(np.quantile(x, np.linspace(0, 1, bins + 1)))
+
+    for name, (key, factor) in REGIMES.items():
+        x = ff.channel(name)
+        if x is not None:
+            out[key] = binned_misfit(r, noise, x * factor, quant(x * factor))
+    thrust = ff.channel("thrust")
+    out["thrust"] = []
+    if thrust is not None and np.max(np.abs(thrust)) > 0:
+        on = thrust > 0.01 * np.max(np.abs(thrust))
+        out["thrust"] = [
             {
                 "regime": name,
                 "samples": int(sel.sum()),
@@ -214,12 +207,11 @@ def localise(fit: ModelFit, bins: int = 5, segment: float = 5.0) -> dict:
             }
             for name, sel in (("off", ~on), ("on", on))
             if sel.sum() >= 10
-        ],
-    }
+        ]
     worst = []
-    for key in ("time", "mach", "alpha_deg", "qbar_kpa"):
-        for row in out[key]:
-            for i, c in enumerate(OUTPUTS):
+    for key in ["time"] + [k for k, _ in REGIMES.values()]:
+        for row in out.get(key, []):
+            for i, c in enumerate(ff.outputs):
                 worst.append((row["misfit_ratio"][i], c, key, row["low"], row["high"]))
     worst.sort(reverse=True)
     out["worst"] = [
@@ -229,85 +221,108 @@ def localise(fit: ModelFit, bins: int = 5, segment: float = 5.0) -> dict:
     return out
 
 
-def diagnose(
-    fit: ModelFit,
-    settings: Settings | None = None,
-    candidates: tuple[str, ...] | None = None,
-) -> dict:
-    """Rank the candidate effects by the predicted fall of the output-error cost from
-    one Gauss-Newton step in each (score test with exact Jacobians), and decide
-    which are significant.
+def derivative_table(ff: FlightFit, points: int = 5) -> list[dict] | None:
+    """The fitted aerodynamic derivatives (1/rad) with Cramér-Rao standard errors
+    at `points` Mach numbers spread over the record, each at the record's mean
+    alpha there, in the secant form `CL = CLa(alpha, M) alpha + CLde de` of a
+    derivative table: `CLa = (CL(alpha) - CL(0)) / alpha` and `CLde = dCL/dde`
+    at zero elevator, from the vehicle's aerodynamics part (any part), with
+    standard errors by the delta method: `{"mach", "alpha", "CLa": [est, sd],
+    ...}`. `None` for a model that is not a vehicle, or without airspeed."""
+    import jax
+    import jax.numpy as jnp
 
-    The decision uses the score statistic, whose variance includes the residuals' colour
-    and their covariance between outputs (from the residuals the step would leave; see
-    [`score_variance`][]), so a baseline's own smooth structural misfit, which shows in
-    several outputs at once, counts as coloured noise once, not as evidence. A candidate
-    is **significant** when (1) its Bonferroni-corrected p-value is below
-    `settings.significance` and (2) its statistic exceeds `settings.min_statistic`, a
-    penalty measured on clean flights of two independent simulators (a baseline's
-    structural error alone gives statistics up to about 100 there, at 50 Hz to 1 kHz).
-    The predicted share of det(R) it removes (`cost_reduction`) is reported beside it
-    but is not part of the decision: how much of the misfit an effect removes depends on
-    the noise level of the log.
-    An actuator delay is judged by the log's resolution instead of the penalty:
-    significant when the p-value passes and its estimate is at least half a log
-    sample interval (a lead is not physical); a smaller one is reported as
-    `resolution_limit`: where steps of the input fall between samples shifts them
-    by up to that much, so such a delay is not physics.
+    from .._vehicle._effects import FlightCondition
 
-    **Returns:** `{"ranking": [{"effect", "parameter", "cost_reduction",
-    "statistic", "p_value", "estimate", "stderr", "significant",
-    "resolution_limit", "hard_to_tell_from"}...], "significant": [...],
-    "message": ..., "rule": ...}`; `cost_reduction` is the predicted fractional fall
-    of det(R).
+    vehicle = ff.spec.vehicle
+    v, alpha = ff.channel("V"), ff.channel("alpha")
+    if vehicle is None or v is None or alpha is None:
+        return None
+    h = ff.channel("h")
+    h = np.zeros_like(v) if h is None else h
+    sound = np.array([float(vehicle.atmosphere.at(x)[1]) for x in h])
+    mach = v / sound
+    model = ff.result.model
+    free = np.asarray(ff.result.free)
+    sd = np.asarray(ff.result.stderr)
+    cov = np.asarray(ff.result.correlation) * np.outer(sd, sd)
+    theta = np.asarray(ff.result.params)
+
+    def coefficients(th, m, a, de):
+        zero = jnp.zeros(())
+        c = FlightCondition(
+            t=zero,
+            alpha=a,
+            alpha_dot=zero,
+            airspeed=zero + 1.0,
+            mach=m,
+            qbar=zero,
+            q=zero,
+            qdot=zero,
+            theta=zero,
+            h=zero,
+            de=de,
+            thrust=zero,
+            c_ref=vehicle.geometry.c_ref,
+            s_ref=vehicle.geometry.s_ref,
+            mass=zero + 1.0,
+            xcg=zero,
+        )
+        return jnp.stack(vehicle.aerodynamics.coefficients(c, model.named(th)))
+
+    def derivatives(th, m, a):
+        secant = (coefficients(th, m, a, 0.0) - coefficients(th, m, 0.0, 0.0)) / a
+        slope = jax.jacfwd(lambda de: coefficients(th, m, a, de))(0.0)
+        return jnp.concatenate([secant, slope])
+
+    jac = jax.jit(jax.jacfwd(derivatives))
+    value = jax.jit(derivatives)
+    rows = []
+    for chunk in np.array_split(np.argsort(mach), points):
+        m, a = float(mach[chunk].mean()), float(alpha[chunk].mean())
+        d = np.asarray(value(jnp.asarray(theta), m, a))
+        g = np.asarray(jac(jnp.asarray(theta), m, a))[:, free]
+        var = np.einsum("ij,jk,ik->i", g, cov[np.ix_(free, free)], g)
+        row = {"mach": m, "alpha": a}
+        for k, label in enumerate(("CLa", "CDa", "CMa", "CLde", "CDde", "CMde")):
+            row[label] = [float(d[k]), float(np.sqrt(max(var[k], 0.0)))]
+        rows.append(row)
+    return rows
+
+
+def diagnose(ff: FlightFit, *, level: float = 0.01) -> dict:
+    """Rank the held candidates of `ff`'s model by score test at its fit and
+    decide by the decision rule calibrated on this fit's residuals (see
+    [`score_candidates`][]): `level` is the family-wise false-alarm level.
+
+    **Returns:** `{"ranking": [...], "significant": [effects], "message",
+    "rule"}`, significant rows first, each ranking row as [`score_candidates`][]'s
+    with `hard_to_tell_from` as `[{"effect", "correlation"}]` and `parameter` the
+    effect's own parameter name; `rule` holds the threshold used and the
+    false-alarm level it holds.
     """
-    settings = settings or Settings()
-    spec = fit.spec
-    free = np.asarray(fit.result.free)
-    if candidates is None:
-        candidates = tuple(e for e in spec.effects if not free[spec.effect_index(e)])
-    idx = np.array([spec.effect_index(c) for c in candidates])
-    st = jax.tree.map(np.asarray, score_test(fit.problem, fit.result, idx))
-    k = len(candidates)
-    reduction = 1.0 - st.cost_ratio
-    order = np.argsort(-reduction)
-    resolution = 0.5 / fit.log.sample_rate
-    rule = DecisionRule(settings.significance, settings.min_statistic)
-    ranking = []
-    for i in order:
-        decided = rule.judge(
-            statistic=float(st.statistic[i]),
-            p_value=float(st.p_value[i]),
-            estimate=float(st.estimate[i]),
-            tested=k,
-            is_delay=make_effect(candidates[i]).name == DELAY_EFFECT,
-            resolution=resolution,
-        )
-        close = [
-            {"effect": candidates[j], "correlation": float(st.correlation[i, j])}
-            for j in np.argsort(-np.abs(st.correlation[i]))
-            if j != i and abs(st.correlation[i, j]) > 0.9
+    ranking = score_candidates(ff.result, ff.spec.candidates, level)
+    return ranking_report(ff, ranking)
+
+
+def ranking_report(ff: FlightFit, ranking) -> dict:
+    """The diagnosis dict of a ranking (see [`diagnose`][])."""
+    message = diagnosis_message(ranking, ff.result)
+    rows = []
+    for r in ranking:
+        row = dict(r)
+        if "parameter" in row and "." in row["parameter"]:
+            row["parameter"] = row["parameter"].split(".", 1)[1]
+        row["hard_to_tell_from"] = [
+            {"effect": c.split(".")[0], "correlation": None}
+            if isinstance(c, str)
+            else c
+            for c in r.get("hard_to_tell_from", [])
         ]
-        ranking.append(
-            {
-                "effect": candidates[i],
-                "parameter": make_effect(candidates[i]).parameter,
-                "cost_reduction": float(reduction[i]),
-                "statistic": float(st.statistic[i]),
-                "p_value": decided["p_value"],
-                "estimate": float(st.estimate[i]),
-                "stderr": float(st.stderr[i]),
-                "significant": decided["significant"],
-                "resolution_limit": decided["resolution_limit"],
-                "hard_to_tell_from": close,
-            }
-        )
-    significant = [r["effect"] for r in ranking if r["significant"]]
-    rule_text = rule.describe()
-    message = verdict(ranking, rule, resolution)
+        rows.append(row)
     return {
-        "ranking": ranking,
-        "significant": significant,
+        "ranking": rows,
+        "significant": [r["effect"] for r in rows if r["significant"]],
         "message": message,
-        "rule": rule_text,
+        "rule": rule_summary(ranking),
     }

@@ -21,6 +21,34 @@ __getattr__, __dir__, __all__ = attach(
             "equation_error",
             "EquationErrorFit",
         ),
+        "_entry": ("estimate",),
+        "_estimator": (
+            "AbstractEstimator",
+            "AbstractFit",
+        ),
+        "_methods": (
+            "EquationError",
+            "ESTIMATORS",
+            "FilterError",
+            "FrequencyEquationError",
+            "FrequencyOutputError",
+            "OutputError",
+        ),
+        "_fourier": (
+            "finite_fourier",
+            "frequency_grid",
+        ),
+        "_frequency": (
+            "default_band",
+            "frequency_equation_error",
+            "frequency_output_error",
+            "FrequencyFit",
+        ),
+        "_solver": (
+            "BlockLevenbergMarquardt",
+            "output_error_residuals",
+            "OutputErrorProblem",
+        ),
         "_filter_error": (
             "FilterErrorFit",
             "fit_filter_error",

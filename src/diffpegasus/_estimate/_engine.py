@@ -31,6 +31,7 @@ import functools
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from equinox import AbstractVar
 from jaxtyping import Array, Bool, Float, Int
 
@@ -50,6 +51,27 @@ class RESULTS(eqx.Enumeration):
         "the model produced non-finite outputs or derivatives (a diverging "
         "simulation: try multiple shooting or other start values)"
     )
+    slow_progress = (
+        "the cost was still falling when the iteration budget ran out (raise "
+        "max_iter / --max-iter, start nearer the optimum, e.g. from an "
+        "equation-error fit, or hold poorly identified parameters)"
+    )
+    defects = (
+        "the continuity defects between shooting segments did not close (shorten "
+        "the shooting interval, give node guesses nearer the data, or raise "
+        "max_iter / --max-iter)"
+    )
+    no_excitation = (
+        "the information matrix is singular: the records do not excite some "
+        "parameters, so their estimates are not unique (hold them, or fit records "
+        "whose inputs move them)"
+    )
+
+
+# The adaptive budget's bound when no `max_iter` is given: the iteration stops when
+# det(R) settles or no step lowers the cost; this only ends a fit that keeps
+# creeping, and the result then says so.
+MAX_ITER = 500
 
 
 class AbstractLayout(eqx.Module):
@@ -373,13 +395,37 @@ class Solution(eqx.Module):
     defect: Float[Array, ""]
     jacobian: Float[Array, "segments length outputs local"]
     whitened: Float[Array, "segments length outputs"]
+    information: Float[Array, "unknowns unknowns"]
+    change: Float[Array, ""]
+
+
+def _print_progress(it, cost, change, damping, defect):
+    import sys
+
+    print(
+        f"iteration {int(it):4d}: det(R) {float(cost):.6e}, relative change "
+        f"{float(change):.2e}, damping {float(damping):.1e}, largest defect "
+        f"{float(defect):.3g}",
+        file=sys.stderr,
+        flush=True,
+    )
 
 
 @functools.partial(
-    jax.jit, static_argnames=("model", "max_iter", "nx", "p", "coloured")
+    jax.jit, static_argnames=("model", "nx", "p", "coloured", "progress")
 )
 def solve(
-    model, layout, z0, free_params, *, nx, p, rtol, max_iter, coloured=True
+    model,
+    layout,
+    z0,
+    free_params,
+    *,
+    nx,
+    p,
+    rtol,
+    max_iter,
+    coloured=True,
+    progress=False,
 ) -> Solution:
     """Minimise det(R) over the free unknowns from `z0`. Pure and jitted; vmap
     batches it over layouts of one shape. `coloured=False` skips the coloured-
@@ -390,12 +436,17 @@ def solve(
     The program holds the model twice: once with its Jacobian ([`evaluate`][], at
     the point an iteration starts from) and once without (`weighted_cost`, the
     damping's trials, the cheap evaluation a rejected trial costs). The start's R
-    comes from the first Jacobian pass's residuals rather than from a third copy."""
+    comes from the first Jacobian pass's residuals rather than from a third copy.
+
+    `progress` prints one line per iteration to standard error (a host callback:
+    that program does not enter JAX's persistent cache, so it is off by default);
+    `Solution.change` is the last iteration's relative change of det(R), which says
+    whether a fit that ran out of iterations was still making progress."""
     free = layout.free_columns(free_params, nx, p)
     n, n_out = z0.shape[0], layout.measured.shape[-1]
 
     def body(carry):
-        z, r, cost_prev, it, _, damping, _, _, _, first = carry
+        z, r, cost_prev, it, _, damping, _, _, _, first, _ = carry
         ev = evaluate(model, layout, z, nx, p)
         r = jnp.where(first, channel_variance(layout, ev.e), r)
         cost_prev = jnp.where(first, jnp.prod(r), cost_prev)
@@ -432,6 +483,12 @@ def solve(
         broken = ~(jnp.all(jnp.isfinite(h)) & jnp.all(jnp.isfinite(g)))
         broken = broken | ~jnp.all(jnp.isfinite(r))
         done = small | ~accepted | broken
+        change = jnp.abs(cost_prev - cost) / jnp.abs(cost)
+        if progress:
+            defect = jnp.max(jnp.abs(jnp.where(accepted, d1, ev.d)), initial=0.0)
+            jax.debug.callback(
+                _print_progress, it + active, cost, change, damping, defect
+            )
         after = (
             jnp.where(accepted, d1, ev.d),
             jnp.where(accepted, ys1, ev.ys),
@@ -448,6 +505,7 @@ def solve(
             lin,
             after,
             False,
+            change,
         )
 
     # The loop carries the last linearisation (at the point the last step started
@@ -459,10 +517,58 @@ def solve(
     after0 = (jnp.zeros((n_seg - 1, nx)), jnp.zeros(shape))
     init = (z0, jnp.ones(n_out), jnp.array(jnp.inf), jnp.array(0), jnp.array(False))
     init = (*init, jnp.array(0.0), jnp.array(False), lin0, after0, jnp.array(True))
-    z, r, cost, iterations, done, _, broken, lin, (d, ys), _ = jax.lax.while_loop(
-        lambda c: ((c[3] < max_iter) | c[9]) & ~c[4] & ~c[6], body, init
+    init = (*init, jnp.array(jnp.inf))
+    z, r, cost, iterations, done, _, broken, lin, (d, ys), _, change = (
+        jax.lax.while_loop(
+            lambda c: ((c[3] < max_iter) | c[9]) & ~c[4] & ~c[6], body, init
+        )
     )
     h, _, jyw, ew = lin
+    return finish(
+        layout,
+        z,
+        r,
+        cost,
+        iterations,
+        done,
+        broken,
+        h,
+        jyw,
+        ew,
+        d,
+        ys,
+        free,
+        nx=nx,
+        p=p,
+        coloured=coloured,
+        change=change,
+    )
+
+
+def finish(
+    layout,
+    z,
+    r,
+    cost,
+    iterations,
+    done,
+    broken,
+    h,
+    jyw,
+    ew,
+    d,
+    ys,
+    free,
+    *,
+    nx,
+    p,
+    coloured,
+    change,
+) -> Solution:
+    """The [`Solution`][] of a finished iteration: the covariances from the last
+    normal matrix `h` and whitened Jacobian `jyw` and residuals `ew`, the largest
+    defect of `d`, the result code (shared by [`solve`][] and the optimistix
+    solver's loop)."""
     m = free.astype(h.dtype)
     hm = h * m[:, None] * m[None, :] + jnp.diag(1.0 - m)
     cov = jnp.linalg.inv(hm) * m[:, None] * m[None, :]
@@ -490,7 +596,89 @@ def solve(
         defect=defect,
         jacobian=jyw,
         whitened=ew,
+        information=hm * m[:, None] * m[None, :],
+        change=change,
     )
+
+
+def explain(
+    code,
+    *,
+    information,
+    free,
+    names,
+    iterations: int,
+    change: float,
+    defect: float | None = None,
+) -> tuple[RESULTS, str]:
+    """Why a fit stopped, on the host: the [`RESULTS`][] item and a sentence that
+    names what went wrong and what to try ("" when it converged).
+
+    **Arguments:** `code` the solve's result; `information` `(unknowns,
+    unknowns)` the outputs' information about the unknowns that can be named
+    (parameters, biases, intensities: `A^T A` of the whitened residuals'
+    Jacobian in those columns); `free` `(unknowns,)`; `names` a name per
+    unknown (`None` for one not worth naming); `iterations`; `change` the last
+    relative change of the cost; `defect` the largest continuity defect relative
+    to its tolerance (`None` without multiple shooting).
+
+    A fit whose information is numerically singular (an eigenvalue of the
+    unit-diagonal information below the rounding of its largest, numpy's rank
+    rule) is reported as `no_excitation`, naming the parameters of the null
+    direction: their estimates are not unique.
+    """
+    code = int(np.asarray(code._value))
+    if code == int(np.asarray(RESULTS.nonfinite._value)):
+        return RESULTS.nonfinite, (
+            f"{RESULTS[RESULTS.nonfinite]} (at iteration {iterations})"
+        )
+    singular = _unexcited(np.asarray(information), np.asarray(free), names)
+    if singular:
+        return RESULTS.no_excitation, (
+            f"the information matrix is singular for {', '.join(singular)}: the "
+            "records do not excite them, so their estimates are not unique (hold "
+            "some of them, or fit records whose inputs move them)"
+        )
+    if code == int(np.asarray(RESULTS.successful._value)):
+        return RESULTS.successful, ""
+    if defect is not None and defect > 1.0:
+        return RESULTS.defects, (
+            f"after {iterations} iterations the largest continuity defect is "
+            f"{defect:.3g} times its tolerance: {RESULTS[RESULTS.defects]}"
+        )
+    return RESULTS.slow_progress, (
+        f"after {iterations} iterations det(R) still changed by {change:.2g} "
+        f"(relatively) per iteration: {RESULTS[RESULTS.slow_progress]}"
+    )
+
+
+def _unexcited(information, free, names) -> list[str]:
+    """Names of the free unknowns in the numerically null directions of the
+    information (an unknown with no information at all is named alone)."""
+    idx = np.flatnonzero(free)
+    if idx.size == 0 or not np.all(np.isfinite(information)):
+        return []
+    h = information[np.ix_(idx, idx)]
+    diag = np.diag(h)
+    out = [
+        names[i]
+        for i, d in zip(idx, diag, strict=True)
+        if d <= 0 and names[i] is not None
+    ]
+    live = diag > 0
+    if np.sum(live) > 1:
+        d = np.sqrt(diag[live])
+        hs = h[np.ix_(live, live)] / np.outer(d, d)
+        w, v = np.linalg.eigh(hs)
+        tol = w.max() * hs.shape[0] * np.finfo(float).eps
+        cols = idx[live]
+        for k in np.flatnonzero(w <= tol):
+            vec = np.abs(v[:, k])
+            for j in np.flatnonzero(vec >= 0.25 * vec.max()):
+                name = names[cols[j]]
+                if name is not None and name not in out:
+                    out.append(name)
+    return out
 
 
 def row_jacobian(layout, jyw, cols, nx, p):

@@ -28,9 +28,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._model import Model, Record
+from ._engine import coloured_information, RESULTS
+from ._estimator import AbstractFit
 
 
-class EquationErrorFit(eqx.Module):
+class EquationErrorFit(AbstractFit):
     """The result of [`equation_error`][].
 
     **Fields:**
@@ -40,6 +42,9 @@ class EquationErrorFit(eqx.Module):
     - `params`: `(params,)` estimates; held and not estimable parameters keep their
       start values.
     - `stderr`: `(params,)` standard errors; NaN for held and not estimable ones.
+    - `stderr_corrected`: the same corrected for coloured equation errors
+      (Morelli-Klein), never below `stderr`.
+    - `free`: `(params,)` the model's free parameters.
     - `covariance`: `(params, params)` covariance of the estimates (zero rows for
       held and not estimable parameters).
     - `estimable`: `(params,)` bool: free and entering at least one equation (a
@@ -49,6 +54,9 @@ class EquationErrorFit(eqx.Module):
     - `r2`: `(equations,)` coefficient of determination of each equation.
     - `residuals`: per record `(samples, equations)`.
     - `samples`: number of samples used (all records).
+    - `cost`: det of the equations' residual covariance (diagonal); `iterations`
+      of the re-weighting; `result` (`successful`) and `reason` (""): a
+      regression has no convergence to fail (dependent regressors raise).
     """
 
     model: Model = eqx.field(static=True)
@@ -61,10 +69,12 @@ class EquationErrorFit(eqx.Module):
     r2: np.ndarray
     residuals: list
     samples: int = eqx.field(static=True)
-
-    def estimates(self) -> dict[str, float]:
-        """Every parameter's value by name."""
-        return dict(zip(self.model.parameters, self.params.tolist(), strict=True))
+    stderr_corrected: np.ndarray
+    free: np.ndarray
+    cost: float
+    iterations: int
+    result: RESULTS
+    reason: str
 
     def start(self) -> dict[str, float]:
         """The estimated parameters by name: start values for output error,
@@ -85,16 +95,6 @@ class EquationErrorFit(eqx.Module):
         with np.errstate(invalid="ignore", divide="ignore"):
             c = self.covariance / np.outer(d, d)
         return np.where(np.outer(self.estimable, self.estimable), c, 0.0)
-
-    def high_correlations(self, limit: float = 0.9) -> list[tuple[str, str, float]]:
-        """Pairs of estimated parameters correlated above `limit` in magnitude."""
-        names, c = self.model.parameters, self.correlation
-        return [
-            (names[i], names[j], float(c[i, j]))
-            for i in range(len(names))
-            for j in range(i + 1, len(names))
-            if self.estimable[i] and self.estimable[j] and abs(c[i, j]) > limit
-        ]
 
     def table(self) -> list[dict]:
         """One row per parameter: estimate, standard error, relative error (%), 95%
@@ -140,6 +140,7 @@ def equation_error(
     equations: Sequence[str] | None = None,
     states: Sequence | None = None,
     max_iterations: int = 50,
+    throw: bool = True,
 ) -> EquationErrorFit:
     """Equation-error least squares of a model linear in its parameters (see the
     module docstring).
@@ -156,6 +157,8 @@ def equation_error(
       states that are not measured).
     - `max_iterations`: of the equation re-weighting (one suffices when no parameter
       enters two equations).
+    - `throw`: accepted for the one entry's contract (a regression either solves
+      or raises a `ValueError` naming what is wrong).
 
     **Returns:** an [`EquationErrorFit`][].
     """
@@ -223,9 +226,12 @@ def equation_error(
     per_eq = enters[:, used].sum(axis=1)
     if np.any(per_eq >= n):
         raise ValueError(f"{n} samples are too few for {per_eq.max()} parameters")
+    del throw
     weight = np.ones(k)
     est = np.zeros(a.shape[-1])
+    iterations = 0
     for _ in range(max_iterations):
+        iterations += 1
         aw = (a * weight[None, :, None]).reshape(n * k, -1)
         bw = (b * weight[None, :]).reshape(-1)
         scale = np.linalg.norm(aw, axis=0)
@@ -257,6 +263,22 @@ def equation_error(
     estimable = np.zeros(p, bool)
     estimable[free_idx] = True
     resid = b - np.einsum("nkf,f->nk", a, est)
+    sigma = np.sqrt(np.sum(resid**2, axis=0) / (n - per_eq))
+    # Morelli-Klein per record (lags do not cross records)
+    kk = a * weight[None, :, None] @ cov_used  # (N, k, f)
+    starts = np.r_[0, np.cumsum(sizes)]
+    info = sum(
+        np.asarray(
+            coloured_information(
+                jnp.asarray(kk[i:j]), jnp.asarray(resid[i:j] * weight[None, :])
+            )
+        )
+        for i, j in zip(starts[:-1], starts[1:], strict=True)
+    )
+    stderr_c = np.full(p, np.nan)
+    stderr_c[free_idx] = np.maximum(
+        np.sqrt(np.clip(np.diag(info), 0.0, None)), stderr[free_idx]
+    )
     # R^2 of the measured output (the regressand holds the held terms too)
     meas = np.concatenate([r.measured[:, index] for r in records])
     r2 = 1.0 - np.sum(resid**2, axis=0) / np.sum((meas - meas.mean(0)) ** 2, axis=0)
@@ -267,8 +289,14 @@ def equation_error(
         stderr=stderr,
         covariance=cov,
         estimable=estimable,
-        sigma=np.sqrt(np.sum(resid**2, axis=0) / (n - per_eq)),
+        sigma=sigma,
         r2=r2,
         residuals=list(np.split(resid, np.cumsum(sizes)[:-1])),
         samples=n,
+        stderr_corrected=stderr_c,
+        free=np.asarray(free),
+        cost=float(np.prod(np.sum(resid**2, axis=0) / n)),
+        iterations=iterations,
+        result=RESULTS.successful,
+        reason="",
     )

@@ -43,8 +43,9 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from .._model import Model, Record
-from ._engine import _input_at, Layout, RESULTS
-from ._fit import layout as _layout, simulate, SingleShooting
+from ._engine import _input_at, coloured_information, explain, Layout, MAX_ITER, RESULTS
+from ._estimator import AbstractFit
+from ._fit import layout as _layout, output_error, simulate, SingleShooting
 from ._riccati import discretise, solve_filter_riccati
 
 
@@ -149,6 +150,8 @@ class FilterSolution(eqx.Module):
     active: Bool[Array, ""]
     jacobian: Float[Array, "records length outputs unknowns"]
     whitened: Float[Array, "records length outputs"]
+    information: Float[Array, "unknowns unknowns"]
+    change: Float[Array, ""]
 
 
 def _whiten(rmat):
@@ -200,13 +203,32 @@ def _constrained_step(h, g, free, damping, kc, jkc):
     return step / scale * m, jnp.any(active)
 
 
-@functools.partial(jax.jit, static_argnames=("model", "max_iter", "full"))
+def _print_progress(it, cost, change, damping):
+    import sys
+
+    print(
+        f"iteration {int(it):4d}: det(R) {float(cost):.6e}, relative change "
+        f"{float(change):.2e}, damping {float(damping):.1e}",
+        file=sys.stderr,
+        flush=True,
+    )
+
+
+@functools.partial(jax.jit, static_argnames=("model", "full", "progress"))
 def solve_filter_error(
-    model: Model, prob: FilterProblem, z0, free, *, rtol, max_iter, full=False
+    model: Model,
+    prob: FilterProblem,
+    z0,
+    free,
+    *,
+    rtol,
+    max_iter,
+    full=False,
+    progress=False,
 ) -> FilterSolution:
     """Minimise det(R) of the innovations over the free unknowns `z = [theta, f]`
     from `z0` (pure and jitted; vmap batches it over problems of one shape); `R`
-    full (`full=True`) or diagonal."""
+    full (`full=True`) or diagonal; `progress` prints one line per iteration."""
     p = len(model.parameters)
     lay = prob.layout
     nvalid = jnp.sum(lay.valid)
@@ -233,7 +255,7 @@ def solve_filter_error(
         return r_new, z.at[p:].set(f)
 
     def body(carry):
-        z, rmat, cost_prev, it, _, damping, _, _ = carry
+        z, rmat, cost_prev, it, _, damping, _, _, _ = carry
         h, g, jkc, (nu, _, kc, _, c) = _linearise(model, prob, z, rmat)
         j0 = weighted(nu, rmat)
 
@@ -260,7 +282,20 @@ def solve_filter_error(
         small = jnp.abs(cost_prev - cost) <= rtol * jnp.abs(cost)
         broken = ~(jnp.all(jnp.isfinite(h)) & jnp.all(jnp.isfinite(g)))
         done = (small & accepted) | ~accepted | broken
-        return new, r_new, cost, it + 1, done, damping / 10.0, broken, act & accepted
+        change = jnp.abs(cost_prev - cost) / jnp.abs(cost)
+        if progress:
+            jax.debug.callback(_print_progress, it + 1, cost, change, damping)
+        return (
+            new,
+            r_new,
+            cost,
+            it + 1,
+            done,
+            damping / 10.0,
+            broken,
+            act & accepted,
+            change,
+        )
 
     # start as FVSysID does: R from the output errors of the start model (zero
     # gain); the first gain is the one the start intensities imply with that R
@@ -271,8 +306,8 @@ def solve_filter_error(
     )
     r0 = jnp.diag(jnp.sum(e0**2, axis=(0, 1)) / nvalid)
     init = (z0, r0, jnp.linalg.det(r0), jnp.array(0), jnp.array(False), jnp.array(0.0))
-    init = (*init, ~jnp.all(jnp.isfinite(r0)), jnp.array(False))
-    z, rmat, cost, iterations, done, _, broken, active = jax.lax.while_loop(
+    init = (*init, ~jnp.all(jnp.isfinite(r0)), jnp.array(False), jnp.array(jnp.inf))
+    z, rmat, cost, iterations, done, _, broken, active, change = jax.lax.while_loop(
         lambda c_: (c_[3] < max_iter) & ~c_[4] & ~c_[6], body, init
     )
     h, _, _, (nu, y, kc, k, _), jw, ew = _linearise(model, prob, z, rmat, rows=True)
@@ -299,17 +334,21 @@ def solve_filter_error(
         active=active | jnp.any(kc > 1.0 - 1e-3),
         jacobian=jw,
         whitened=jnp.where(lay.valid[..., None], ew, 0.0),
+        information=hm * m[:, None] * m[None, :],
+        change=change,
     )
 
 
-class FilterErrorFit(eqx.Module):
+class FilterErrorFit(AbstractFit):
     """A filter-error fit of a [`Model`][] to one or several [`Record`][]s.
 
     **Fields:**
 
     - `model`, `records`: what was fitted.
     - `params` `(params,)`, `free`, `stderr` (Cramér-Rao, from the Fisher information
-      of the innovations; 0 for held parameters), `correlation` `(params, params)`.
+      of the innovations; 0 for held parameters), `stderr_corrected` (the same
+      corrected for whatever colour the innovations keep, Morelli-Klein),
+      `correlation` `(params, params)`.
     - `process_noise` names of the states with process noise; `F` `(noise,)` their
       intensities (state units / sqrt(s): `x' = f + F w`, `w` unit white noise) and
       `F_stderr`.
@@ -325,7 +364,8 @@ class FilterErrorFit(eqx.Module):
       `whitened` `(records, length, outputs)` the whitened innovations `W nu`
       (`W^T W = R^-1`), records padded to the longest with zeros: what a score test
       of a held parameter at this fit needs.
-    - `iterations`; `result` a [`RESULTS`][] code (`converged`, `message`).
+    - `iterations`; `result` a [`RESULTS`][] code (`converged`), `reason` why it
+      stopped and what to try (`message`).
     """
 
     model: Model
@@ -333,6 +373,7 @@ class FilterErrorFit(eqx.Module):
     params: np.ndarray
     free: np.ndarray
     stderr: np.ndarray
+    stderr_corrected: np.ndarray
     correlation: np.ndarray
     process_noise: tuple[str, ...] = eqx.field(static=True)
     F: np.ndarray
@@ -349,23 +390,12 @@ class FilterErrorFit(eqx.Module):
     whitened: np.ndarray
     iterations: int
     result: RESULTS
-
-    @property
-    def converged(self) -> bool:
-        return bool(self.result == RESULTS.successful)
-
-    @property
-    def message(self) -> str:
-        """Why the fit stopped, in words ("" when it converged)."""
-        return RESULTS[self.result]
+    reason: str
 
     @property
     def residuals(self) -> tuple[np.ndarray, ...]:
         """The innovations (the filter-error method's residuals)."""
         return self.innovations
-
-    def estimates(self) -> dict[str, float]:
-        return dict(zip(self.model.parameters, self.params.tolist(), strict=True))
 
     def table(self) -> list[dict]:
         """One row per parameter and per process-noise intensity `F[state]`."""
@@ -379,14 +409,6 @@ class FilterErrorFit(eqx.Module):
         for row, f in zip(rows, free, strict=True):
             row["fixed"] = not f
         return rows
-
-
-def _result_code(sol_result) -> RESULTS:
-    code = int(np.asarray(sol_result._value))
-    for name in ("max_iterations", "nonfinite"):
-        if code == int(np.asarray(getattr(RESULTS, name)._value)):
-            return getattr(RESULTS, name)
-    return RESULTS.successful
 
 
 def problem(
@@ -420,11 +442,13 @@ def fit_filter_error(
     start=None,
     full_R: bool = False,
     rtol: float = 1e-6,
-    max_iter: int = 60,
+    max_iter: int | None = None,
     throw: bool = True,
 ) -> FilterErrorFit:
     """Maximum-likelihood filter-error estimate of `model`'s parameters and the
-    process-noise intensities from one or several records (e.g. flown in turbulence).
+    process-noise intensities from one or several records (e.g. flown in
+    turbulence). Kept for one release: prefer `dp.estimate(model, records,
+    dp.FilterError(...))`, the one entry for every method.
 
     **Arguments:**
 
@@ -432,24 +456,98 @@ def fit_filter_error(
     - `records`: a [`Record`][] or a list of them; each record's initial state is
       its `x0` (default: its first measured sample), held (the filter corrects it).
     - `process_noise`: the states whose equations get process noise: names, or a
-      dict name -> start intensity (state units / sqrt(s)). Names alone start at
-      a tenth of the state's spread in the start simulation per sqrt(s). Every
+      dict name -> start intensity (state units / sqrt(s)). Names alone start
+      from an output-error fit (see [`FilterError`][]): its estimates are the
+      parameters' start, and each intensity is scaled to its residuals. Every
       intensity is estimated.
-    - `start`: start values of the model parameters `(params,)` (default
-      `model.start`).
+    - `start`: start values of the model parameters `(params,)` (default: the
+      output-error estimates when the intensities are not given, else
+      `model.start`); given, it is the start, the output-error fit from it only
+      scales the intensities.
     - `full_R`: estimate the full innovation covariance instead of its diagonal
       (the default, as output error and FVSysID do). Process noise correlates the
       innovations of outputs driven by the same state (alpha and az): in the
       simulated Monte Carlo the diagonal R left F[alpha] 25% low (the derivatives
       unbiased either way) and the full R found it; on the real HFB-320 record
-      the diagonal R reproduces FVSysID and gives the whiter innovations (README).
+      the diagonal R reproduces FVSysID and gives the whiter innovations.
     - `rtol`: stop when det(R) changes by less than this, relatively.
-    - `max_iter`: iteration cap.
+    - `max_iter`: iteration bound (default: the adaptive budget).
     - `throw`: raise a `RuntimeError` with the reason when the fit fails; with
       `throw=False` the result carries the code and `message` instead.
 
     **Returns:** a [`FilterErrorFit`][].
     """
+    return filter_error(
+        model,
+        records,
+        process_noise=process_noise,
+        start=start,
+        full_R=full_R,
+        rtol=rtol,
+        max_iter=max_iter,
+        throw=throw,
+    )
+
+
+def residual_intensities(model: Model, records, residuals, theta, noise_states):
+    """Start intensities (state units / sqrt(s)) scaled to a fit's residuals.
+
+    Each output's residual rms `sigma_i` (over all records) is carried to the
+    states through the linearised observation `C = dg/dx` at the first record's
+    start: a state's residual level is the smallest `sigma_i / |C_ij|` over the
+    outputs that see it. A random walk of intensity `F` wanders by `F sqrt(T)` in
+    the record's duration `T`, so `F = sigma_x / sqrt(T)` is the intensity whose
+    drift over the record is the size of what the fit left unexplained: small when
+    the model already fits (the residuals are the sensors' noise), large when
+    turbulence moved the states. The steps of the fit then move it by factors.
+    """
+    e = np.concatenate([np.asarray(r) for r in residuals])
+    sigma = np.sqrt(np.mean(e**2, axis=0))
+    rec = records[0]
+    x0 = rec.x0 if rec.x0 is not None else rec.measured_states(model, [0])[0]
+    c = np.asarray(
+        jax.jacfwd(model.g, argnums=1)(
+            float(rec.t[0]),
+            jnp.asarray(x0),
+            jnp.asarray(rec.inputs[0]),
+            jnp.asarray(theta),
+        )
+    )
+    duration = max(float(r.t[-1] - r.t[0]) for r in records)
+    f0 = []
+    for j in noise_states:
+        seen = np.abs(c[:, j]) > 0
+        if not np.any(seen):
+            raise ValueError(
+                f"process noise on {model.states[j]!r}: no output sees this state at "
+                "the start (give its start intensity)"
+            )
+        level = np.min(sigma[seen] / np.abs(c[seen, j]))
+        f0.append(level / np.sqrt(duration))
+    f0 = np.asarray(f0)
+    # a model that reproduces a channel to the last bit leaves no residual: a
+    # floor of the rounding of the states' size keeps the intensity non-zero
+    floor = np.finfo(float).eps * np.maximum(
+        np.abs(np.asarray(x0))[list(noise_states)], 1.0
+    )
+    return np.maximum(f0, floor)
+
+
+def filter_error(
+    model: Model,
+    records: Record | Sequence[Record],
+    *,
+    process_noise: Sequence[str] | Mapping[str, float],
+    start=None,
+    full_R: bool = False,
+    rtol: float = 1e-6,
+    max_iter: int | None = None,
+    throw: bool = True,
+    progress: bool = False,
+) -> FilterErrorFit:
+    """The filter-error fit behind [`FilterError`][] and [`fit_filter_error`][]
+    (arguments as [`fit_filter_error`][]'s; `progress` prints one line per
+    iteration)."""
     records = (records,) if isinstance(records, Record) else tuple(records)
     if not records:
         raise ValueError("no records to fit")
@@ -466,16 +564,13 @@ def fit_filter_error(
     if len(set(names)) != len(names):
         raise ValueError(f"process_noise names a state twice: {names}")
     noise_states = tuple(model.states.index(s) for s in names)
-    theta0 = np.asarray(model.start if start is None else start, float)
     prob = problem(model, records, noise_states)
     if isinstance(process_noise, Mapping):
+        theta0 = np.asarray(model.start if start is None else start, float)
         f0 = np.array([float(process_noise[s]) for s in names])
     else:
-        sim = simulate(model, records[0], theta0, np.asarray(prob.x0[0]))
-        spread = np.maximum(
-            np.std(sim, axis=0), 1e-6 * np.maximum(np.abs(sim).max(0), 1)
-        )
-        f0 = 0.1 * spread[list(noise_states)]
+        theta0, residuals = _output_error_start(model, records, start, prob)
+        f0 = residual_intensities(model, records, residuals, theta0, noise_states)
     if np.any(f0 == 0):
         raise ValueError("process-noise start intensities must be non-zero")
     z0 = np.concatenate([theta0, f0])
@@ -486,8 +581,9 @@ def fit_filter_error(
         jnp.asarray(z0),
         jnp.asarray(free),
         rtol=rtol,
-        max_iter=max_iter,
+        max_iter=jnp.asarray(MAX_ITER if max_iter is None else int(max_iter)),
         full=bool(full_R),
+        progress=bool(progress),
     )
     sol = jax.tree.map(np.asarray, sol)
     p = len(model.parameters)
@@ -495,12 +591,23 @@ def fit_filter_error(
     block = sol.covariance[:p, :p]
     d = np.sqrt(np.clip(np.diag(block), 1e-300, None))
     lengths = [len(rec.t) for rec in records]
+    result, reason = explain(
+        sol.result,
+        information=_gram(sol.jacobian),
+        free=free,
+        names=[*model.parameters, *(f"F[{s}]" for s in names)],
+        iterations=int(sol.iterations),
+        change=float(sol.change),
+    )
     out = FilterErrorFit(
         model=model,
         records=records,
         params=sol.z[:p],
         free=np.asarray(model.free),
         stderr=sd[:p],
+        stderr_corrected=np.maximum(
+            _corrected_stderr(sol.jacobian, sol.whitened, sol.covariance)[:p], sd[:p]
+        ),
         correlation=block / (d[:, None] * d[None, :]),
         process_noise=names,
         F=np.abs(sol.z[p:]),
@@ -516,8 +623,57 @@ def fit_filter_error(
         jacobian=sol.jacobian,
         whitened=sol.whitened,
         iterations=int(sol.iterations),
-        result=_result_code(sol.result),
+        result=result,
+        reason=reason,
     )
     if throw and not out.converged:
         raise RuntimeError(f"filter-error fit failed: {out.message}")
     return out
+
+
+def _output_error_start(model, records, start, prob):
+    """Parameters and residuals to start the filter from. The residuals are those
+    of an output-error fit from `start` (default the model's) when it ends finite,
+    else of `start`'s simulation; the parameters are that fit's estimates when no
+    `start` is given, else `start` itself (a caller trying several starts keeps
+    them apart)."""
+    theta0 = np.asarray(model.start if start is None else start, float)
+    oe = output_error(
+        model.replace(start=dict(zip(model.parameters, theta0.tolist(), strict=True))),
+        records,
+        throw=False,
+    )
+    if np.isfinite(oe.cost) and np.all(np.isfinite(oe.params)):
+        residuals = [
+            rec.measured - y for rec, y in zip(records, oe.outputs, strict=True)
+        ]
+        return (np.asarray(oe.params, float) if start is None else theta0), residuals
+    residuals = []
+    for i, rec in enumerate(records):
+        xs = simulate(model, rec, theta0, np.asarray(prob.x0[i]))
+        ys = jax.vmap(lambda t, x, u: model.g(t, x, u, jnp.asarray(theta0)))(
+            jnp.asarray(rec.t), jnp.asarray(xs), jnp.asarray(rec.inputs)
+        )
+        residuals.append(
+            np.nan_to_num(rec.measured - np.asarray(ys), posinf=0, neginf=0)
+        )
+    return theta0, residuals
+
+
+def _gram(jacobian):
+    """`A^T A` of the whitened innovations' Jacobian `(records, length, outputs,
+    unknowns)`, held unknowns' columns included (the caller masks them)."""
+    a = jacobian.reshape(-1, jacobian.shape[-1])
+    return a.T @ a
+
+
+def _corrected_stderr(jacobian, whitened, covariance):
+    """Standard errors of all unknowns corrected for coloured innovations
+    (Morelli-Klein, per record, summed)."""
+    total = np.zeros_like(covariance)
+    for r in range(jacobian.shape[0]):
+        k = np.einsum("tok,kn->ton", jacobian[r], covariance)
+        total += np.asarray(
+            coloured_information(jnp.asarray(k), jnp.asarray(whitened[r]))
+        )
+    return np.sqrt(np.clip(np.diag(total), 0.0, None))

@@ -10,7 +10,8 @@ import numpy as np
 
 from .._cache import kept_call
 from .._model import Model, Record
-from ._engine import Layout, RESULTS, solve
+from ._engine import explain, Layout, MAX_ITER, RESULTS, solve
+from ._estimator import AbstractFit
 
 
 class SingleShooting(eqx.Module):
@@ -100,7 +101,7 @@ def layout(
     )
 
 
-class Fit(eqx.Module):
+class Fit(AbstractFit):
     """An output-error fit of a [`Model`][] to one or several [`Record`][]s.
 
     **Fields:**
@@ -118,7 +119,8 @@ class Fit(eqx.Module):
     - `nodes` `(segments, states)`: every shooting node.
     - `cost`: det(R); `R` `(outputs,)` the diagonal residual covariance.
     - `outputs`: per record, the model outputs `(samples, outputs)`.
-    - `iterations`; `result` a [`RESULTS`][] code (`result.converged` is the bool);
+    - `iterations`; `result` a [`RESULTS`][] code (`converged` is the bool);
+      `reason` why it stopped and what to try (`message`, "" when converged);
       `defect`: the largest continuity defect relative to the state scale.
     - `layout`: the segments the engine solved (for the score test).
     """
@@ -141,6 +143,7 @@ class Fit(eqx.Module):
     outputs: tuple[np.ndarray, ...]
     iterations: int
     result: RESULTS
+    reason: str
     defect: float
     layout: Layout
 
@@ -150,34 +153,6 @@ class Fit(eqx.Module):
         return np.concatenate(
             [self.nodes.reshape(-1), self.params, self.biases.reshape(-1)]
         )
-
-    @property
-    def converged(self) -> bool:
-        # compared on the host: `==` of two enumeration items is a jax operation,
-        # a program compiled in every process for one boolean
-        return int(np.asarray(self.result._value)) == int(
-            np.asarray(RESULTS.successful._value)
-        )
-
-    @property
-    def message(self) -> str:
-        """Why the fit stopped, in words ("" when it converged)."""
-        return RESULTS[self.result]
-
-    def estimates(self) -> dict[str, float]:
-        return dict(zip(self.model.parameters, self.params.tolist(), strict=True))
-
-    def high_correlations(self, limit: float = 0.9) -> list[tuple[str, str, float]]:
-        """Pairs of estimated parameters correlated above `limit` in magnitude."""
-        names = self.model.parameters
-        out = []
-        for i in range(len(names)):
-            for j in range(i + 1, len(names)):
-                if self.free[i] and self.free[j]:
-                    c = float(self.correlation[i, j])
-                    if abs(c) > limit:
-                        out.append((names[i], names[j], c))
-        return out
 
     def table(self) -> list[dict]:
         """One row per parameter: estimate, standard error (coloured-residual
@@ -191,6 +166,23 @@ class Fit(eqx.Module):
             row["stderr_crb"] = float(crb) if free else None
             row["fixed"] = not free
         return rows
+
+
+def _output_information(jacobian, record, nx, p, nb):
+    """The outputs' information about the parameters and biases, node states
+    held: `A^T A` of the whitened output Jacobian's parameter and bias columns,
+    `(p + records nb, p + records nb)`. Whether the inputs excite a parameter is a
+    question about these columns alone (the continuity defects, weighted by a
+    tolerance, can dwarf them in the full information without adding any)."""
+    n_seg, length, n_out, _ = jacobian.shape
+    n_rec = int(record.max()) + 1
+    a = np.zeros((n_seg, length * n_out, p + n_rec * nb))
+    a[..., :p] = jacobian[..., nx : nx + p].reshape(n_seg, -1, p)
+    for s in range(n_seg if nb else 0):
+        col = p + record[s] * nb
+        a[s, :, col : col + nb] = jacobian[s, ..., nx + p :].reshape(-1, nb)
+    a = a.reshape(-1, a.shape[-1])
+    return a.T @ a
 
 
 def _initial_nodes(model, records, lay, start):
@@ -279,11 +271,13 @@ def fit(
     biases: Sequence[str] = (),
     start=None,
     rtol: float = 1e-7,
-    max_iter: int = 50,
+    max_iter: int | None = None,
     throw: bool = True,
 ) -> Fit:
     """Maximum-likelihood output-error estimate of `model`'s parameters from one or
-    several records (manoeuvres) that share them.
+    several records (manoeuvres) that share them. Kept for one release: prefer
+    `dp.estimate(model, records, dp.OutputError(...))`, the one entry for every
+    method.
 
     **Arguments:**
 
@@ -295,12 +289,44 @@ def fit(
     - `biases`: outputs that get a constant bias per record (estimated).
     - `start`: start values `(params,)` (default `model.start`).
     - `rtol`: stop when det(R) changes by less than this, relatively.
-    - `max_iter`: iteration cap.
+    - `max_iter`: iteration bound (default: the adaptive budget, see
+      [`estimate`][]).
     - `throw`: raise a `RuntimeError` with the reason when the fit fails; with
       `throw=False` the [`Fit`][] carries the result code and `message` instead.
 
     **Returns:** a [`Fit`][].
     """
+    return output_error(
+        model,
+        records,
+        shooting=shooting,
+        initial_state=initial_state,
+        biases=biases,
+        start=start,
+        rtol=rtol,
+        max_iter=max_iter,
+        throw=throw,
+    )
+
+
+def output_error(
+    model: Model,
+    records: Record | Sequence[Record],
+    *,
+    shooting: SingleShooting | MultipleShooting | None = None,
+    initial_state: str = "fixed",
+    biases: Sequence[str] = (),
+    start=None,
+    rtol: float = 1e-7,
+    max_iter: int | None = None,
+    throw: bool = True,
+    progress: bool = False,
+    solver=None,
+) -> Fit:
+    """The output-error fit behind [`OutputError`][] and [`fit`][] (arguments as
+    [`fit`][]'s; `progress` prints one line per iteration; `solver` a
+    [`BlockLevenbergMarquardt`][] runs the iteration through optimistix instead
+    of the engine's own loop)."""
     records = (records,) if isinstance(records, Record) else tuple(records)
     shooting = SingleShooting() if shooting is None else shooting
     if not records:
@@ -325,17 +351,26 @@ def fit(
         model, records, shooting, initial_state, biases, _state_scale(model, nodes0)
     )
     z0 = np.concatenate([nodes0.reshape(-1), start, np.zeros(len(records) * nb)])
-    # through the cache's kept programs: a later process skips tracing
-    sol = kept_call(
-        solve,
-        {"model": model.structure(), "nx": nx, "p": p, "max_iter": max_iter},
-        {
-            "layout": lay,
-            "z0": np.asarray(z0, float),
-            "free_params": np.asarray(model.free),
-            "rtol": np.asarray(rtol, float),
-        },
-    )
+    static = {
+        "model": model.structure(),
+        "nx": nx,
+        "p": p,
+    }
+    dynamic = {
+        # traced: every bound shares one compiled program
+        "max_iter": np.asarray(MAX_ITER if max_iter is None else int(max_iter)),
+        "layout": lay,
+        "z0": np.asarray(z0, float),
+        "free_params": np.asarray(model.free),
+        "rtol": np.asarray(rtol, float),
+    }
+    if solver is None:
+        # through the cache's kept programs: a later process skips tracing
+        sol = kept_call(solve, {**static, "progress": bool(progress)}, dynamic)
+    else:
+        from ._solver import solve_with_optimistix
+
+        sol = solve_with_optimistix(**static, **dynamic, solver=solver)
     sol = jax.tree.map(np.asarray, sol)
     ns = lay.n_segments * nx
     var = np.clip(np.diag(sol.covariance), 0.0, None)
@@ -343,7 +378,9 @@ def fit(
     sd, sd_c = np.sqrt(var), np.sqrt(var_c)
     block = sol.covariance[ns : ns + p, ns : ns + p]
     d = np.sqrt(np.clip(np.diag(block), 1e-300, None))
-    correlation = block / (d[:, None] * d[None, :])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # NaN where the information is singular (the result says so)
+        correlation = block / (d[:, None] * d[None, :])
     nodes = sol.z[:ns].reshape(-1, nx)
     record = np.asarray(lay.record)
     starts = np.flatnonzero(np.r_[True, record[1:] != record[:-1]])
@@ -351,11 +388,18 @@ def fit(
     for i, rec in enumerate(records):
         segs = np.flatnonzero(record == i)
         outputs.append(sol.outputs[segs].reshape(-1, len(model.outputs))[: len(rec.t)])
-    result = RESULTS.successful
-    code = int(np.asarray(sol.result._value))
-    for name in ("max_iterations", "nonfinite"):
-        if code == int(np.asarray(getattr(RESULTS, name)._value)):
-            result = getattr(RESULTS, name)
+    multiple = isinstance(shooting, MultipleShooting)
+    names = list(model.parameters)
+    names += [f"bias {b} ({rec.name})" for rec in records for b in biases]
+    result, reason = explain(
+        sol.result,
+        information=_output_information(sol.jacobian, record, nx, p, nb),
+        free=np.r_[np.asarray(model.free), np.ones(len(records) * nb, bool)],
+        names=names,
+        iterations=int(sol.iterations),
+        change=float(sol.change),
+        defect=float(sol.defect) if multiple else None,
+    )
     out = Fit(
         model=model,
         records=records,
@@ -375,9 +419,15 @@ def fit(
         outputs=tuple(outputs),
         iterations=int(sol.iterations),
         result=result,
+        reason=reason,
         defect=float(sol.defect) * getattr(shooting, "continuity_tol", 1.0),
         layout=lay,
     )
     if throw and not out.converged:
         raise RuntimeError(f"output-error fit failed: {out.message}")
     return out
+
+
+# the public name of `simulate` (the package's top level keeps `simulate` for one
+# release as the Pegasus simulator's, see `diffpegasus.pegasus`)
+simulate_model = simulate

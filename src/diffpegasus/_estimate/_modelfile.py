@@ -26,12 +26,14 @@ The built-in vehicles other than Pegasus are such files' contents, too.
 """
 
 import dataclasses
+import inspect
+import math
 import pathlib
 import runpy
-import traceback
 
 from .._errors import LogError
 from .._model import Model
+from .._usercode import contained
 from ._fit import MultipleShooting, SingleShooting
 
 
@@ -57,15 +59,22 @@ def load_model_file(path) -> ModelSpec:
     file becomes one `LogError` line naming the file and line."""
     path = pathlib.Path(path)
     if not path.is_file():
-        raise LogError(f"{path}: no such model file")
+        raise LogError(
+            f"{path}: no such model file"
+            if not path.exists()
+            else f"{path}: is a folder, not a model file"
+        )
     try:
+        path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise LogError(
+            f"{path}: the model file is not UTF-8 text (byte {e.start}); save it as "
+            "UTF-8"
+        ) from None
+    except OSError as e:
+        raise LogError(f"{path}: cannot read the model file ({e.strerror})") from None
+    with contained(str(path), "at import"):
         ns = runpy.run_path(str(path), run_name="diffpegasus_model")
-    except Exception as e:  # the user's code: report where it failed, in one line
-        frames = [
-            f for f in traceback.extract_tb(e.__traceback__) if f.filename == str(path)
-        ]
-        line = f" line {frames[-1].lineno}" if frames else ""
-        raise LogError(f"{path}:{line}: {type(e).__name__}: {e}") from None
     model = ns.get("model")
     if model is None and ns.get("vehicle") is not None:
         from .._vehicle._parts import FlightVehicle, vehicle_model
@@ -79,7 +88,9 @@ def load_model_file(path) -> ModelSpec:
             f"or `vehicle = diffpegasus.FlightVehicle(...)` "
             f"(found {type(model).__name__})"
         )
-    return spec_from_namespace(ns, str(path))
+    spec = spec_from_namespace(ns, str(path))
+    _check_model(spec.model, str(path))
+    return spec
 
 
 def _reader(read, name):
@@ -94,6 +105,8 @@ def _initial_state(x0, model: Model, name: str):
             v = tuple(float(a) for a in v)
         except (TypeError, ValueError):
             raise LogError(f"{name}: {where} must be numbers, got {v!r}") from None
+        if not all(math.isfinite(a) for a in v):
+            raise LogError(f"{name}: {where} must be finite numbers, got {v!r}")
         if len(v) != len(model.states):
             raise LogError(
                 f"{name}: {where} has {len(v)} values, the model has "
@@ -106,6 +119,70 @@ def _initial_state(x0, model: Model, name: str):
     if isinstance(x0, dict):
         return {str(k): one(v, f"x0[{k!r}]") for k, v in x0.items()}
     return one(x0, "x0")
+
+
+def _check_parameters(model: Model, name: str) -> None:
+    """A model with nothing to estimate, or a start value no fit can start from."""
+    if not model.parameters:
+        raise LogError(
+            f"{name}: the model has no parameters (parameters={{}}); a fit estimates "
+            "at least one, e.g. parameters={'Mq': -1.0}"
+        )
+    for p, v in zip(model.parameters, model.start, strict=True):
+        if not math.isfinite(v):
+            raise LogError(
+                f"{name}: parameter {p!r} starts at {v!r}; start values must be "
+                "finite numbers"
+            )
+
+
+def _candidates(value, model: Model, name: str) -> tuple[str, ...]:
+    """`candidates`: parameters of the model that `diagnose` tests, held at their
+    start values (usually 0)."""
+    value = (value,) if isinstance(value, str) else tuple(value)
+    for c in value:
+        if c not in model.parameters:
+            raise LogError(
+                f"{name}: candidates names {c!r}, not a parameter of the model "
+                f"({', '.join(model.parameters)})"
+            )
+    return value
+
+
+def _def_line(fn) -> str:
+    try:
+        return f" line {inspect.getsourcelines(fn)[1]}"
+    except (OSError, TypeError):
+        return ""
+
+
+def _check_model(model: Model, name: str) -> None:
+    """Trace `rates` and `observe` once on zeros (`jax.eval_shape`: nothing runs or
+    compiles) so that an output of the wrong length is named with the file and the
+    function's line before any data is read."""
+    import jax
+    import numpy as np
+
+    dtype = jax.dtypes.canonicalize_dtype(np.float64)
+    scalar = jax.ShapeDtypeStruct((), dtype, weak_type=True)
+    p = {k: scalar for k in model.parameters}
+    x = np.zeros(len(model.states))
+    u = np.zeros(len(model.inputs))
+    for what, fn, names in (
+        ("rates", model.rates, model.states),
+        ("observe", model.observe, model.outputs),
+    ):
+        try:
+            out = jax.eval_shape(fn, 0.0, x, u, p)
+        except Exception:  # noqa: BLE001 (reported with the record, see Record.check)
+            continue
+        n = sum(int(np.prod(getattr(a, "shape", ()))) for a in jax.tree.leaves(out))
+        if n != len(names):
+            raise LogError(
+                f"{name}:{_def_line(fn)}: {what}(t, x, u, p) returns {n} value(s); "
+                f"the model has {len(names)} "
+                f"{'states' if what == 'rates' else 'outputs'} ({', '.join(names)})"
+            )
 
 
 def _biases(biases, model: Model, name: str) -> tuple[str, ...]:
@@ -126,6 +203,14 @@ def spec_from_namespace(ns: dict, name: str) -> ModelSpec:
         raise LogError(
             f"{name}: `shooting` must be dp.SingleShooting() or dp.MultipleShooting(...)"
         )
+    model = ns["model"]
+    _check_parameters(model, name)
+    candidates = _candidates(ns.get("candidates", ()), model, name)
+    # a candidate is a held term (as `diagnose_model` holds them): held here too, so
+    # that `fit` and `diagnose` of the file agree on what is estimated
+    held = tuple(c for c in candidates if c not in model.fixed)
+    if held:
+        model = ns["model"] = model.replace(fixed=(*model.fixed, *held))
     initial_state = ns.get("initial_state", "fixed")
     if initial_state not in ("fixed", "estimated"):
         raise LogError(f"{name}: initial_state must be 'fixed' or 'estimated'")
@@ -138,25 +223,40 @@ def spec_from_namespace(ns: dict, name: str) -> ModelSpec:
         initial_state=initial_state,
         biases=_biases(ns.get("biases", ()), ns["model"], name),
         shooting=shooting,
-        candidates=tuple(ns.get("candidates", ())),
+        candidates=candidates,
         vehicle=ns.get("vehicle"),
-        process_noise=_process_noise(ns.get("process_noise"), name),
+        process_noise=_process_noise(ns.get("process_noise"), name, model),
     )
 
 
-def _process_noise(value, name):
+def _process_noise(value, name, model):
     """A model file's `process_noise`: `None`, a tuple of state names or a dict
     name -> start intensity."""
     if value is None:
         return None
     if isinstance(value, str):
-        return (value,)
+        value = (value,)
     try:
         if isinstance(value, dict):
-            return {str(k): float(v) for k, v in value.items()}
-        return tuple(str(v) for v in value)
+            out = {str(k): float(v) for k, v in value.items()}
+        else:
+            out = tuple(str(v) for v in value)
     except (TypeError, ValueError):
         raise LogError(
             f"{name}: `process_noise` must be state names or a dict name -> start "
             "intensity"
         ) from None
+    unknown = [k for k in out if k not in model.states]
+    if unknown:
+        raise LogError(
+            f"{name}: process_noise names {unknown[0]!r}, not a state of the model "
+            f"({', '.join(model.states)})"
+        )
+    if isinstance(out, dict):
+        for k, v in out.items():
+            if not (math.isfinite(v) and v > 0):
+                raise LogError(
+                    f"{name}: process_noise[{k!r}] = {v!r}: a start intensity must be "
+                    "a positive finite number (state units/sqrt(s))"
+                )
+    return out

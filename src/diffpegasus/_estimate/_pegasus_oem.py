@@ -86,6 +86,7 @@ from jaxtyping import Array, Bool, Float
 
 from .._log._format import FlightLog
 from .._vehicle._atmosphere import isa
+from .._vehicle._axes import wind_body
 from .._vehicle._flight import moment_about_cg, pitch_plane_rates
 from .._vehicle._gravity import gravity
 from .._vehicle._pegasus._aerodynamics import body_axis, load_database
@@ -261,37 +262,17 @@ class _Outputs(eqx.Module):
 def to_lift_drag(body, alpha):
     """Body-axis derivatives `(..., 6)` to `[CLa, CLde, CDa, CDde, CMa, CMde]` at the
     window-mean alpha (thesis eqs 5.41-5.44)."""
-    sa, ca = jnp.sin(alpha), jnp.cos(alpha)
     cxa, cxde, cza, czde, cma, cmde = jnp.moveaxis(body, -1, 0)
-    return jnp.stack(
-        [
-            cxa * sa - cza * ca,
-            cxde * sa - czde * ca,
-            -cxa * ca - cza * sa,
-            -cxde * ca - czde * sa,
-            cma,
-            cmde,
-        ],
-        axis=-1,
-    )
+    (cla, cda), (clde, cdde) = wind_body(cxa, cza, alpha), wind_body(cxde, czde, alpha)
+    return jnp.stack([cla, clde, cda, cdde, cma, cmde], axis=-1)
 
 
 @jax.jit
 def to_body(lift_drag, alpha):
     """The inverse of [`to_lift_drag`][]."""
-    sa, ca = jnp.sin(alpha), jnp.cos(alpha)
     cla, clde, cda, cdde, cma, cmde = jnp.moveaxis(lift_drag, -1, 0)
-    return jnp.stack(
-        [
-            cla * sa - cda * ca,
-            clde * sa - cdde * ca,
-            -cla * ca - cda * sa,
-            -clde * ca - cdde * sa,
-            cma,
-            cmde,
-        ],
-        axis=-1,
-    )
+    (cxa, cza), (cxde, czde) = wind_body(cla, cda, alpha), wind_body(clde, cdde, alpha)
+    return jnp.stack([cxa, cxde, cza, czde, cma, cmde], axis=-1)
 
 
 def measured_states(log: FlightLog) -> np.ndarray:

@@ -76,7 +76,9 @@ class Estimates(eqx.Module):
         header += [f"stderr_{n}" for n in names] if d["stderr"] else []
         header += [f"true_{n}" for n in names] if "truth" in d else []
         header += list(d["flags"])
-        with open(path, "w", newline="") as f:
+        from .._files import atomic_write
+
+        def write(f):
             w = csv.writer(f)
             w.writerow(header)
             for i in range(len(d["window_start"])):
@@ -86,6 +88,8 @@ class Estimates(eqx.Module):
                 row += [d["truth"][n][i] for n in names] if "truth" in d else []
                 row += [d["flags"][k][i] for k in d["flags"]]
                 w.writerow(["" if x is None else x for x in row])
+
+        atomic_write(path, write)
 
     def mse(self, units: str = "deg", t_min: float | None = None) -> dict[str, float]:
         """Mean-squared error against the window-mean truth, per derivative, in

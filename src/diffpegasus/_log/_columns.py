@@ -12,7 +12,8 @@ Units understood: see [`UNITS`][]; a value is multiplied by the unit's factor to
 then by `scale`. A channel missing from the map, or whose mapped column the file does
 not have, is looked up by its own name (in SI units).
 
-Files: CSV with a header row (`.csv`, or anything with commas in its header); the
+Files: MATLAB `.mat` (v5 and v7.3) and HDF5 files (see `_matfile`); CSV with a
+header row (`.csv`, or anything with commas in its header); the
 column text files of FVSysID (`.asc`: free-text lines, a row of names starting with
 `T`, a row of units, then numbers); and plain numeric tables with no header at all
 (whitespace or commas), whose columns are numbered from 1 as FVSysID's MATLAB scripts
@@ -33,6 +34,7 @@ import numpy as np
 
 from .._errors import LogError
 from .._model import Model, Record
+from ._table import open_table, Table
 
 
 G0 = 9.80665
@@ -89,6 +91,12 @@ class Column:
                 f"{where}: channel {channel!r} has unknown keys {sorted(unknown)} "
                 "(allowed: column, unit, scale, step)"
             )
+        if "step" in spec and "column" in spec:
+            raise LogError(
+                f"{where}: channel {channel!r} has both a column "
+                f"({spec['column']!r}) and a step ({spec['step']!r}); give one: the "
+                "column of times, or the step of a file with no time column"
+            )
         self.channel = channel
         self.step = spec.get("step")
         if self.step is not None and (
@@ -116,6 +124,7 @@ class Column:
             )
         self.column = column
         unit = spec.get("unit", "")
+        self.unit = unit
         if not isinstance(unit, str) or unit.lower() not in UNITS:
             raise LogError(
                 f"{where}: channel {channel!r}: unknown unit {unit!r} "
@@ -129,152 +138,198 @@ class Column:
         self.factor = UNITS[unit.lower()] * float(scale)
 
 
-def load_columns(source) -> dict[str, Column]:
-    """A column map from a dict, or a `.json` / `.toml` file."""
-    where = "column map"
+def _no_duplicate_keys(pairs):
+    keys = [k for k, _ in pairs]
+    for k in keys:
+        if keys.count(k) > 1:
+            raise _DuplicateKey(k)
+    return dict(pairs)
+
+
+class _DuplicateKey(ValueError):
+    pass
+
+
+def load_columns(source, where: str = "column map") -> dict[str, Column]:
+    """A column map from a dict, or a `.json` / `.toml` file (UTF-8; a key given
+    twice is refused, not silently overwritten). `where` names a dict's origin in
+    messages (e.g. the model file that defines it)."""
     if source is None:
         return {}
+    if not isinstance(source, dict | str | os.PathLike):
+        raise LogError(
+            f"{where}: a column map is a dict of channel -> column, or the path of a "
+            f"JSON or TOML file, got {type(source).__name__}"
+        )
     if not isinstance(source, dict):
         path = pathlib.Path(source)
         where = str(path)
         try:
-            text = path.read_text(encoding="utf-8-sig")
+            data = path.read_bytes()
         except OSError as e:
             raise LogError(
                 f"{path}: cannot read the column map ({e.strerror})"
+            ) from None
+        if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
+            raise LogError(f"{path}: the column map is UTF-16 text; save it as UTF-8")
+        try:
+            text = data.decode("utf-8-sig")
+        except UnicodeDecodeError as e:
+            raise LogError(
+                f"{path}: the column map is not UTF-8 text (byte {e.start} is "
+                f"{data[e.start]:#04x}; a Latin-1 or Windows-1252 file?): save it as "
+                "UTF-8"
             ) from None
         try:
             source = (
                 tomllib.loads(text)
                 if path.suffix.lower() == ".toml"
-                else json.loads(text)
+                else json.loads(text, object_pairs_hook=_no_duplicate_keys)
             )
+        except _DuplicateKey as e:
+            raise LogError(
+                f"{path}: key {e.args[0]!r} is given twice in one table of the column "
+                "map; keep one"
+            ) from None
         except (ValueError, tomllib.TOMLDecodeError) as e:
             raise LogError(f"{path}: not a valid column map ({e})") from None
         if not isinstance(source, dict):
             raise LogError(f"{path}: a column map is a table of channels")
+    bad = [k for k in source if not isinstance(k, str)]
+    if bad:
+        raise LogError(f"{where}: channel names are strings, got {bad[0]!r}")
     return {ch: Column(ch, spec, where) for ch, spec in source.items()}
-
-
-def _numeric_rows(path: pathlib.Path, head: str):
-    """The table of a file with no header (every non-blank line numbers), by column
-    number from 1; `None` if the first non-blank line is not all numbers."""
-    from ._format import _NUMBER
-
-    cells = head.replace(",", " ").split()
-    if not cells or not all(_NUMBER.fullmatch(c) for c in cells):
-        return None
-    data, width = [], len(cells)
-    with open(path, encoding="utf-8-sig") as f:
-        for j, line in enumerate(f, start=1):
-            row = line.replace(",", " ").split()
-            if not row:
-                continue
-            if len(row) != width:
-                raise LogError(
-                    f"{path}: line {j} has {len(row)} values, the first line {width}"
-                )
-            for k, cell in enumerate(row, start=1):
-                if not _NUMBER.fullmatch(cell):
-                    raise LogError(
-                        f"{path}: line {j}, column {k}: {cell!r} is not a number"
-                    )
-            data.append([float(c) for c in row])
-    arr = np.asarray(data, float)
-    return {str(k + 1): arr[:, k] for k in range(width)}
 
 
 def read_table(path: str | os.PathLike) -> dict[str, np.ndarray]:
     """Every numeric column of a file: by header name for CSV and `.asc` files, by
     number (`"1"`, `"2"`, ...) for plain numeric tables with no header."""
-    from ._asc import read_asc
+    return open_table(path).read()
 
-    path = pathlib.Path(path)
-    try:
-        with open(path, encoding="utf-8-sig") as f:
-            head = ""
-            for head in f:
-                if head.strip():
-                    break
-    except OSError as e:
-        raise LogError(f"{path}: cannot read the file ({e.strerror})") from None
-    except UnicodeDecodeError:
-        raise LogError(f"{path}: not a UTF-8 text file") from None
-    if (table := _numeric_rows(path, head)) is not None:
-        return table
-    if path.suffix.lower() == ".asc" or "," not in head:
-        return read_asc(path)
-    import csv
 
-    with open(path, newline="", encoding="utf-8-sig") as f:
-        rows = list(csv.reader(f))
-    if not rows or not rows[0]:
-        raise LogError(f"{path}: the file is empty")
-    names = [n.strip() for n in rows[0]]
-    out: dict[str, list[float]] = {n: [] for n in names}
-    numeric = dict.fromkeys(names, True)
-    for r, row in enumerate(rows[1:], start=1):
-        if not row:
+def _resolve(table: Table, columns: dict[str, Column], channels) -> dict[str, Column]:
+    """Which column of `table` each of `channels` comes from.
+
+    A channel the map does not name is read from the column of its own name. A mapped
+    column the file lacks falls back to the channel's own name only when the whole
+    file is in that layout (none of the map's columns in it: a log this package
+    wrote, read through a vehicle's map) and the entry asks for no unit or scale
+    (which the fallback would drop); anything else is an error naming both."""
+    names = set(table.names)
+    own_layout = not any(
+        c.column in names for ch, c in columns.items() if c.column != ch
+    )
+    out = {}
+    for ch in channels:
+        col = columns.get(ch) or Column(ch, ch, "column map")
+        if col.step is not None or col.column in names:
+            out[ch] = col
             continue
-        if len(row) != len(names):
+        found = ch in names
+        if found and own_layout and col.factor == 1.0:
+            out[ch] = Column(ch, ch, "column map")
+            continue
+        where = f"{table.path}: no column {col.column!r} for channel {ch!r}"
+        near = [n for n in table.names if n.lower() == col.column.lower()]
+        if near:
             raise LogError(
-                f"{path}: row {r} has {len(row)} values, the header {len(names)}"
+                f"{where}: the file has {near[0]!r} (column names are "
+                f"case-sensitive); map the channel to {near[0]!r}"
+                + (f", and check that its unit is {col.unit!r}" if col.unit else "")
             )
-        for name, cell in zip(names, row, strict=True):
-            try:
-                if "_" in cell or not cell.isascii():
-                    raise ValueError
-                out[name].append(float(cell))
-            except ValueError:
-                if numeric[name] and len(out[name]) == 0 and r == 1:
-                    numeric[name] = False
-                if numeric[name]:
-                    raise LogError(
-                        f"{path}: column {name!r} row {r}: {cell!r} is not a number"
-                    ) from None
-    return {n: np.asarray(v, float) for n, v in out.items() if numeric[n]}
-
-
-def _channel(table, columns, name, path):
-    col = columns.get(name) or Column(name, name, "column map")
-    if col.step is not None:
-        n = len(next(iter(table.values())))
-        return col.step * np.arange(n)
-    if col.column not in table and name in table:
-        # a log in our own layout (e.g. simulated) read through a vehicle's map
-        col = Column(name, name, "column map")
-    if col.column not in table:
+        if found:
+            raise LogError(
+                f"{where}, although it has a column {ch!r}: the map says "
+                f"{col.column!r}"
+                + (f" in {col.unit!r}" if col.unit else "")
+                + f", and reading {ch!r} in SI units instead could be wrong; map "
+                f'it explicitly ("{ch}": {{"column": "{ch}", "unit": ...}})'
+            )
         raise LogError(
-            f"{path}: no column {col.column!r} for channel {name!r} (columns: "
-            f"{_listing(table)}); map it in the column map (--columns, or the model "
-            "file's columns)"
+            f"{where} (columns: {table.listing()}); map it in the column map "
+            "(--columns, or the model file's columns)"
         )
-    values = table[col.column] * col.factor
-    bad = ~np.isfinite(values)
+    used: dict[str, str] = {}
+    for ch, col in out.items():
+        if col.step is not None:
+            continue
+        if col.column in used:
+            raise LogError(
+                f"{table.path}: channels {used[col.column]!r} and {ch!r} both read "
+                f"column {col.column!r}; each channel needs its own column (check the "
+                "column map)"
+            )
+        used[col.column] = ch
+    return out
+
+
+def _channel(table: Table, data, col: Column, n: int) -> np.ndarray:
+    """A channel's values in SI units, refused where they cannot be measurements."""
+    if col.step is not None:
+        t = col.step * np.arange(n)
+        if col.channel in data:
+            _check_step(table, data[col.channel], col)
+        return t
+    raw = data[col.column]
+    bad = ~np.isfinite(raw)
     if bad.any():
         row = int(np.argmax(bad)) + 1
         raise LogError(
-            f"{path}: column {col.column!r} row {row}: value "
-            f"{table[col.column][row - 1]:g} is not finite"
+            f"{table.path}: column {col.column!r} (channel {col.channel!r}) row "
+            f"{row}: value {raw[row - 1]:g} is not finite"
         )
-    return values
+    _check_outliers(table, raw, col)
+    return raw * col.factor
 
 
-def _listing(table) -> str:
-    names = list(table)
-    if names and all(n.isdigit() for n in names):
-        return f"numbered 1 to {len(names)}, the file has no header"
-    return ", ".join(names)
+def _check_step(table: Table, t: np.ndarray, col: Column) -> None:
+    """A `step` beside a time column of the channel's name: both must agree."""
+    if len(t) < 2:
+        return
+    dt = float(np.median(np.diff(t)))
+    if not abs(dt - col.step) <= 1e-6 * col.step:
+        raise LogError(
+            f"{table.path}: the column map gives channel {col.channel!r} a step of "
+            f"{col.step:g} s, but the file's column {col.channel!r} steps by {dt:g} s; "
+            "remove the step or the column from the map"
+        )
+
+
+def _check_outliers(table: Table, raw: np.ndarray, col: Column) -> None:
+    """Values the fit cannot use: one whose square, summed over the record, would
+    overflow float64; one a million times beyond the column's own 90th-percentile
+    spread about its median (a corrupt cell, not a measurement)."""
+    where = f"{table.path}: column {col.column!r} (channel {col.channel!r}) row"
+    big = np.abs(raw * col.factor)
+    i = int(np.argmax(big))
+    if big[i] > np.sqrt(np.finfo(float).max / (4 * len(raw))):
+        raise LogError(
+            f"{where} {i + 1}: value {raw[i]:g} is too large for a measurement (its "
+            "square summed over the record overflows float64); a corrupt cell or a "
+            "wrong scale"
+        )
+    # the median and spread from at most 65536 evenly spaced samples: a factor of a
+    # million needs no more precision, and a long log costs no sort of every value
+    sample = raw[:: max(1, len(raw) // 65536)]
+    med = float(np.median(sample))
+    spread = float(np.percentile(np.abs(sample - med), 90))
+    dev = np.abs(raw - med)
+    i = int(np.argmax(dev))
+    if spread > 0 and dev[i] > 1e6 * spread:
+        raise LogError(
+            f"{where} {i + 1}: value {raw[i]:g} is {dev[i] / spread:.3g} times the "
+            f"column's 90th-percentile spread about its median ({med:g}): a corrupt "
+            "cell, not a measurement"
+        )
 
 
 def _read_with(reader, path: pathlib.Path) -> dict[str, np.ndarray]:
     """Channels from a user's `read(path)`: a dict of equal-length 1-D arrays, SI."""
-    try:
+    from .._usercode import contained
+
+    where = getattr(getattr(reader, "__code__", None), "co_filename", str(path))
+    with contained(where, f"in read({str(path)!r})"):
         out = reader(str(path))
-    except LogError:
-        raise
-    except Exception as e:  # the user's code: one line, naming the file
-        raise LogError(f"{path}: read() failed: {type(e).__name__}: {e}") from None
     if not isinstance(out, dict) or not out:
         raise LogError(
             f"{path}: read() must return a dict of channel name -> 1-D array, got "
@@ -303,7 +358,13 @@ def load_record(
     column map `columns`; the initial state `x0` (default: the state channels at the
     first sample where the file has them). `reader(path) -> {channel: array}` (SI
     units, by channel name) replaces the file reading and the column map, for files
-    whose channels are combinations of columns."""
+    whose channels are combinations of columns.
+
+    **Raises:** [`LogError`][] naming the file and, where they apply, the column,
+    row and value: an unreadable file, a mapped column the file lacks, two channels
+    on one column, a cell that is not a number, a value no measurement has, a channel
+    whose unit disagrees with the physics of the others, a record too short to fit.
+    """
     path = pathlib.Path(path)
     columns = (
         load_columns(columns)
@@ -313,29 +374,40 @@ def load_record(
             for k, v in columns.items()
         }
     )
+    needed = (time, *model.inputs, *model.outputs)
     if reader is not None:
-        table, columns = _read_with(reader, path), {}
+        data = _read_with(reader, path)
+        table = Table(path, tuple(data), "read", 0, 0, None)
+        resolved = _resolve(table, {}, needed)
     else:
-        table = read_table(path)
-    t = _channel(table, columns, time, path)
-    inputs = np.column_stack([_channel(table, columns, n, path) for n in model.inputs])
-    measured = np.column_stack(
-        [_channel(table, columns, n, path) for n in model.outputs]
+        table = open_table(path)
+        resolved = _resolve(table, columns, needed)
+        state_cols = _state_columns(table, columns, model, resolved)
+        wanted = [c.column for c in resolved.values() if c.step is None]
+        wanted += [c.column for c in state_cols.values()]
+        wanted += [
+            ch for ch, c in resolved.items() if c.step is not None and ch in table.names
+        ]
+        data = table.read(wanted)
+    n = len(next(iter(data.values()))) if data else 0
+    channels = {ch: _channel(table, data, col, n) for ch, col in resolved.items()}
+    t = channels[time]
+    inputs = (
+        np.column_stack([channels[n_] for n_ in model.inputs])
+        if model.inputs
+        else np.zeros((n, 0))
     )
+    measured = np.column_stack([channels[n_] for n_ in model.outputs])
+    _check_record(path, channels, model, resolved, time)
     # the unit-mistake checks of flight logs, on whatever channels the model has
     # (a theta in degrees, q in deg/s, qbar against 0.5 rho V^2, ...)
     from ._checks import check_physics
     from ._format import check_ranges
 
-    channels = {"t": t}
-    for j, n in enumerate(model.inputs):
-        channels[n] = inputs[:, j]
-    for j, n in enumerate(model.outputs):
-        channels[n] = measured[:, j]
     check_ranges(
         channels,
         str(path),
-        {n: c.column for n, c in columns.items()},
+        {ch: c.column for ch, c in resolved.items()},
         hint='give it "unit": "deg" in the column map',
     )
     try:
@@ -350,14 +422,54 @@ def load_record(
         )
         raise LogError(message) from None
     if x0 is None:
-        guess = []
-        for name in model.states:
-            try:
-                guess.append(_channel(table, columns, name, path)[0])
-            except LogError:
-                guess.append(math.nan)
+        if reader is not None:
+            guess = [data[s][0] if s in data else math.nan for s in model.states]
+        else:
+            guess = [
+                _channel(table, data, state_cols[s], n)[0]
+                if s in state_cols
+                else channels[s][0]
+                if s in channels
+                else math.nan
+                for s in model.states
+            ]
         x0 = None if any(math.isnan(g) for g in guess) else np.asarray(guess)
     try:
         return Record(t, inputs, measured, x0=x0, name=path.name)
     except ValueError as e:
         raise LogError(f"{path}: {e}".replace(f"{path.name}: ", "", 1)) from None
+
+
+def _state_columns(table, columns, model, resolved) -> dict[str, Column]:
+    """Columns of the states that are not also inputs or outputs (for the initial
+    state), where the file has them; a state the map names must be there."""
+    out = {}
+    for s in model.states:
+        if s in resolved:
+            continue
+        if s in columns:
+            out[s] = _resolve(table, columns, (s,))[s]
+        elif s in table.names:
+            out[s] = Column(s, s, "column map")
+    return out
+
+
+def _check_record(path, channels, model, resolved, time) -> None:
+    """What no fit can use: too few samples, or an output that never changes."""
+    n = len(channels[time])
+    if n < 3:
+        raise LogError(
+            f"{path}: only {n} sample(s); a record needs at least 3 (two steps of "
+            "the dynamics) and, over all records, more measured values than "
+            "unknowns"
+        )
+    for name in model.outputs:
+        v = channels[name]
+        if np.all(v == v[0]):
+            col = resolved[name].column
+            raise LogError(
+                f"{path}: column {col!r} (output {name!r}) is {v[0] + 0.0:g} in all {n} "
+                "rows: a dead sensor or an empty column; the fit weighs each output by "
+                "its residual variance, which a constant makes zero (remove the "
+                "output from the model, or map the right column)"
+            )

@@ -9,18 +9,19 @@ for the first data row (the header is line 1 of the file, so row r is line r + 1
 
 import csv
 import dataclasses
+import hashlib
 import json
 import math
 import os
 import pathlib
 import re
-import tempfile
 import warnings
 from typing import Any
 
 import numpy as np
 
 from .._errors import LogError as LogError
+from .._files import atomic_write, commit, discard, staged
 from .._vehicle._pegasus._aerodynamics import DERIVATIVE_NAMES
 from ._checks import check_physics, num, PlausibilityError
 from ._sidecar import check_sidecar
@@ -63,6 +64,8 @@ _POSITIVE = ("V", "mass", "Iyy")
 # Measured on this machine: 2 million rows of the 18 standard channels (694 MB at 17
 # digits) read in about 20 s and 0.8 GB; beyond this size a log is refused up front.
 MAX_LOG_BYTES = 4 * 2**30
+# The sidecar key holding the SHA-256 of the CSV it was written with.
+CSV_HASH_KEY = "csv_sha256"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -115,34 +118,6 @@ class FlightLog:
         return len(self.t)
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def _atomic_write(path: pathlib.Path, write) -> None:
-    """Write through a temporary file and rename, so a crash leaves no half file.
-
-    The file gets the permissions an ordinary `open` would give it (those of the
-    file it replaces, else 0666 less the umask), not `mkstemp`'s private 0600.
-    """
-    try:
-        mode = path.stat().st_mode & 0o7777
-    except OSError:
-        mode = 0o666 & ~_umask()
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        os.fchmod(fd, mode)
-        with os.fdopen(fd, "w", newline="") as f:
-            write(f)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 def sidecar_path(path: str | os.PathLike) -> pathlib.Path:
     """The JSON sidecar next to a log CSV."""
     return pathlib.Path(path).with_suffix(".json")
@@ -160,16 +135,42 @@ def write_log(path: str | os.PathLike, log: FlightLog) -> pathlib.Path:
     names += sorted(c for c in log.channels if c not in names)
     data = np.column_stack([np.asarray(log.channels[c], float) for c in names])
 
+    bad = ~np.isfinite(data)
+    if bad.any():
+        row, col = (int(i) for i in np.argwhere(bad)[0])
+        raise LogError(
+            f"{path}: channel {names[col]!r}, row {row + 1}: value {data[row, col]} "
+            "is not finite; a log with NaN or infinity is never written (a simulation "
+            "that diverged, or an effect value of nan)"
+        )
+
     def write_csv(f):
         f.write(",".join(names) + "\n")
         np.savetxt(f, data, delimiter=",", fmt="%.17g")
 
-    _atomic_write(path, write_csv)
     metadata = {**PEGASUS_METADATA, **log.metadata}
+    metadata.pop(CSV_HASH_KEY, None)
     metadata.setdefault("sample_rate_hz", float(1.0 / np.mean(np.diff(log.t))))
-    _atomic_write(
-        sidecar_path(path), lambda f: json.dump(_jsonable(metadata), f, indent=2)
-    )
+    try:
+        side_text = json.dumps(_jsonable(metadata), indent=2, allow_nan=False)
+    except ValueError:
+        raise LogError(
+            f"{sidecar_path(path)}: the metadata hold NaN or infinity, which JSON "
+            "cannot; nothing was written"
+        ) from None
+    # The sidecar names the hash of the CSV it belongs to and is renamed in first:
+    # an interruption between the two renames leaves the old CSV beside a sidecar
+    # whose hash it does not match, which read_log refuses.
+    tmp = staged(path, write_csv)
+    try:
+        with open(tmp, "rb") as f:
+            digest = hashlib.file_digest(f, "sha256").hexdigest()
+        side_text = side_text[:-1].rstrip() + f',\n  "{CSV_HASH_KEY}": "{digest}"\n}}'
+        atomic_write(sidecar_path(path), lambda f: f.write(side_text))
+        commit(tmp, path)
+    except BaseException:
+        discard(tmp)
+        raise
     return path
 
 
@@ -335,6 +336,18 @@ def _read_sidecar(path: pathlib.Path) -> dict[str, Any]:
         raise LogError(f"{side}: cannot read the sidecar ({e.strerror})") from None
     if not isinstance(meta, dict):
         raise LogError(f"{side}: expected a JSON object of metadata")
+    expected = meta.pop(CSV_HASH_KEY, None)
+    if expected is not None:
+        with open(path, "rb") as f:
+            digest = hashlib.file_digest(f, "sha256").hexdigest()
+        if digest != expected:
+            raise LogError(
+                f"{side}: the sidecar belongs to another version of {path.name} (its "
+                f"{CSV_HASH_KEY} {str(expected)[:12]}... is not the CSV's "
+                f"{digest[:12]}...: an interrupted write, or an edited CSV); write the "
+                f"pair again, or if you edited the CSV on purpose delete "
+                f'"{CSV_HASH_KEY}" from the sidecar'
+            )
     try:
         check_sidecar(meta, str(side))
     except ValueError as e:

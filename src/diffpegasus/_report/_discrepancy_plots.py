@@ -9,8 +9,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .._diagnose._fit import ModelFit  # noqa: E402
-from .._diagnose._model import OUTPUTS  # noqa: E402
+from .._diagnose._workflow import channel_noise, FlightFit  # noqa: E402
+from .._files import save_figure  # noqa: E402
 
 
 # display unit of every output channel: (label, factor from SI)
@@ -27,17 +27,18 @@ _DISPLAY = {
 
 
 def plot_fits(
-    fits: list[tuple[str, ModelFit]], path: str | os.PathLike, title: str = ""
+    fits: list[tuple[str, FlightFit]], path: str | os.PathLike, title: str = ""
 ) -> None:
     """Measured and model outputs against time (left) and the residuals (right) for
     every channel; several fits (e.g. before and after adding an effect) overlaid."""
     first = fits[0][1]
     t = first.t
+    OUTPUTS = first.outputs
     fig, axes = plt.subplots(
         len(OUTPUTS), 2, figsize=(13, 2.0 * len(OUTPUTS)), sharex=True
     )
     for i, name in enumerate(OUTPUTS):
-        label, f = _DISPLAY[name]
+        label, f = _DISPLAY.get(name, (f"{name}, SI", 1.0))
         ax, axr = axes[i]
         ax.plot(t, first.measured[:, i] * f, color="0.6", lw=0.6, label="measured")
         for tag, fit in fits:
@@ -54,28 +55,38 @@ def plot_fits(
         ax.set_xlabel("time, s")
     fig.suptitle(title or "measured vs model")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
-def plot_regimes(fit: ModelFit, path: str | os.PathLike) -> None:
-    """Residuals over the noise sigma of every channel against Mach, alpha and
-    dynamic pressure, thrust on and off in two colours."""
-    log, idx = fit.log, fit.index
+def plot_regimes(fit: FlightFit, path: str | os.PathLike) -> None:
+    """Residuals over the noise sigma of every channel against the flight
+    condition (alpha, airspeed, altitude, where the model has them), thrust on
+    and off in two colours (where the model reads thrust)."""
     variables = [
-        ("Mach", log["mach"][idx]),
-        ("alpha, deg", np.rad2deg(log["alpha"][idx])),
-        ("dynamic pressure, kPa", log["qbar"][idx] / 1e3),
+        (label, fit.channel(name) * factor)
+        for name, label, factor in (
+            ("alpha", "alpha, deg", np.rad2deg(1.0)),
+            ("V", "airspeed, m/s", 1.0),
+            ("h", "altitude, km", 1e-3),
+        )
+        if fit.channel(name) is not None
     ]
-    thrust = log["thrust"][idx]
-    on = thrust > 0.01 * np.max(np.abs(thrust))
-    from .._diagnose._workflow import channel_noise
-
+    thrust = fit.channel("thrust")
+    if thrust is not None and np.max(np.abs(thrust)) > 0:
+        on = thrust > 0.01 * np.max(np.abs(thrust))
+    else:
+        on = np.zeros(len(fit.t), bool)
     noise = channel_noise(fit)
+    outputs = fit.outputs
     fig, axes = plt.subplots(
-        len(OUTPUTS), 3, figsize=(12, 1.8 * len(OUTPUTS)), sharex="col"
+        len(outputs),
+        max(1, len(variables)),
+        figsize=(12, 1.8 * len(outputs)),
+        sharex="col",
+        squeeze=False,
     )
-    for i, name in enumerate(OUTPUTS):
+    for i, name in enumerate(outputs):
         sigma = noise[i] or 1.0
         r = fit.residuals[:, i] / sigma
         for j, (xlabel, x) in enumerate(variables):
@@ -86,12 +97,12 @@ def plot_regimes(fit: ModelFit, path: str | os.PathLike) -> None:
             ax.axhline(-2, color="0.5", lw=0.5, ls="--")
             if j == 0:
                 ax.set_ylabel(f"{name} / noise")
-            if i == len(OUTPUTS) - 1:
+            if i == len(outputs) - 1:
                 ax.set_xlabel(xlabel)
     axes[0, 0].legend(loc="upper right", fontsize=7, markerscale=5)
     fig.suptitle("where the model fails: residual / noise sigma by flight regime")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -107,5 +118,5 @@ def plot_ranking(diagnosis: dict, path: str | os.PathLike) -> None:
     ax.set_title("diagnosis: which effect explains the misfit (red: significant)")
     ax.grid(alpha=0.3, axis="x")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)

@@ -2,20 +2,23 @@
 
 import pathlib
 
-from .._diagnose._model import OUTPUTS
+from .._files import write_text
 
 
 def _f(x, fmt=".3g"):
     return "-" if x is None else format(x, fmt)
 
 
-def metrics_table(metrics: dict, before: dict | None = None) -> str:
-    """One row per channel; with `before`, the RMS before and after side by side."""
+def metrics_table(
+    metrics: dict, before: dict | None = None, names: tuple[str, ...] | None = None
+) -> str:
+    """One row per channel (`names`, default every channel of `metrics`); with
+    `before`, the RMS before and after side by side."""
     head = "| channel | rms | nrms | bias [95% interval] | TIC | R^2 | rms/noise | Ljung-Box p | max xcorr(de) |"
     if before is not None:
         head = "| channel | rms before | rms after | TIC before | TIC after | rms/noise before | rms/noise after |"
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
-    for name in OUTPUTS:
+    for name in names or tuple(metrics["channels"]):
         m = metrics["channels"][name]
         if before is not None:
             b = before["channels"][name]
@@ -47,12 +50,18 @@ def ranking_table(diagnosis: dict, top: int = 10) -> str:
     ]
     for i, r in enumerate(diagnosis["ranking"][:top], 1):
         close = ", ".join(
-            f"{c['effect']} ({c['correlation']:+.2f})" for c in r["hard_to_tell_from"]
+            c
+            if isinstance(c, str)
+            else c["effect"]
+            if c.get("correlation") is None
+            else f"{c['effect']} ({c['correlation']:+.2f})"
+            for c in r["hard_to_tell_from"]
         )
         lines.append(
             f"| {i} | {r['effect']} | {100 * r['cost_reduction']:.1f}% | "
-            f"{r['statistic']:.1f} | {r['p_value']:.2g} | {r['parameter']} = {r['estimate']:.4g} | "
-            f"{r['stderr']:.2g} | {_verdict(r)} | {close} |"
+            f"{r['statistic']:.1f} | {r['p_value']:.2g} | "
+            f"{r.get('parameter', '')} = {r.get('estimate', float('nan')):.4g} | "
+            f"{r.get('stderr', float('nan')):.2g} | {_verdict(r)} | {close} |"
         )
     return "\n".join(lines)
 
@@ -82,4 +91,4 @@ def write_report(
     text = [f"# {title}", ""]
     for heading, body in sections:
         text += [f"## {heading}", "", body, ""]
-    path.write_text("\n".join(text))
+    write_text(path, "\n".join(text))

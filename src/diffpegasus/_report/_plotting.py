@@ -9,6 +9,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from .._files import save_figure  # noqa: E402
 from .._log._format import FlightLog  # noqa: E402
 
 
@@ -39,7 +40,7 @@ def plot_trajectory(log: FlightLog, path: str | os.PathLike) -> None:
     title = log.metadata.get("title", "Simulated Pegasus first-stage flight")
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -91,7 +92,7 @@ def plot_estimates(estimates, path: str | os.PathLike, units: str = "deg") -> No
         ax.set_xlabel("time since drop, s")
     fig.suptitle(f"{estimates.method.upper()} derivative estimates per window")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -114,7 +115,7 @@ def plot_campaign(mse: dict, out) -> None:
         ax.grid(alpha=0.3)
     fig.suptitle("Per-flight MSE of the window estimates (thesis Figs 6.4-6.6)")
     fig.tight_layout()
-    fig.savefig(out / "fig6_4_6_boxplots.png", dpi=110)
+    save_figure(fig, out / "fig6_4_6_boxplots.png", dpi=110)
     plt.close(fig)
     fig, axes = plt.subplots(3, 2, figsize=(11, 10))
     for j, (ax, name) in enumerate(zip(axes.flat, DERIVATIVE_NAMES, strict=True)):
@@ -130,7 +131,7 @@ def plot_campaign(mse: dict, out) -> None:
     axes.flat[0].legend()
     fig.suptitle("Distributions of the per-flight MSE (thesis Figs 6.1-6.3)")
     fig.tight_layout()
-    fig.savefig(out / "fig6_1_3_distributions.png", dpi=110)
+    save_figure(fig, out / "fig6_1_3_distributions.png", dpi=110)
     plt.close(fig)
 
 
@@ -163,7 +164,7 @@ def plot_design(design, result: dict, out) -> None:
         ax.grid(alpha=0.3)
     fig.suptitle("Elevator excitations under the same limits")
     fig.tight_layout()
-    fig.savefig(out / "design_inputs.png", dpi=110)
+    save_figure(fig, out / "design_inputs.png", dpi=110)
     plt.close(fig)
     fig, ax = plt.subplots(figsize=(10, 5))
     width = 0.8 / len(names)
@@ -178,5 +179,5 @@ def plot_design(design, result: dict, out) -> None:
     ax.grid(alpha=0.3, axis="y")
     ax.set_title("Cramér-Rao standard errors by input (lower is better)")
     fig.tight_layout()
-    fig.savefig(out / "design_stderr.png", dpi=110)
+    save_figure(fig, out / "design_stderr.png", dpi=110)
     plt.close(fig)

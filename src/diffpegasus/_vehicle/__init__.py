@@ -17,7 +17,6 @@ __getattr__, __dir__, __all__ = attach(
             "LATERAL_OUTPUTS",
             "lateral_record",
             "LATERAL_START",
-            "read_lateral_asc",
         ),
         "_lateral_sixdof": (
             "implied_lateral_derivatives",
@@ -36,13 +35,11 @@ __getattr__, __dir__, __all__ = attach(
             "ConstantMass",
             "FlightVehicle",
             "Geometry",
+            "LoggedMass",
             "LoggedThrust",
             "StandardAtmosphere",
             "vehicle_model",
         ),
-        "_registry": (
-            "vehicle_spec",
-            "VEHICLES",
-        ),
+        "_mach_spline": ("MachSplineAerodynamics",),
     },
 )

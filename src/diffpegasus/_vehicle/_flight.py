@@ -2,8 +2,9 @@
 vehicle at an instant, the body accelerations, the flight condition and the measured
 channels, with every effect of the library plugged in through its hooks.
 
-The simulator (`_dynamics.evaluate`), the discrepancy model (`_discrepancy._model`)
-and vehicles such as the HFB-320 (`_vehicles`) all call [`pitch_plane`][]; they
+The simulator (`_dynamics.evaluate`) and every [`FlightVehicle`][] (the HFB-320,
+the launch vehicle's diagnosis model, a user's vehicle file) call
+[`pitch_plane`][]; they
 differ only in where the aerodynamic coefficients, the atmosphere and the mass
 properties come from (a database, a spline fitted to a log, a published model).
 

@@ -8,7 +8,7 @@ Parts (each an `eqx.Module`; write your own by subclassing the abstract one):
 |---|---|---|
 | [`AbstractAerodynamics`][] | CL, CD, CM from the flight condition and parameters | your published model |
 | [`AbstractPropulsion`][] | thrust (N), its inclination (rad) and moment (N m) | [`LoggedThrust`][] |
-| [`AbstractMassProperties`][] | mass, Iyy, Iyy_dot, CG station | [`ConstantMass`][] |
+| [`AbstractMassProperties`][] | mass, Iyy, Iyy_dot, CG station | [`ConstantMass`][], [`LoggedMass`][] |
 | [`Geometry`][] | reference area, length, cp station | |
 | [`AbstractAtmosphere`][] | density, speed of sound, gravity | [`ConstantAtmosphere`][], [`StandardAtmosphere`][] |
 
@@ -59,10 +59,14 @@ class AbstractPropulsion(eqx.Module):
 
 
 class AbstractMassProperties(eqx.Module):
-    """`at(t) -> MassProperties` (kg, kg m^2, kg m^2/s, m from the nose)."""
+    """`at(t, u) -> MassProperties` (kg, kg m^2, kg m^2/s, m from the nose), with
+    `u` a dict of the known inputs named in `reads` (the log channels it needs,
+    e.g. a mass the log records)."""
+
+    reads: AbstractVar[tuple[str, ...]]
 
     @abc.abstractmethod
-    def at(self, t) -> MassProperties: ...
+    def at(self, t, u: dict) -> MassProperties: ...
 
 
 class AbstractAtmosphere(eqx.Module):
@@ -101,14 +105,30 @@ class ConstantMass(AbstractMassProperties):
     mass: float
     iyy: float
     xcg: float = 0.0
+    reads: tuple[str, ...] = ()
 
-    def at(self, t):
+    def at(self, t, u):
+        del u
         zero = jnp.zeros_like(jnp.asarray(t, float))
         return MassProperties(
             mass=zero + self.mass,
             Iyy=zero + self.iyy,
             Iyy_dot=zero,
             xcg=zero + self.xcg,
+        )
+
+
+class LoggedMass(AbstractMassProperties):
+    """Mass properties the log records: channels `mass` (kg), `Iyy` (kg m^2),
+    `Iyy_dot` (kg m^2/s) and `xcg` (m from the nose), e.g. from a motor's
+    burn-off model the flight computer or the simulator logged."""
+
+    reads: tuple[str, ...] = ("mass", "Iyy", "Iyy_dot", "xcg")
+
+    def at(self, t, u):
+        del t
+        return MassProperties(
+            mass=u["mass"], Iyy=u["Iyy"], Iyy_dot=u["Iyy_dot"], xcg=u["xcg"]
         )
 
 
@@ -146,12 +166,23 @@ class StandardAtmosphere(AbstractAtmosphere):
 class Geometry(eqx.Module):
     """Reference area `s_ref` (m^2), reference length `c_ref` (m) and the station
     `xcp` (m from the nose, positive aft) where the aerodynamic force acts (the CM
-    reference): a number, or a function of Mach for a centre of pressure that
-    travels."""
+    reference): a number, a function of Mach for a centre of pressure that
+    travels, or the name of the log channel that records it."""
 
     s_ref: float
     c_ref: float
-    xcp: float | Callable = 0.0
+    xcp: float | Callable | str = 0.0
+
+    @property
+    def reads(self) -> tuple[str, ...]:
+        """The log channels the geometry needs (the cp station, when logged)."""
+        return (self.xcp,) if isinstance(self.xcp, str) else ()
+
+    def station(self, mach, u: dict):
+        """The cp station (m from the nose) at `mach`, `u` the known inputs."""
+        if isinstance(self.xcp, str):
+            return u[self.xcp]
+        return self.xcp(mach) if callable(self.xcp) else self.xcp
 
 
 class FlightVehicle(eqx.Module):
@@ -171,7 +202,8 @@ class FlightVehicle(eqx.Module):
 
     @property
     def inputs(self) -> tuple[str, ...]:
-        return ("de",) + tuple(self.propulsion.reads)
+        reads = self.propulsion.reads + self.mass.reads + self.geometry.reads
+        return ("de",) + tuple(dict.fromkeys(reads))
 
     def evaluate(self, t, x, u, p, effects: tuple[AbstractEffect, ...]):
         """State rates `(states,)` and the [`PitchPlane`][] at `(t, x)`; `u` the
@@ -184,7 +216,7 @@ class FlightVehicle(eqx.Module):
         density, sound, g = self.atmosphere.at(h)
         known["ambient_pressure"] = self.atmosphere.pressure(h)
         thrust, angle, moment = self.propulsion.thrust(t, known)
-        props = self.mass.at(t)
+        props = self.mass.at(t, known)
         uu, ww = v * jnp.cos(alpha), v * jnp.sin(alpha)
         pp: PitchPlane = pitch_plane(
             t,
@@ -208,7 +240,7 @@ class FlightVehicle(eqx.Module):
             iyy=props.Iyy,
             iyy_dot=props.Iyy_dot,
             xcg=props.xcg,
-            xcp=self.geometry.xcp,
+            xcp=lambda mach: self.geometry.station(mach, known),
         )
         # body-axis accelerations into V and alpha rates (exact)
         vdot = (uu * pp.udot + ww * pp.wdot) / v

@@ -25,6 +25,7 @@ from jaxtyping import Array, Float
 
 from .._inputs import AbstractInput, NoInput
 from .._rk4 import rk4_scan
+from ._axes import wind_body
 
 
 G = 9.80665  # m/s^2
@@ -230,8 +231,7 @@ def sixdof_evaluate(y, controls: Controls, aircraft: Aircraft):
     cy, cr, cn = lateral_coefficients(
         a.lateral, beta, p, r, controls.da, controls.dr, speed, a.b_ref
     )
-    cx = cl * jnp.sin(alpha) - cd * jnp.cos(alpha)
-    cz = -cl * jnp.cos(alpha) - cd * jnp.sin(alpha)
+    cx, cz = wind_body(cl, cd, alpha)
     force = qbar * a.s_ref * jnp.stack([cx, cy, cz]) + jnp.stack(
         [controls.thrust, 0.0, 0.0]
     )

@@ -16,6 +16,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ..._custom_types import Scalar, ScalarLike
+from .._axes import wind_body
 
 
 DERIVATIVE_NAMES = ("CLa", "CLde", "CDa", "CDde", "CMa", "CMde")
@@ -175,13 +176,11 @@ def body_axis(
     cl: ScalarLike, cd: ScalarLike, alpha: ScalarLike
 ) -> tuple[Scalar, Scalar]:
     """Body-axis force coefficients `(CX, CZ)` from lift and drag coefficients."""
-    sa, ca = jnp.sin(alpha), jnp.cos(alpha)
-    return cl * sa - cd * ca, -cl * ca - cd * sa
+    return wind_body(cl, cd, alpha)
 
 
 def wind_axis(
     cx: ScalarLike, cz: ScalarLike, alpha: ScalarLike
 ) -> tuple[Scalar, Scalar]:
     """Lift and drag coefficients `(CL, CD)` from body-axis force coefficients."""
-    sa, ca = jnp.sin(alpha), jnp.cos(alpha)
-    return cx * sa - cz * ca, -cx * ca - cz * sa
+    return wind_body(cx, cz, alpha)

@@ -63,8 +63,10 @@ class BurningMass(AbstractMassProperties):
 
     mass: MassModel
     motor: SolidMotor
+    reads: tuple[str, ...] = ()
 
-    def at(self, t) -> MassProperties:
+    def at(self, t, u) -> MassProperties:
+        del u
         return self.mass.at(t, self.motor)
 
 

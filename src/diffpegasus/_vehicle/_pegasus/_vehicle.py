@@ -9,6 +9,10 @@ from ._mass import MassModel
 from ._propulsion import smoothstep, SolidMotor
 
 
+S_REF = 13.5  # reference area, m^2
+C_REF = 2.48  # moment reference length (mean aerodynamic chord), m
+
+
 class Vehicle(eqx.Module):
     """A winged launch-vehicle stack in the pitch plane.
 
@@ -29,8 +33,8 @@ class Vehicle(eqx.Module):
     aero: AeroDatabase = eqx.field(default_factory=load_database)
     motor: SolidMotor = eqx.field(default_factory=SolidMotor)
     mass: MassModel = eqx.field(default_factory=MassModel)
-    s_ref: float = eqx.field(static=True, default=13.5)
-    c_ref: float = eqx.field(static=True, default=2.48)
+    s_ref: float = eqx.field(static=True, default=S_REF)
+    c_ref: float = eqx.field(static=True, default=C_REF)
     span: float = eqx.field(static=True, default=6.7)
     length: float = eqx.field(static=True, default=15.0)
     diameter: float = eqx.field(static=True, default=1.27)

@@ -1,25 +1,26 @@
-"""The three commands of the workflow as functions: each fits, writes its figures and
-markdown report to `out` (if given) and returns a JSON-ready dict."""
+"""The three commands of the workflow as functions: each fits a vehicle's model
+(its registry entry), writes its figures and markdown report to `out` (if given)
+and returns a JSON-ready dict."""
 
 import pathlib
 import sys
 
+from .._diagnose._workflow import (
+    derivative_table,
+    diagnose,
+    fit_log,
+    fit_metrics,
+    FlightFit,
+    localise,
+    MAX_ITER,
+    ranking_report,
+)
 from .._log._format import FlightLog
-from .._report._markdown import (
+from ._markdown import (
     derivative_markdown,
     metrics_table,
     ranking_table,
     write_report,
-)
-from ._fit import ModelFit
-from ._workflow import (
-    check_addable,
-    derivative_table,
-    diagnose,
-    fit,
-    fit_metrics,
-    localise,
-    Settings,
 )
 
 
@@ -27,8 +28,10 @@ def _say(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
-def _name(log: FlightLog) -> str:
-    return log.path.name if log.path is not None else "log"
+def _name(log) -> str:
+    if isinstance(log, FlightLog):
+        return log.path.name if log.path is not None else "log"
+    return pathlib.Path(log).name
 
 
 def _localise_markdown(loc: dict) -> str:
@@ -51,24 +54,38 @@ def _localise_markdown(loc: dict) -> str:
     return "\n".join(lines)
 
 
+def _fitting(log, which: str = ""):
+    """What to print once a log has been read and its fit begins."""
+
+    def say(model) -> None:
+        _say(f"fitting the {which}model to {_name(log)} (compiles on first use)...")
+
+    return say
+
+
 def run_compare(
-    log: FlightLog,
-    settings: Settings,
+    entry,
+    log,
     out: pathlib.Path | None,
-    base: ModelFit | None = None,
-) -> tuple[dict, ModelFit]:
-    """Fit the baseline model (unless given) and report how well it matches the
-    measurements."""
+    base: FlightFit | None = None,
+    max_iter: int | None = MAX_ITER,
+) -> tuple[dict, FlightFit]:
+    """Fit `entry`'s model (unless `base` is given) to `log` (a path or a
+    [`FlightLog`][]) and report how well it matches the measurements."""
     if base is None:
-        _say(f"fitting the global model to {_name(log)} (compiles on first use)...")
-        base = fit(log, (), settings)
+        base = fit_log(
+            entry,
+            log,
+            max_iter=max_iter,
+            say=_fitting(log, ""),
+        )
     metrics = fit_metrics(base)
     loc = localise(base)
     derivs = derivative_table(base)
     result = {**metrics, "localise": loc, "derivatives": derivs}
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
-        from .._report._discrepancy_plots import plot_fits, plot_regimes
+        from ._discrepancy_plots import plot_fits, plot_regimes
 
         plot_fits(
             [("baseline", base)],
@@ -84,7 +101,7 @@ def run_compare(
                     "Fit per channel",
                     f"Output-error cost det(R) = {base.cost:.4g}; "
                     f"converged: {metrics['converged']} after {metrics['iterations']} "
-                    "iterations.\n\n" + metrics_table(metrics),
+                    "iterations.\n\n" + metrics_table(metrics, names=base.outputs),
                 ),
                 (
                     "Where it fails",
@@ -92,7 +109,7 @@ def run_compare(
                 ),
                 (
                     "Fitted derivatives (1/rad, secant form CL = CLa alpha + CLde de; Cramér-Rao standard errors)",
-                    derivative_markdown(derivs),
+                    derivative_markdown(derivs or []),
                 ),
                 ("Measured vs model", "![fit](compare.png)"),
             ],
@@ -102,24 +119,50 @@ def run_compare(
 
 
 def run_diagnose(
-    log: FlightLog,
-    settings: Settings,
+    entry,
+    log,
     out: pathlib.Path | None,
     add: tuple[str, ...] = (),
-    base: ModelFit | None = None,
-) -> tuple[dict, ModelFit]:
-    """Fit (with the effects `add`), then rank the library's other effects."""
-    check_addable(tuple(add), settings)
+    base: FlightFit | None = None,
+    process_noise=None,
+    max_iter: int | None = MAX_ITER,
+) -> tuple[dict, FlightFit]:
+    """Fit (with the effects `add`; unless `base` is given), then rank the
+    vehicle's other candidate effects ([`diagnose_model`][] without a `base`);
+    with `process_noise` (states, or a dict of start intensities) process noise
+    is a candidate too (the filter-error fit's likelihood ratio)."""
     if base is None:
-        _say(f"fitting the global model to {_name(log)} (compiles on first use)...")
-        base = fit(log, add, settings)
-    _say("score test of every candidate effect...")
-    result = diagnose(base, settings)
+        from .._diagnose._candidates import diagnose_model
+
+        spec, records = entry.problem([log], add=tuple(add), candidates=True)
+        _fitting(log)(spec.model)
+        fitted, ranking = diagnose_model(
+            spec.model,
+            records,
+            spec.candidates,
+            process_noise=process_noise or None,
+            shooting=spec.shooting,
+            initial_state=spec.initial_state,
+            biases=spec.biases,
+            max_iter=max_iter,
+            throw=False,
+        )
+        base = FlightFit(spec, fitted, tuple(add))
+        _say("score test of every candidate effect...")
+        result = ranking_report(base, ranking)
+        verdicts = [r["verdict"] for r in ranking if r.get("verdict")]
+        if verdicts:
+            result["message"] = verdicts[0]
+    else:
+        _say("score test of every candidate effect...")
+        result = diagnose(base)
     result["cost"] = base.cost
+    result["converged"] = base.converged
+    result["iterations"] = int(base.result.iterations)
     result["model_effects"] = list(add)
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
-        from .._report._discrepancy_plots import plot_ranking
+        from ._discrepancy_plots import plot_ranking
 
         plot_ranking(result, out / "diagnose.png")
         write_report(
@@ -135,20 +178,24 @@ def run_diagnose(
 
 
 def run_fit(
-    log: FlightLog,
+    entry,
+    log,
     add: tuple[str, ...],
-    settings: Settings,
     out: pathlib.Path | None,
-    before: ModelFit | None = None,
-) -> dict:
+    before: FlightFit | None = None,
+    max_iter: int | None = MAX_ITER,
+) -> tuple[dict, FlightFit]:
     """Fit without and with the effects `add`; before/after metrics and the effects'
-    estimates."""
-    check_addable(tuple(add), settings)
+    estimates, and the refit."""
     if before is None:
-        _say(f"fitting the baseline model to {_name(log)} (compiles on first use)...")
-        before = fit(log, (), settings)
+        before = fit_log(
+            entry,
+            log,
+            max_iter=max_iter,
+            say=_fitting(log, "baseline "),
+        )
     _say(f"refitting with {', '.join(add)}...")
-    after = fit(log, tuple(add), settings, start=before)
+    after = fit_log(entry, log, tuple(add), start=before, max_iter=max_iter)
     m_before, m_after = fit_metrics(before), fit_metrics(after)
     effects = after.effect_estimates()
     result = {
@@ -160,7 +207,7 @@ def run_fit(
     }
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
-        from .._report._discrepancy_plots import plot_fits
+        from ._discrepancy_plots import plot_fits
 
         plot_fits(
             [("before", before), ("after", after)],
@@ -182,9 +229,9 @@ def run_fit(
                     f"(ratio {result['cost_ratio']:.3g})",
                 ),
                 ("Added effects", eff),
-                ("Per channel", metrics_table(m_after, m_before)),
+                ("Per channel", metrics_table(m_after, m_before, names=after.outputs)),
                 ("Before and after", "![fit](fit.png)"),
             ],
         )
         _say(f"wrote {out / 'fit.md'} and fit.png")
-    return result
+    return result, after
