@@ -82,14 +82,17 @@ def page(name, row):
 
 
 def main():
-    from diffpegasus._log._rocketlogs import read_rocket_log
-
-    from diffpegasus.rocket import read_rocket, run_flight
-
     rows = {}
-    for folder in map(pathlib.Path, sys.argv[1:]):
+    if sys.argv[1:] == ["--table"]:  # the table from the pages already written
+        for summary in sorted(DOCS.glob("*/summary.json")):
+            rows[summary.parent.name] = json.loads(summary.read_text())
+    for folder in map(pathlib.Path, [a for a in sys.argv[1:] if a != "--table"]):
         name = folder.name
         t0 = time.perf_counter()
+        from diffpegasus._log._rocketlogs import read_rocket_log
+
+        from diffpegasus.rocket import read_rocket, run_flight
+
         rocket = read_rocket(folder / "rocket.toml")
         log = read_rocket_log(folder / "rocket.toml")
         row = run_flight(rocket, log, DOCS / name)
@@ -118,7 +121,10 @@ def main():
         "# Rocket flights: apogee and altitude",
         "",
         "Reproduce: `python scripts/rocket_docs.py FOLDER ...` (one folder per flight, "
-        "each the same as `diffpegasus rocket fit FOLDER/rocket.toml --out ...`).",
+        "each the same as `diffpegasus rocket fit FOLDER/rocket.toml --out ...`; "
+        "`--table` rebuilds this table from the pages' summary.json). Fit times are "
+        "cold (tracing and compilation included) on a 2-core machine shared with "
+        "other jobs (load 15-20); the same fit warm took 14 s.",
         "",
         "| flight | channels | apogee logged (m) | reconstructed | predicted at "
         "burnout + 2 s | team pre-flight | altitude RMS (% of apogee) | fit (s) |",
