@@ -39,8 +39,8 @@ def fit(log, add=(), start=None):
 @functools.cache
 def flight(hidden: tuple[str, ...] = (), seed: int = 5) -> dp.FlightLog:
     effects = tuple(dp.parse_assignment(h) for h in hidden)
-    config = dp.PegasusConfig(t_final=30.0, sample_rate=50.0, effects=effects)
-    return dp.flight_to_log(dp.simulate(config, jax.random.key(seed)))
+    config = dp.pegasus.PegasusConfig(t_final=30.0, sample_rate=50.0, effects=effects)
+    return dp.pegasus.flight_to_log(dp.pegasus.simulate(config, jax.random.key(seed)))
 
 
 @functools.cache

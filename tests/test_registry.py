@@ -55,6 +55,7 @@ model = dp.Model(
     parameters={"a": -0.5, "b": 1.0, "c": 0.0},
     rates=lambda t, x, u, p: jnp.stack([p["a"] * x[0] + p["b"] * u[0] + p["c"]]),
     observe=lambda t, x, u, p: x,
+    fixed=("c",),
 )
 candidates = ("c",)
 x0 = (0.0,)

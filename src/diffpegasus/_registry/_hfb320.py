@@ -46,6 +46,7 @@ class HFB320Entry(AbstractModelEntry):
             CANDIDATES,
             COLUMNS,
             effect_parameter,
+            HFB320,
             hfb320_model,
             PROCESS_NOISE,
             X0,
@@ -67,6 +68,7 @@ class HFB320Entry(AbstractModelEntry):
                 x0=X0,
                 candidates=tuple(effect_parameter(e) for e in effects if e not in add),
                 process_noise=dict(PROCESS_NOISE),
+                vehicle=HFB320,
             )
         )
 
