@@ -17,7 +17,10 @@ that the machine's load falls on both alike) are reported separately, with
 iterations, det(R) and the largest estimate difference in standard errors.
 Writes `benchmarks/results/engine_vs_optimistix.json`.
 
-    python benchmarks/engine_vs_optimistix.py [--quick]   # --quick: no stock LM
+    python benchmarks/engine_vs_optimistix.py [--quick] [--only CASE]
+
+(`--quick`: without the stock LevenbergMarquardt; `--only CASE`: that case again,
+the others kept from the JSON.)
 """
 
 import json
@@ -54,16 +57,20 @@ def _cases():
         rec,
         dp.MultipleShooting(interval=2.0),
     )
-    from diffpegasus._registry._hfb320_simulator import simulate_log, simulated_record
-
-    channels, _ = simulate_log(duration=80.0, rate=100.0, seed=7)
-    long = simulated_record(channels, name="pegasus-sized")
+    # the record is simulated when the case runs (None here)
     yield (
         "pegasus_sized_multiple_shooting",
         spec.model,
-        long,
+        None,
         dp.MultipleShooting(interval=1.0),
     )
+
+
+def _pegasus_sized_record():
+    from diffpegasus._registry._hfb320_simulator import simulate_log, simulated_record
+
+    channels, _ = simulate_log(duration=80.0, rate=100.0, seed=7)
+    return simulated_record(channels, name="pegasus-sized")
 
 
 def _timed(fn):
@@ -130,13 +137,23 @@ def _stock_levenberg_marquardt(model, rec, shooting, max_outer=30, rtol=1e-7):
     }
 
 
-def main(quick: bool = False):
+def main(quick: bool = False, only: str | None = None):
+    out = pathlib.Path(__file__).parent / "results" / "engine_vs_optimistix.json"
+    if only is not None and out.exists():
+        # one case again, the others kept from the last run
+        previous = json.loads(out.read_text())
+    else:
+        previous = {}
     results = {
+        **previous,
         "jax": jax.__version__,
         "optimistix": optx.__version__ if hasattr(optx, "__version__") else "",
         "load_average_at_start": list(np.round(os.getloadavg(), 2)),
     }
     for name, model, rec, shooting in _cases():
+        if only is not None and name != only:
+            continue
+        rec = _pegasus_sized_record() if rec is None else rec
         methods = {
             "engine": dp.OutputError(shooting=shooting),
             "optimistix_block": dp.OutputError(
@@ -193,10 +210,13 @@ def main(quick: bool = False):
             )
         results[name] = row
         print(name, json.dumps(row, indent=1), flush=True)
-    out = pathlib.Path(__file__).parent / "results" / "engine_vs_optimistix.json"
     out.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps(results, indent=2))
 
 
 if __name__ == "__main__":
-    main(quick="--quick" in sys.argv)
+    args = sys.argv[1:]
+    main(
+        quick="--quick" in args,
+        only=args[args.index("--only") + 1] if "--only" in args else None,
+    )
