@@ -106,37 +106,12 @@ def test_cli_nn_with_saved_model(tmp_path, trained, logs):
     assert set(d["estimates"]) == set(dp.DERIVATIVE_NAMES)
 
 
-@pytest.fixture(scope="module")
-def cg_flights():
-    """A nominal flight and the same vehicle with its CG 0.5 m aft (noise-free)."""
-    config = short_config(t_final=12.0, sample_rate=200.0)
-    shifted = dp.Perturbation(cg_shift=0.5).apply(config)
-    return [
-        dp.flight_to_log(dp.simulate(c, jax.random.key(0), noise=False))
-        for c in (config, shifted)
-    ]
-
-
-def test_network_learns_the_moment_about_the_cg(cg_flights):
-    """CM about the cp station is `CM_cg - (xcp - xcg) CZ / c`: a network trained on
-    it learns the training flight's CG, which a perturbed vehicle does not share
-    (0.5 m aft on a 2.48 m reference length moves CMa by ~0.2 CZa, ~0.8/rad). Trained
-    on the moment about the CG (what qdot measures) and moved to the cp with the
-    log's known stations, it carries no such error."""
-    nominal, shifted = cg_flights
-    errors = {}
-    for about_cg in (True, False):
-        net, _ = dp.train_network(
-            [nominal],
-            jax.random.key(0),
-            max_epochs=40,
-            subsample=1,
-            moment_about_cg=about_cg,
-        )
-        est = dp.estimate_nn(shifted, net)
-        use = np.asarray(est.valid) & (np.asarray(est.window_start) >= 5.0)
-        err = np.asarray(est.values)[use, 4] - np.asarray(est.truth)[use, 4]
-        errors[about_cg] = float(np.sqrt(np.mean(err**2)))
-    print(errors)
-    # measured: (about the CG) vs (about the cp) rad^-1, see the comment above
-    assert errors[True] < 0.3 * errors[False]
+def test_default_network_sees_dynamic_pressure(trained, logs):
+    """The targets are forces and moments over qbar S: the default network takes the
+    measured qbar (the thesis's seven inputs cannot tell it across trajectories),
+    and its saved file says which inputs it takes."""
+    net, _ = trained
+    assert net.names[-1] == "qbar" and net.features(logs[1].channels).shape[1] == 8
+    x = net.features(logs[1].channels)[2000]
+    g = jax.grad(lambda v: net(v)[2])(x)
+    assert float(jnp.abs(g[-1])) > 0.0

@@ -29,7 +29,11 @@ from ._training import train_levenberg_marquardt, TrainingHistory
 from ._windows import WindowLayout
 
 
-NN_INPUTS = ("ax", "az", "qdot", "q", "V", "alpha", "de")
+NN_INPUTS = ("ax", "az", "qdot", "q", "V", "alpha", "de")  # thesis eq 4.1
+# The default adds the measured dynamic pressure: the targets are forces and moments
+# divided by qbar S, so without it the network can only infer qbar from the training
+# flights' trajectory, wrong for any other one (see docs/validation/thesis.md).
+DEFAULT_INPUTS = (*NN_INPUTS, "qbar")
 NN_OUTPUTS = ("CL", "CD", "CM")
 
 
@@ -123,8 +127,8 @@ def train_network(
     patience: int = 6,
     subsample: int = 10,
     t_min: float = 5.0,
-    inputs: tuple[str, ...] = NN_INPUTS,
-    moment_about_cg: bool = True,
+    inputs: tuple[str, ...] = DEFAULT_INPUTS,
+    moment_about_cg: bool = False,
 ) -> tuple[CoefficientNetwork, TrainingHistory]:
     """Train the coefficient network on flight logs.
 
