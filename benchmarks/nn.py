@@ -24,7 +24,6 @@ import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
 import diffpegasus as dp  # noqa: E402
-from diffpegasus._estimate._nn import network_inputs  # noqa: E402
 
 
 def main():
@@ -59,7 +58,7 @@ def main():
     deg = 180.0 / jnp.pi
 
     def one(c):
-        coeffs = jax.vmap(net)(network_inputs(c))
+        coeffs = net.coefficients(c)
         a = layout.split(jnp.stack([c["alpha"], c["de"]], axis=-1))
         theta = dp.windowed_least_squares(
             a, layout.split(coeffs), layout.mask(), column_scale=jnp.array([deg, deg])

@@ -25,7 +25,6 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import diffpegasus as dp  # noqa: E402
-from diffpegasus._estimate._nn import network_inputs  # noqa: E402
 from diffpegasus._report._plotting import plot_estimates  # noqa: E402
 
 
@@ -86,7 +85,7 @@ def main():
     fig.savefig(args.out / "fig4_2_training.png", dpi=110)
     plt.close(fig)
 
-    coeffs = np.asarray(jax.vmap(net)(network_inputs(log.channels)))
+    coeffs = np.asarray(net.coefficients(log.channels))
     fig, axes = plt.subplots(3, 1, figsize=(10, 8), sharex=True)
     totals = {}
     powered = log.t >= 5.0

@@ -38,7 +38,6 @@ import numpy as np
 from .._estimate._lse import lse_arrays, window_truth, windowed_least_squares
 from .._estimate._nn import (
     load_network,
-    network_inputs,
     save_network,
     train_network,
 )
@@ -121,7 +120,7 @@ def _nn_chunk(net, channels, layout):
     deg = 180.0 / jnp.pi
 
     def one(c):
-        coeffs = jax.vmap(net)(network_inputs(c))
+        coeffs = net.coefficients(c)
         a = layout.split(jnp.stack([c["alpha"], c["de"]], axis=-1))
         theta, stderr, _, _, ok = windowed_least_squares(
             a, layout.split(coeffs), layout.mask(), column_scale=jnp.array([deg, deg])

@@ -29,7 +29,11 @@ from ._training import train_levenberg_marquardt, TrainingHistory
 from ._windows import WindowLayout
 
 
-NN_INPUTS = ("ax", "az", "qdot", "q", "V", "alpha", "de")
+NN_INPUTS = ("ax", "az", "qdot", "q", "V", "alpha", "de")  # thesis eq 4.1
+# The default adds the measured dynamic pressure: the targets are forces and moments
+# divided by qbar S, so without it the network can only infer qbar from the training
+# flights' trajectory, wrong for any other one (see docs/validation/thesis.md).
+DEFAULT_INPUTS = (*NN_INPUTS, "qbar")
 NN_OUTPUTS = ("CL", "CD", "CM")
 
 
@@ -52,25 +56,65 @@ class MinMax(eqx.Module):
 
 
 class CoefficientNetwork(eqx.Module):
-    """MLP from the seven measured inputs to `[CL, CD, CM]`, normalisation included."""
+    """MLP from measured channels (`names`, in that order) to `[CL, CD, CM]`,
+    normalisation included.
+
+    With `moment_about_cg` (the default) the network's third output is the pitching
+    moment about the CG, `(Iyy qdot + Iyy_dot q) / (qbar S c)` (thesis eq 4.4), and
+    [`coefficients`][] moves it to the cp station of the database with the log's
+    known CG and cp stations, as the equation-error reconstruction does.
+    """
 
     mlp: eqx.nn.MLP
     inputs: MinMax
     outputs: MinMax
+    names: tuple[str, ...] = eqx.field(static=True, default=NN_INPUTS)
+    moment_about_cg: bool = eqx.field(static=True, default=False)
+    c_ref: float = eqx.field(static=True, default=1.0)
 
-    def __call__(self, x: Float[Array, " 7"]) -> Float[Array, " 3"]:
+    def __call__(self, x: Float[Array, " k"]) -> Float[Array, " 3"]:
         return self.outputs.inverse(self.mlp(self.inputs.forward(x)))
 
+    def features(self, channels: dict[str, Array]) -> Float[Array, "n k"]:
+        """The network's input matrix from a log's channels."""
+        return network_inputs(channels, self.names)
 
-def network_inputs(channels: dict[str, Array]) -> Float[Array, "n 7"]:
-    return jnp.stack([jnp.asarray(channels[c]) for c in NN_INPUTS], axis=-1)
+    def coefficients(self, channels: dict[str, Array]) -> Float[Array, "n 3"]:
+        """`[CL, CD, CM]` per sample, CM about the cp station (the truth's
+        convention), from a log's channels."""
+        out = jax.vmap(self)(self.features(channels))
+        if not self.moment_about_cg:
+            return out
+        return jnp.stack(
+            [out[:, 0], out[:, 1], _moment_to_cp(out, channels, self.c_ref)], axis=-1
+        )
 
 
-def network_targets(log: FlightLog) -> Float[Array, "n 3"]:
-    c = reconstruct_coefficients(
-        {k: jnp.asarray(v) for k, v in log.channels.items()}, log.s_ref, log.c_ref
-    )
-    return jnp.stack([c.CL, c.CD, c.CM], axis=-1)
+def _moment_to_cp(out, channels, c_ref):
+    """`CM_cp = CM_cg - (xcp - xcg) CZ / c`, `CZ = -CL cos(alpha) - CD sin(alpha)`."""
+    a = jnp.asarray(channels["alpha"])
+    cz = -out[:, 0] * jnp.cos(a) - out[:, 1] * jnp.sin(a)
+    lever = jnp.asarray(channels["xcp"]) - jnp.asarray(channels["xcg"])
+    return out[:, 2] - lever * cz / c_ref
+
+
+def network_inputs(
+    channels: dict[str, Array], names: tuple[str, ...] = NN_INPUTS
+) -> Float[Array, "n k"]:
+    return jnp.stack([jnp.asarray(channels[c]) for c in names], axis=-1)
+
+
+def network_targets(
+    log: FlightLog, moment_about_cg: bool = False
+) -> Float[Array, "n 3"]:
+    """`[CL, CD, CM]` reconstructed from the measurements; CM about the CG with
+    `moment_about_cg`, else about the cp station."""
+    ch = {k: jnp.asarray(v) for k, v in log.channels.items()}
+    c = reconstruct_coefficients(ch, log.s_ref, log.c_ref)
+    cm = c.CM
+    if moment_about_cg:
+        cm = cm + (ch["xcp"] - ch["xcg"]) * c.CZ / log.c_ref
+    return jnp.stack([c.CL, c.CD, cm], axis=-1)
 
 
 def train_network(
@@ -83,6 +127,8 @@ def train_network(
     patience: int = 6,
     subsample: int = 10,
     t_min: float = 5.0,
+    inputs: tuple[str, ...] = DEFAULT_INPUTS,
+    moment_about_cg: bool = False,
 ) -> tuple[CoefficientNetwork, TrainingHistory]:
     """Train the coefficient network on flight logs.
 
@@ -93,8 +139,8 @@ def train_network(
     xs, ys = [], []
     for log in logs:
         keep = np.flatnonzero(log.t >= t_min)[::subsample]
-        xs.append(network_inputs(log.channels)[keep])
-        ys.append(network_targets(log)[keep])
+        xs.append(network_inputs(log.channels, inputs)[keep])
+        ys.append(network_targets(log, moment_about_cg)[keep])
     x, y = jnp.concatenate(xs), jnp.concatenate(ys)
     k_perm, k_init = jax.random.split(key)
     perm = jax.random.permutation(k_perm, x.shape[0])
@@ -102,7 +148,7 @@ def train_network(
     parts = [perm[:n_tr], perm[n_tr : n_tr + n_va], perm[n_tr + n_va :]]
     x_scale, y_scale = MinMax.fit(x[parts[0]]), MinMax.fit(y[parts[0]])
     mlp = eqx.nn.MLP(
-        len(NN_INPUTS), len(NN_OUTPUTS), width, depth, activation=jnp.tanh, key=k_init
+        len(inputs), len(NN_OUTPUTS), width, depth, activation=jnp.tanh, key=k_init
     )
     xn, yn = jax.vmap(x_scale.forward)(x), jax.vmap(y_scale.forward)(y)
     trained, history = train_levenberg_marquardt(
@@ -113,14 +159,23 @@ def train_network(
         max_epochs=max_epochs,
         patience=patience,
     )
-    return CoefficientNetwork(trained, x_scale, y_scale), history
+    net = CoefficientNetwork(
+        trained, x_scale, y_scale, tuple(inputs), moment_about_cg, float(logs[0].c_ref)
+    )
+    return net, history
 
 
 def save_network(path: str | os.PathLike, net: CoefficientNetwork) -> None:
     """Equinox serialisation of the leaves plus a JSON file of the architecture."""
     path = pathlib.Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    meta = {"width": net.mlp.width_size, "depth": net.mlp.depth}
+    meta = {
+        "width": net.mlp.width_size,
+        "depth": net.mlp.depth,
+        "inputs": list(net.names),
+        "moment_about_cg": net.moment_about_cg,
+        "c_ref": net.c_ref,
+    }
     path.with_suffix(".json").write_text(json.dumps(meta))
     eqx.tree_serialise_leaves(path, net)
 
@@ -129,17 +184,21 @@ def load_network(path: str | os.PathLike) -> CoefficientNetwork:
     """Load a network saved by [`save_network`][]."""
     path = pathlib.Path(path)
     meta = json.loads(path.with_suffix(".json").read_text())
+    names = tuple(meta.get("inputs", NN_INPUTS))
     like = CoefficientNetwork(
         eqx.nn.MLP(
-            len(NN_INPUTS),
+            len(names),
             len(NN_OUTPUTS),
             meta["width"],
             meta["depth"],
             activation=jnp.tanh,
             key=jax.random.key(0),
         ),
-        MinMax(jnp.zeros(7), jnp.ones(7)),
+        MinMax(jnp.zeros(len(names)), jnp.ones(len(names))),
         MinMax(jnp.zeros(3), jnp.ones(3)),
+        names,
+        bool(meta.get("moment_about_cg", False)),
+        float(meta.get("c_ref", 1.0)),
     )
     return eqx.tree_deserialise_leaves(path, like)
 
@@ -162,8 +221,12 @@ def estimate_nn(
     """
     layout = WindowLayout.make(len(log), log.sample_rate, window)
     channels = {k: jnp.asarray(v) for k, v in log.channels.items()}
-    x = network_inputs(channels)
-    coeffs = jax.vmap(model)(x)
+    if isinstance(model, CoefficientNetwork):
+        x = model.features(channels)
+        coeffs = model.coefficients(channels)
+    else:
+        x = network_inputs(channels)
+        coeffs = jax.vmap(model)(x)
     start, end = layout.times(float(log.t[0]))
     truth = window_truth(channels, layout)
     if derivatives == "lse":
@@ -183,16 +246,30 @@ def estimate_nn(
             "nn", jnp.asarray(start), jnp.asarray(end), values, sd, ok, flags, truth
         )
     if derivatives == "central":
-        ia, ide = NN_INPUTS.index("alpha"), NN_INPUTS.index("de")
+        names = model.names if isinstance(model, CoefficientNetwork) else NN_INPUTS
+        ia, ide = names.index("alpha"), names.index("de")
+        if isinstance(model, CoefficientNetwork) and model.moment_about_cg:
+            lever = jnp.asarray(channels["xcp"]) - jnp.asarray(channels["xcg"])
 
-        def slopes(xi):
+            def at_cp(xi, li):
+                out = model(xi)
+                ch = {"alpha": xi[ia], "xcp": li, "xcg": 0.0}
+                return out.at[2].set(_moment_to_cp(out[None], ch, model.c_ref)[0])
+        else:
+            lever = jnp.zeros(x.shape[0])
+
+            def at_cp(xi, li):
+                del li
+                return model(xi)
+
+        def slopes(xi, li):
             d = []
             for j in (ia, ide):
-                e = jnp.zeros(7).at[j].set(step)
-                d.append((model(xi + e) - model(xi - e)) / (2 * step))
+                e = jnp.zeros(xi.shape[0]).at[j].set(step)
+                d.append((at_cp(xi + e, li) - at_cp(xi - e, li)) / (2 * step))
             return jnp.stack(d, axis=-1)  # (3 coefficients, 2 inputs)
 
-        s = jax.vmap(slopes)(x).reshape(-1, 6)
+        s = jax.vmap(slopes)(x, lever).reshape(-1, 6)
         values = jnp.stack([layout.window_mean(s[:, j]) for j in range(6)], axis=-1)
         ok = jnp.ones(layout.count, bool)
         return Estimates(
