@@ -9,6 +9,32 @@ from . import _campaign, _diagnose, _estimate, _fit, _simulate  # noqa: F401 (re
 from ._common import _os_error, app
 
 
+# `diffpegasus --help` lists the panels in the order their first command comes,
+# and the commands in this order inside each; commands not named here (and their
+# panels) follow in the order they were registered.
+_ORDER = (
+    "demo",
+    "fit",
+    "compare",
+    "diagnose",
+    "check",
+    "simulate",
+    "estimate",
+    "montecarlo",
+    "design-input",
+    "vehicles",
+    "effects",
+)
+
+
+def _rank(info) -> int:
+    name = info.name or info.callback.__name__.replace("_", "-")
+    return _ORDER.index(name) if name in _ORDER else len(_ORDER)
+
+
+app.registered_commands.sort(key=_rank)
+
+
 def main() -> None:
     """Entry point of the `diffpegasus` script."""
     import os

@@ -27,12 +27,14 @@ from ._common import (
     MethodOption,
     ModelOption,
     NodeOption,
+    FIT,
     ProcessNoiseOption,
     RateOption,
+    ReportOption,
     ResampleOption,
     VehicleOption,
 )
-from ._fit import _fit_model
+from ._fit import _fit_model, FIT_PANEL
 
 
 def _log_arg(log: pathlib.Path, resample: bool):
@@ -47,9 +49,11 @@ def _log_arg(log: pathlib.Path, resample: bool):
         _fail(str(e))
 
 
-@app.command()
+@app.command(rich_help_panel=FIT_PANEL)
 def compare(
-    log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    log: Annotated[
+        pathlib.Path, typer.Argument(help="Flight log file")
+    ],
     vehicle: VehicleOption = "pegasus",
     model: ModelOption = None,
     columns: ColumnsOption = None,
@@ -58,19 +62,20 @@ def compare(
     alpha_order: AlphaOrderOption = None,
     rate: RateOption = None,
     node_interval: NodeOption = None,
-    out: Annotated[
-        pathlib.Path | None, typer.Option(help="Folder for the report")
-    ] = None,
+    out: ReportOption = None,
     as_json: JsonOption = False,
     resample: ResampleOption = False,
     method: MethodOption = "oem",
     process_noise: ProcessNoiseOption = None,
     max_iter: MaxIterOption = None,
 ):
-    """Fit the vehicle's model by output error and show where it fails:
-    per-channel metrics, whiteness, misfit by flight regime, fitted derivatives
-    with standard errors (or, with --method fem, by filter error: process noise
-    such as turbulence, with per-channel metrics of the filter's innovations)."""
+    """Fit the model to one log and show where it fails.
+
+    Output error by default: per-channel metrics, whiteness of the residuals,
+    misfit by flight regime, fitted derivatives with standard errors. With
+    `--method fem` (filter error: process noise such as turbulence), per-channel
+    metrics of the filter's innovations.
+    """
     entry = _entry(
         vehicle,
         model,
@@ -165,7 +170,7 @@ def _print_ranking(report):
 
 def _write_diagnosis(report: dict, out: pathlib.Path, name: str) -> None:
     from .._report._discrepancy_plots import plot_ranking
-    from .._report._markdown import ranking_table, write_report
+    from .._report._markdown import ranking_table, write_index, write_report
 
     out.mkdir(parents=True, exist_ok=True)
     plot_ranking(report, out / "diagnose.png")
@@ -177,12 +182,15 @@ def _write_diagnosis(report: dict, out: pathlib.Path, name: str) -> None:
             ("Ranking", ranking_table(report) + "\n\n![ranking](diagnose.png)"),
         ],
     )
-    typer.echo(f"wrote {out / 'diagnose.md'} and diagnose.png", err=True)
+    write_index(out)
+    typer.echo(f"wrote {out / 'diagnose.md'}, diagnose.png and index.md", err=True)
 
 
-@app.command()
+@app.command(rich_help_panel=FIT_PANEL)
 def diagnose(
-    log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    log: Annotated[
+        pathlib.Path, typer.Argument(help="Flight log file")
+    ],
     vehicle: VehicleOption = "pegasus",
     model: ModelOption = None,
     columns: ColumnsOption = None,
@@ -192,9 +200,7 @@ def diagnose(
     alpha_order: AlphaOrderOption = None,
     rate: RateOption = None,
     node_interval: NodeOption = None,
-    out: Annotated[
-        pathlib.Path | None, typer.Option(help="Folder for the report")
-    ] = None,
+    out: ReportOption = None,
     as_json: JsonOption = False,
     resample: ResampleOption = False,
     process_noise: Annotated[
@@ -202,16 +208,20 @@ def diagnose(
         typer.Option(
             help="Score process noise (turbulence) on this state too (repeatable; "
             "default the vehicle's or model file's process_noise, hfb320: V, "
-            "alpha, theta, q; `none` skips it)"
+            "alpha, theta, q; `none` skips it)",
+            rich_help_panel=FIT,
         ),
     ] = None,
     max_iter: MaxIterOption = None,
 ):
-    """Rank the vehicle's candidate effects by how much of the misfit each would
-    explain (score test with exact Jacobians); say when none is significant.
-    With process noise declared, process noise (turbulence) is a candidate too:
-    the filter-error fit's likelihood ratio, and every effect tested again at
-    that fit (a term missing even under process noise ranks first)."""
+    """Rank the effects the model may be missing, or say that none is.
+
+    Each candidate effect of the vehicle (or model file) is scored by how much of
+    the misfit it would explain (score test with exact Jacobians). With process
+    noise declared, process noise (turbulence) is a candidate too: the
+    filter-error fit's likelihood ratio, and every effect tested again at that fit
+    (a term missing even under process noise ranks first).
+    """
     from ._fem import diagnosis_states
     from ._runners import run_model_diagnose
 

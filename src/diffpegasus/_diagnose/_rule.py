@@ -7,8 +7,8 @@ freedom, with a variance that includes the residuals' colour and their covarianc
 between outputs, so a baseline's own structural misfit counts as noise, once) gives a
 Bonferroni-corrected p-value below `significance`, and (2) the statistic exceeds the
 penalty `min_statistic`, set above what the baseline's structural misfit alone reaches
-on clean flights (measured on two independent simulators; see the README, "Trust on data
-we did not make"). The predicted fall of det(R) (`cost_reduction`, the candidate's share
+on clean flights (measured on two independent simulators; see the documentation's
+decision-rule validation page). The predicted fall of det(R) (`cost_reduction`, the candidate's share
 of the misfit) is reported beside it but does not decide: how much of det(R) an effect
 removes depends on the log's noise level.
 
