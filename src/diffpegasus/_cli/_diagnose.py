@@ -132,18 +132,20 @@ def _print_compare(result):
         "iterations)"
     )
     typer.echo(
-        f"{'channel':>8s} {'rms':>10s} {'TIC':>7s} {'R^2':>8s} {'rms/noise':>9s} {'white p':>8s}"
+        f"{'channel':>8s} {'unit':>8s} {'rms':>10s} {'TIC':>7s} {'R^2':>8s} "
+        f"{'rms/noise':>9s} {'white p':>8s}"
     )
+    units = result.get("display_units", {})
     for name, m in result["channels"].items():
+        unit, k = units.get(name, ("SI", 1.0))
         typer.echo(
-            f"{name:>8s} {m['rms']:10.3g} {m['tic']:7.3f} {m['r2']:8.4f} "
-            f"{m['misfit_ratio']:9.2f} {m['ljung_box_p']:8.2g}"
+            f"{name:>8s} {unit:>8s} {k * m['rms']:10.3g} {m['tic']:7.3f} "
+            f"{m['r2']:8.4f} {m['misfit_ratio']:9.2f} {m['ljung_box_p']:8.2g}"
         )
+    from .._diagnose._run import worst_place
+
     for w in result["localise"]["worst"][:3]:
-        typer.echo(
-            f"worst: {w['channel']} {w['misfit_ratio']:.1f} x noise for {w['variable']} "
-            f"in [{w['low']:.3g}, {w['high']:.3g}]"
-        )
+        typer.echo(f"worst: {worst_place(w)}")
 
 
 def _print_ranking(report):

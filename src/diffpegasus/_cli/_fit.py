@@ -360,14 +360,18 @@ def _print_before_after(result):
         f"({1 / result['cost_ratio']:.3g}x lower)"
     )
     typer.echo(
-        f"{'channel':>8s} {'rms before':>11s} {'rms after':>11s} {'TIC before':>11s} "
-        f"{'TIC after':>10s} {'rms/noise before':>17s} {'rms/noise after':>16s}"
+        f"{'channel':>8s} {'unit':>8s} {'rms before':>11s} {'rms after':>11s} "
+        f"{'TIC before':>11s} {'TIC after':>10s} {'rms/noise before':>17s} "
+        f"{'rms/noise after':>16s}"
     )
+    units = result.get("display_units", {})
     for name in b["channels"]:
         mb, ma = b["channels"][name], a["channels"][name]
+        unit, k = units.get(name, ("SI", 1.0))
         typer.echo(
-            f"{name:>8s} {mb['rms']:11.4g} {ma['rms']:11.4g} {mb['tic']:11.4f} "
-            f"{ma['tic']:10.4f} {mb['misfit_ratio']:17.2f} {ma['misfit_ratio']:16.2f}"
+            f"{name:>8s} {unit:>8s} {k * mb['rms']:11.4g} {k * ma['rms']:11.4g} "
+            f"{mb['tic']:11.4f} {ma['tic']:10.4f} {mb['misfit_ratio']:17.2f} "
+            f"{ma['misfit_ratio']:16.2f}"
         )
     from .._report._units import effect_unit, with_unit
 

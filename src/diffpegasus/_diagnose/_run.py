@@ -43,10 +43,7 @@ def _localise_markdown(loc: dict) -> str:
         "",
     ]
     for w in loc["worst"]:
-        lines.append(
-            f"- {w['channel']}: {w['misfit_ratio']:.1f} x noise for "
-            f"{w['variable']} in [{w['low']:.3g}, {w['high']:.3g}]"
-        )
+        lines.append(f"- {worst_place(w)}")
     for row in loc["thrust"]:
         cells = ", ".join(
             f"{c} {v:.1f}"
@@ -54,6 +51,25 @@ def _localise_markdown(loc: dict) -> str:
         )
         lines.append(f"- thrust {row['regime']}: {cells}")
     return "\n".join(lines)
+
+
+# the variables `localise` bins the misfit by: (words, unit)
+_REGIME_WORDS = {
+    "time": ("time", "s"),
+    "alpha_deg": ("alpha", "deg"),
+    "V": ("airspeed", "m/s"),
+    "h_km": ("altitude", "km"),
+}
+
+
+def worst_place(w: dict) -> str:
+    """One of `localise`'s worst places in words with units, e.g. `q: 4.2 x noise
+    for time in [10, 15] s`."""
+    words, unit = _REGIME_WORDS.get(w["variable"], (w["variable"], ""))
+    return (
+        f"{w['channel']}: {w['misfit_ratio']:.1f} x noise for {words} in "
+        f"[{w['low']:.3g}, {w['high']:.3g}]{' ' + unit if unit else ''}"
+    )
 
 
 def _fitting(log, which: str = ""):
@@ -86,6 +102,10 @@ def run_compare(
     loc = localise(base)
     derivs = derivative_table(base)
     result = {**metrics, "localise": loc, "derivatives": derivs}
+    # the unit each channel is shown in (the log's own where its column map gave
+    # one) and the factor from the SI values of the report
+    units = channel_units(base.outputs, base.spec.columns)
+    result["display_units"] = {n: list(u) for n, u in units.items()}
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         from .._report._discrepancy_plots import plot_fits, plot_regimes
@@ -96,7 +116,6 @@ def run_compare(
             f"{_name(log)}: measured vs model",
         )
         plot_regimes(base, out / "regimes.png")
-        units = channel_units(base.outputs, base.spec.columns)
         write_report(
             out / "compare.md",
             f"compare: {_name(log)}",
@@ -213,6 +232,10 @@ def run_fit(
         "cost_ratio": m_after["cost"] / m_before["cost"],
         "effects": effects,
         "unexplained": unexplained_channels(m_after, add),
+        "display_units": {
+            n: list(u)
+            for n, u in channel_units(after.outputs, after.spec.columns).items()
+        },
     }
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
