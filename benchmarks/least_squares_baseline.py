@@ -7,10 +7,10 @@ Problems:
 - `pegasus_windowed`: the per-window Pegasus OEM of `estimate oem` (0.5 s windows,
   derivatives linear in time, nodes every 2 s, 200 Hz, windows below 2 kPa not
   fitted), one simulated flight at a time: `dp.fit_windowed_oem` from `dp.oem_setup`;
-- `pegasus_global`: the global discrepancy model of `compare`
-  (`dp.discrepancy.fit_model` with `Settings().spec(log)`: 90 aerodynamic
-  parameters estimated, the candidate effects held at zero, nodes every 2 s, 50 Hz)
-  on the same flights;
+- `pegasus_global`: the launch vehicle's discrepancy model of `compare`
+  (`dp.vehicle_entry("pegasus").problem([log], candidates=True)` with `dp.fit`: 90
+  aerodynamic parameters estimated, the candidate effects and the Mach breakpoints
+  held, nodes every 1 s, 50 Hz) on the same flights;
 - `hfb320`: the HFB-320 record with `dp.fit` (single shooting, 11 parameters).
 
 scipy gets the engine's own jitted residual function (`residuals_at`: the same model,
@@ -47,27 +47,9 @@ import scipy.sparse
 from scipy.optimize._numdiff import group_columns
 
 import diffpegasus as dp
-import diffpegasus.discrepancy  # noqa: F401
-
-
-try:  # the package layout after the move (#18 era), then before it
-    from diffpegasus._diagnose import _fit as _dfit
-    from diffpegasus._diagnose._model import measured_states as global_states
-    from diffpegasus._estimate import _engine
-    from diffpegasus._estimate._global_oem import _layout as global_layout, VectorModel
-    from diffpegasus._estimate._oem import node_times
-    from diffpegasus._estimate._windowed_oem import _make_layout
-except ImportError:
-    from diffpegasus._discrepancy._model import measured_states as global_states
-    from diffpegasus._estimators._global_oem import (
-        _layout as global_layout,
-        VectorModel,
-    )
-    from diffpegasus._estimators._oem import node_times
-    from diffpegasus._estimators._windowed_oem import _make_layout
-
-    from diffpegasus._discrepancy import _fit as _dfit
-    from diffpegasus._identify import _engine
+from diffpegasus._estimate import _engine
+from diffpegasus._estimate._global_oem import VectorModel
+from diffpegasus._estimate._windowed_oem import _make_layout
 
 
 HERE = pathlib.Path(__file__).resolve().parent
@@ -398,50 +380,48 @@ def windowed(logs, gflops):
 
 
 def global_fit(logs, gflops):
+    entry = dp.vehicle_entry("pegasus")
     rows = []
     for i, log in enumerate(logs):
-        spec = dp.discrepancy.Settings().spec(log)  # what `compare` fits
+        spec, records = entry.problem([log], candidates=True)  # what `compare` fits
+        model = spec.model
+        options = dict(shooting=spec.shooting, initial_state=spec.initial_state)
         compile_s = None
+
+        def run(model=model, records=records, options=options):
+            return dp.fit(model, records, **options)
+
         if i == 0:
-            _, compile_s = timed(lambda log=log, spec=spec: dp.discrepancy.fit_model(
-                log, spec).result)  # fmt: skip
-        # .result: a pytree, so that timed() waits for the computation
-        res, solve_s = timed(lambda log=log, spec=spec: dp.discrepancy.fit_model(
-            log, spec).result)  # fmt: skip
+            _, compile_s = timed(lambda run=run: run().params)
+        res, solve_s = timed(run)
         solve_cpu = CPU["last"]
         print(f"global flight {i}: ours {solve_s:.2f} s", flush=True)
-        problem, index, channels = _dfit._problem(log, spec, 50.0, 2.0)
-        model_index = np.arange(len(index))
-        theta0 = _dfit.equation_error_start(channels, spec, model_index)
-        nodes0 = np.asarray(global_states(channels, model_index[node_times(problem)]))
-        n_seg, nx = nodes0.shape
-        p = theta0.shape[0]
-        layout = global_layout(problem, n_seg, nx)
-        model = VectorModel(problem.rates, problem.outputs, problem.input_delay)
-        z0 = jnp.concatenate([jnp.asarray(nodes0).reshape(-1), jnp.asarray(theta0)])
-        free_p = np.zeros(p, bool)
-        free_p[: spec.n_aero] = True
-        free = np.asarray(layout.free_columns(jnp.asarray(free_p), nx, p))
-        sc = scipy_fit(model, layout, z0, free, nx, p, rtol=1e-5, budget=BUDGET)
-        ns = n_seg * nx
-        se = np.asarray(res.stderr)[: spec.n_aero]
+        first = dp.fit(model, records, max_iter=0, throw=False, **options)
+        lay = first.layout
+        nx, p = len(model.states), len(model.parameters)
+        free = np.asarray(lay.free_columns(jnp.asarray(model.free), nx, p))
+        sc = scipy_fit(
+            model, lay, jnp.asarray(first.z), free, nx, p, rtol=1e-5, budget=BUDGET
+        )
+        ns = lay.n_segments * nx
+        aero = np.flatnonzero(model.free)
         row = compare(
             f"flight {i}",
             {"solve_s": solve_s, "cpu_s": solve_cpu,
              "iterations": int(res.iterations), "cost": float(res.cost)},
-            sc, se, np.asarray(res.params)[: spec.n_aero],
-            sc["z"][ns : ns + spec.n_aero],
+            sc, np.asarray(res.stderr)[aero], np.asarray(res.params)[aero],
+            sc["z"][ns : ns + p][aero],
         )  # fmt: skip
         row["ours_compile_plus_first_s"] = compile_s
-        row["ours_solve_s_note"] = "fit_model whole (start values, problem, fit)"
-        samples = int(np.asarray(layout.valid).size)
-        k = int(layout.local_columns(nx, p).shape[1])
+        samples = int(np.asarray(lay.valid).size)
+        k = int(lay.local_columns(nx, p).shape[1])
+        rec = records[0]
         mf = model_flops(
-            problem.rates, problem.outputs, jnp.asarray(nodes0[3]),
-            problem.inputs[100], jnp.asarray(theta0), k,
+            model.f, model.g, jnp.asarray(first.nodes[3]), jnp.asarray(rec.inputs[100]),
+            jnp.asarray(model.start), k,
         )  # fmt: skip
         row["arithmetic"] = arithmetic(
-            mf, samples, k, nx, problem.measured.shape[1], n_seg, int(free.sum()),
+            mf, samples, k, nx, len(model.outputs), lay.n_segments, int(free.sum()),
             gflops,
         )  # fmt: skip
         row["arithmetic"]["model_flops"] = mf

@@ -17,7 +17,7 @@ import time
 import jax
 
 import diffpegasus as dp
-from diffpegasus.discrepancy import diagnose, fit, Settings
+from diffpegasus.discrepancy import diagnose, fit_log, vehicle_entry
 
 
 PLANTED = [
@@ -45,8 +45,8 @@ def flight(hidden, seed):
 def row(hidden, seed, settings, planted=None):
     log = flight(hidden, seed)
     t0 = time.perf_counter()
-    base = fit(log, (), settings)
-    result = diagnose(base, settings)
+    base = fit_log(settings, log)
+    result = diagnose(base)
     top = result["ranking"][0]
     out = {
         "planted": list(hidden),
@@ -63,7 +63,7 @@ def row(hidden, seed, settings, planted=None):
     if planted is not None:
         name, value = planted
         mine = next(r for r in result["ranking"] if r["effect"] == name)
-        after = fit(log, (name,), settings, start=base)
+        after = fit_log(settings, log, (name,), start=base)
         est = after.effect_estimates()[name]
         out.update(
             truth=value,
@@ -78,7 +78,7 @@ def row(hidden, seed, settings, planted=None):
 
 
 def main():
-    settings = Settings()
+    settings = vehicle_entry("pegasus")  # the launch vehicle's registry entry
     rows = json.loads(OUT.read_text()) if OUT.exists() else []
     done = {(tuple(r["planted"]), r["seed"]) for r in rows}
     jobs = [((), s, None) for s in (3, 4, 6)] + [

@@ -27,8 +27,9 @@ import numpy as np
 
 from diffpegasus._cli._runners import run_model_diagnose
 from diffpegasus._log._format import FlightLog, write_log
-from diffpegasus._vehicle._hfb320 import IDENTIFIED, simulate_log
-from diffpegasus._vehicle._registry import vehicle_spec
+from diffpegasus._registry import vehicle_spec
+from diffpegasus._registry._hfb320_simulator import simulate_log
+from diffpegasus._vehicle._hfb320 import IDENTIFIED
 
 
 HERE = pathlib.Path(__file__).resolve().parent

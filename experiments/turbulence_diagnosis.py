@@ -29,8 +29,8 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 import diffpegasus as dp  # noqa: E402
-from diffpegasus._vehicle import vehicle_spec  # noqa: E402
-from diffpegasus._vehicle._hfb320 import simulate_log, simulated_record  # noqa: E402
+from diffpegasus._registry import vehicle_spec  # noqa: E402
+from diffpegasus._registry._hfb320_simulator import simulate_log, simulated_record  # noqa: E402
 
 
 OUT = pathlib.Path(__file__).parent / "results"

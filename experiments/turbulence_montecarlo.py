@@ -33,12 +33,8 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 import diffpegasus as dp  # noqa: E402
-from diffpegasus._vehicle._hfb320 import (  # noqa: E402
-    hfb320_model,
-    IDENTIFIED,
-    simulate_log,
-    simulated_record,
-)
+from diffpegasus._registry._hfb320_simulator import simulate_log, simulated_record  # noqa: E402
+from diffpegasus._vehicle._hfb320 import hfb320_model, IDENTIFIED  # noqa: E402
 
 
 OUT = pathlib.Path(__file__).parent / "results"

@@ -9,7 +9,7 @@ from typer.testing import CliRunner
 
 import diffpegasus as dp
 from diffpegasus._cli import app
-from diffpegasus._diagnose._run import unexplained_channels
+from diffpegasus._report._runs import unexplained_channels
 from diffpegasus._report._markdown import planted_versus_found, write_index
 
 

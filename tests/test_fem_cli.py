@@ -13,14 +13,13 @@ from typer.testing import CliRunner
 import diffpegasus as dp
 from diffpegasus._cli import app
 from diffpegasus._diagnose._process_noise import TURBULENCE_VERDICT
-from diffpegasus._vehicle import vehicle_spec
+from diffpegasus._registry import vehicle_spec
+from diffpegasus._registry._hfb320_simulator import simulate_log, simulated_record
 from diffpegasus._vehicle._hfb320 import (
     BOOK_FEM,
     hfb320_model,
     IDENTIFIED,
     PROCESS_NOISE,
-    simulate_log,
-    simulated_record,
     X0,
 )
 
@@ -122,10 +121,27 @@ def test_cli_filter_error_fit_reproduces_the_library_and_fvsysid():
     assert cmp["channels"]["V"]["ljung_box_p"] > 0.01
 
 
+def test_filter_error_converges_on_near_clean_flights():
+    """A flight the model already fits (sensor noise only): the filter starts from
+    the output-error fit with intensities scaled to its residuals, so its first
+    steps stay finite and it converges, to det(R) no higher than output error's
+    (the filter nests it at zero intensity), the intensities small."""
+    model = hfb320_model()
+    for seed, rate in ((5, 10.0), (6, 50.0)):
+        ch, _ = simulate_log(duration=30.0, rate=rate, seed=seed)
+        rec = simulated_record(ch, name=f"seed{seed}")
+        oe = dp.estimate(model, rec)
+        fem = dp.estimate(model, rec, dp.FilterError(process_noise=STATES))
+        assert fem.converged, fem.message
+        assert fem.cost <= oe.cost * (1 + 1e-6)
+        # the estimates stay those of output error within its standard errors
+        assert np.all(np.abs(fem.params - oe.params) < 2 * oe.stderr_corrected)
+
+
 def test_method_fem_says_where_it_does_not_apply(tmp_path):
     _require(hfb320.DEFAULT_DATA)
     res = _cli(["fit", hfb320.DEFAULT_DATA, "--vehicle", "hfb320", "--method", "xyz"])
-    assert res.exit_code != 0 and "--method must be oem" in res.output
+    assert res.exit_code != 0 and "--method must be one of oem" in res.output
     res = _cli(
         [
             "fit",
@@ -223,7 +239,7 @@ def test_simulate_seed_draws_the_turbulence(tmp_path, monkeypatch):
 
     monkeypatch.setattr(solve, "simulate", capture)
     with pytest.raises(RuntimeError, match="captured"):
-        from diffpegasus._vehicle import vehicle_entry
+        from diffpegasus._registry import vehicle_entry
 
         vehicle_entry("pegasus").simulate(
             seed=7, hidden=["turbulence=1.5"], duration=1.0, sample_rate=50.0

@@ -210,6 +210,42 @@ def test_chunk_of_another_chunk_is_computed_again(campaign, capsys):
     )
 
 
+def test_chunk_of_another_campaign_is_reported_and_computed_again(campaign, capsys):
+    """A chunk copied in from a campaign of another seed has the right shape and
+    flights; only the settings it carries tell it apart."""
+    from diffpegasus._campaign._storage import _save
+
+    out, summary = campaign
+    path = out / "chunks" / "lse" / "0001.npz"
+    good = np.load(path)["values"]
+    arrays = dict(np.load(path))
+    for key in ("identity", "settings", "seed"):
+        arrays.pop(key)
+    arrays["values"] = arrays["values"] + 1.0  # what another seed's flights give
+    _save(path, dataclasses.replace(SMALL, seed=7), **arrays)
+    capsys.readouterr()
+    again = mc.run_campaign(SMALL, out, progress=False)
+    err = capsys.readouterr().err
+    assert f"campaign chunk {path} does not belong to this campaign" in err
+    assert "seed 7, not 0" in err
+    np.testing.assert_array_equal(np.load(path)["values"], good)
+    assert again["means"] == summary["means"]
+
+
+def test_edited_manifest_is_refused(campaign, tmp_path):
+    import json
+    import shutil
+
+    out, _ = campaign
+    copy = tmp_path / "mc"
+    shutil.copytree(out, copy)
+    manifest = json.loads((copy / "campaign.json").read_text())
+    manifest["seed"] = 5
+    (copy / "campaign.json").write_text(json.dumps(manifest))
+    with pytest.raises(ValueError, match="was edited after the campaign wrote it"):
+        mc.run_campaign(dataclasses.replace(SMALL, seed=5), copy, progress=False)
+
+
 def test_damaged_manifest_names_the_file(tmp_path):
     (tmp_path / "campaign.json").write_text('{"samples": 3, ')
     with pytest.raises(ValueError, match="campaign.json is damaged") as e:

@@ -8,7 +8,7 @@ import pytest
 import diffpegasus as dp
 
 
-@pytest.mark.parametrize("namespace", [dp, dp.pegasus, dp.lateral])
+@pytest.mark.parametrize("namespace", [dp, dp.pegasus, dp.lateral, dp.sixdof])
 def test_every_public_name_resolves(namespace):
     for name in namespace.__all__:
         assert getattr(namespace, name) is not None, name

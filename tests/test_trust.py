@@ -16,7 +16,7 @@ import pytest
 
 import diffpegasus as dp
 from diffpegasus._diagnose._metrics import residual_noise_sigma
-from diffpegasus._vehicle._pegasus._entry import block_means, block_weights
+from diffpegasus._registry._pegasus import block_means, block_weights
 from diffpegasus.discrepancy import diagnose, fit_log, fit_metrics, vehicle_entry
 
 from . import independent_generator as gen
@@ -262,62 +262,56 @@ def test_score_variance_counts_covariance_between_outputs():
     assert both == pytest.approx(4.0 * one, rel=1e-12)
 
 
-def test_decision_rule_penalty_bonferroni_and_delay_resolution():
-    from diffpegasus._diagnose._rule import DecisionRule
-
-    rule = DecisionRule(significance=0.01, min_statistic=150.0)
-    common = dict(tested=10, is_delay=False, resolution=0.01, estimate=1.0)
-    # a large statistic with a passing p is significant; the p-value is corrected
-    out = rule.judge(statistic=200.0, p_value=1e-5, **common)
-    assert out == {"p_value": 1e-4, "significant": True, "resolution_limit": False}
-    # below the penalty: not significant however small p is (structural misfit of a
-    # baseline on clean flights reaches statistics of about 100)
-    assert not rule.judge(statistic=120.0, p_value=1e-20, **common)["significant"]
-    # Bonferroni: p 2e-3 over 10 candidates is 0.02, above 0.01
-    assert not rule.judge(statistic=400.0, p_value=2e-3, **common)["significant"]
-    # a delay is judged by the log's resolution (half a sample), not the penalty
-    delay = dict(tested=10, is_delay=True, resolution=0.01, p_value=1e-9)
-    assert rule.judge(statistic=40.0, estimate=0.02, **delay)["significant"]
-    small = rule.judge(statistic=900.0, estimate=0.004, **delay)
-    assert not small["significant"] and small["resolution_limit"]
-    # a lead (negative delay) is never significant
-    assert not rule.judge(statistic=900.0, estimate=-0.05, **delay)["significant"]
-
-
-def test_verdict_says_which_number_is_which():
-    from diffpegasus._diagnose._rule import DecisionRule, verdict
-
-    row = dict(
+def _rows(statistic, estimate, threshold=40.0):
+    # a ranking as DecisionRule.decide makes it, for the verdict's words
+    return dict(
         effect="sensor_bias:az",
         parameter="bias",
-        statistic=820.0,
-        p_value=1e-30,
+        statistic=statistic,
+        p_value=1e-3,
         cost_reduction=0.05,
-        estimate=0.29,
+        estimate=estimate,
         stderr=0.01,
         significant=True,
         resolution_limit=False,
+        lead=False,
         hard_to_tell_from=[],
+        threshold=threshold,
+        false_alarm_level=0.01,
+        null_replicates=2000,
+        block_samples=12,
     )
+
+
+def test_verdict_says_which_number_is_which():
+    from diffpegasus._diagnose._rule import ranking_lines, rule_summary, verdict
+
+    row = dict(_rows(820.0, 0.29), hard_to_tell_from=["sensor_bias:ax"])
     delay = dict(
-        row,
+        _rows(50.0, 0.004),
         effect="actuator_delay",
         parameter="tau",
-        statistic=30.0,
-        p_value=1e-5,
-        estimate=0.004,
         significant=False,
         resolution_limit=True,
     )
-    text = verdict([row, delay], DecisionRule(), 0.01)
-    # significance (statistic, p) and share of the misfit (det R) said apart; a
-    # small share does not hide a significant effect
-    assert "sensor_bias:az is significant (score statistic 820" in text
+    lead = dict(delay, estimate=-0.05, resolution_limit=False, lead=True)
+    text = verdict([row, delay, lead], 0.01)
+    # significance (statistic against the log's threshold, p) and share of the
+    # misfit (det R) said apart; a small share does not hide a significant effect
+    assert "sensor_bias:az is significant (score statistic 820 > threshold 40" in text
     assert "explains 5% of det(R)" in text
+    assert "cannot tell it apart from sensor_bias:ax" in text
     assert "resolution limit of the log" in text and "not physics" in text
-    none = verdict([dict(row, significant=False, statistic=90.0)], DecisionRule(), 0.01)
+    assert "would be a lead" in text and "never significant" in text
+    # the terminal says which effects cannot be told apart, not only the JSON
+    lines = ranking_lines([row, delay])
+    assert lines[1].startswith("*") and "cannot be told from sensor_bias:ax" in lines[1]
+    none = verdict([dict(row, significant=False, statistic=30.0)], 0.01)
     assert none.startswith("no candidate effect is significant")
-    assert "below the 150" in none
+    assert "below the threshold 40" in none
+    rule = rule_summary([row])
+    assert rule["threshold"] == 40.0 and rule["false_alarm_level"] == 0.01
+    assert "false-alarm level of 0.01" in rule["text"]
 
 
 # --- the engine's diagnosis (`diagnose --vehicle hfb320`) on the independent
@@ -332,7 +326,7 @@ def test_engine_diagnosis_of_clean_independent_flights_flags_nothing(
     tmp_path, seed, rate
 ):
     from diffpegasus._cli._runners import run_model_diagnose
-    from diffpegasus._vehicle import vehicle_spec
+    from diffpegasus._registry import vehicle_spec
 
     report = run_model_diagnose(
         vehicle_spec("hfb320", candidates=True), [_hfb_log(tmp_path, seed, rate)]
@@ -352,7 +346,7 @@ def test_engine_diagnosis_of_clean_independent_flights_flags_nothing(
 
 def test_engine_diagnosis_finds_a_planted_az_bias_on_independent_flights(tmp_path):
     from diffpegasus._cli._runners import run_model_diagnose
-    from diffpegasus._vehicle import vehicle_spec
+    from diffpegasus._registry import vehicle_spec
 
     path = _hfb_log(tmp_path, 4, 10.0, {"sensor_bias:az": 0.1})
     report = run_model_diagnose(vehicle_spec("hfb320", candidates=True), [path])

@@ -6,6 +6,7 @@ from . import (
     lateral as lateral,
     montecarlo as montecarlo,
     pegasus as pegasus,
+    sixdof as sixdof,
 )
 from ._campaign._sharding import (
     map_over_devices as map_over_devices,
@@ -21,6 +22,7 @@ from ._errors import (
 from ._estimate._engine import (
     RESULTS as RESULTS,
 )
+from ._estimate._entry import estimate as estimate
 from ._estimate._equation_error import (
     equation_error as equation_error,
     EquationErrorFit as EquationErrorFit,
@@ -28,7 +30,6 @@ from ._estimate._equation_error import (
 from ._estimate._estimator import (
     AbstractEstimator as AbstractEstimator,
     AbstractFit as AbstractFit,
-    estimate as estimate,
 )
 from ._estimate._filter_error import (
     FilterErrorFit as FilterErrorFit,
@@ -41,9 +42,17 @@ from ._estimate._fit import (
     simulate_model as simulate_model,
     SingleShooting as SingleShooting,
 )
+from ._estimate._fourier import (
+    finite_fourier as finite_fourier,
+)
+from ._estimate._frequency import (
+    FrequencyFit as FrequencyFit,
+)
 from ._estimate._methods import (
     EquationError as EquationError,
     FilterError as FilterError,
+    FrequencyEquationError as FrequencyEquationError,
+    FrequencyOutputError as FrequencyOutputError,
     OutputError as OutputError,
 )
 from ._estimate._modelfile import (
@@ -53,6 +62,12 @@ from ._estimate._modelfile import (
 from ._estimate._oem import (
     format_parameter_table as format_parameter_table,
     parameter_table as parameter_table,
+)
+from ._estimate._recursive import (
+    model_regression as model_regression,
+    RecursiveFourier as RecursiveFourier,
+    RecursiveLeastSquares as RecursiveLeastSquares,
+    replay as replay,
 )
 from ._estimate._solver import (
     BlockLevenbergMarquardt as BlockLevenbergMarquardt,
@@ -88,9 +103,22 @@ from ._log._format import (
     validate_channels as validate_channels,
     write_log as write_log,
 )
+from ._log._rocketlogs import (
+    read_rocket_log as read_rocket_log,
+    RocketLog as RocketLog,
+)
 from ._model import (
     Model as Model,
     Record as Record,
+)
+from ._registry import (
+    AbstractModelEntry as AbstractModelEntry,
+    AbstractVehicleEntry as AbstractVehicleEntry,
+    vehicle_entry as vehicle_entry,
+    vehicle_spec as vehicle_spec,
+)
+from ._report._bode import (
+    plot_bode as plot_bode,
 )
 from ._rk4 import (
     RK4 as RK4,
@@ -133,22 +161,4 @@ from ._vehicle._parts import (
     LoggedThrust as LoggedThrust,
     StandardAtmosphere as StandardAtmosphere,
     vehicle_model as vehicle_model,
-)
-from ._vehicle._registry import (
-    vehicle_spec as vehicle_spec,
-)
-from ._vehicle._sixdof import (
-    Aircraft as Aircraft,
-    body_to_earth as body_to_earth,
-    business_jet as business_jet,
-    Controls as Controls,
-    euler_rates as euler_rates,
-    inertia_tensor as inertia_tensor,
-    linearise as linearise,
-    rigid_body_rates as rigid_body_rates,
-    simulate_sixdof as simulate_sixdof,
-    sixdof_evaluate as sixdof_evaluate,
-    sixdof_rates as sixdof_rates,
-    Trim as Trim,
-    trim as trim,
 )

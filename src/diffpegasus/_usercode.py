@@ -35,7 +35,7 @@ def contained(path: str, what: str):
     sys.argv, sys.stdin = [str(path)], io.StringIO("")
     try:
         with (
-            contextlib.redirect_stdout(sys.stderr),
+            contextlib.redirect_stdout(captured),
             contextlib.redirect_stderr(captured),
         ):
             yield

@@ -10,9 +10,11 @@ from ._diagnose import (
     fit_metrics as fit_metrics,
     FlightFit as FlightFit,
     localise as localise,
+)
+from ._registry import vehicle_entry as vehicle_entry
+from ._registry._pegasus import default_candidates as default_candidates
+from ._report._runs import (
     run_compare as run_compare,
     run_diagnose as run_diagnose,
     run_fit as run_fit,
 )
-from ._vehicle._pegasus._entry import default_candidates as default_candidates
-from ._vehicle._registry import vehicle_entry as vehicle_entry

@@ -1,5 +1,6 @@
 """The lateral namespace, for type checkers and for the lazy loader."""
 
+from ._log._asc import read_lateral_asc as read_lateral_asc
 from ._vehicle._lateral import (
     LATERAL_COLUMNS as LATERAL_COLUMNS,
     LATERAL_DERIVATIVES as LATERAL_DERIVATIVES,
@@ -8,7 +9,6 @@ from ._vehicle._lateral import (
     LATERAL_OUTPUTS as LATERAL_OUTPUTS,
     lateral_record as lateral_record,
     LATERAL_START as LATERAL_START,
-    read_lateral_asc as read_lateral_asc,
 )
 from ._vehicle._lateral_sixdof import (
     implied_lateral_derivatives as implied_lateral_derivatives,

@@ -36,6 +36,9 @@ from ._estimate._pegasus_oem import (
     to_lift_drag as to_lift_drag,
     windowed_lift_drag as windowed_lift_drag,
 )
+from ._estimate._recursive import (
+    coefficient_regression as coefficient_regression,
+)
 from ._estimate._result import (
     Estimates as Estimates,
 )

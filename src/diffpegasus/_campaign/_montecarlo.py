@@ -214,7 +214,15 @@ def run_campaign(
         problem = _chunk_problem(path, method, campaign, c, layout.count)
         if problem is None:
             return True
-        _warn(f"damaged campaign chunk {path} ({problem}); computing it again")
+        foreign = problem.startswith(("computed with other", "it carries no"))
+        _warn(
+            (
+                f"campaign chunk {path} does not belong to this campaign"
+                if foreign
+                else f"damaged campaign chunk {path}"
+            )
+            + f" ({problem}); computing it again"
+        )
         path.unlink()
         return False
 
@@ -223,6 +231,7 @@ def run_campaign(
         record(method, seconds)
         _save(
             chunk_path(method, c),
+            campaign,
             values=values,
             stderr=stderr,
             valid=valid,

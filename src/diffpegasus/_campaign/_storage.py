@@ -1,24 +1,43 @@
 """Chunk files of a campaign: written atomically, read back checked, a manifest that
 refuses another campaign's folder."""
 
+import hashlib
 import json
-import os
 import pathlib
 import zipfile
 
 import numpy as np
 
-from ._settings import (
-    Campaign,
-)
+from .._files import atomic_write, write_text
+from ._settings import Campaign
 
 
-def _save(path: pathlib.Path, **arrays) -> None:
-    """Write atomically: a chunk file either exists complete or not at all."""
+def fingerprint(identity: dict) -> str:
+    """A short hash of a campaign's identity (its settings, estimator settings and
+    version): what a chunk file and `campaign.json` carry to prove they belong."""
+    text = json.dumps(identity, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+
+def _save(path: pathlib.Path, campaign: Campaign | None = None, **arrays) -> None:
+    """Write atomically: a chunk file either exists complete or not at all. With
+    `campaign`, the chunk carries its settings, seed and their fingerprint."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp.npz")
-    np.savez(tmp, **{k: np.asarray(v) for k, v in arrays.items()})
-    os.replace(tmp, path)
+    if campaign is not None:
+        ident = campaign.identity()
+        arrays["identity"] = np.asarray(fingerprint(ident))
+        arrays["settings"] = np.asarray(json.dumps(ident, sort_keys=True))
+        arrays["seed"] = np.asarray(campaign.seed)
+    atomic_write(
+        path,
+        lambda f: np.savez(f, **{k: np.asarray(v) for k, v in arrays.items()}),
+        binary=True,
+    )
+
+
+_CHECKSUM = "checksum"
+# What a chunk carries besides its results: whose campaign it is.
+_IDENTITY_KEYS = ("identity", "settings", "seed")
 
 
 def _check_manifest(out: pathlib.Path, campaign: Campaign, create: bool = True) -> None:
@@ -26,7 +45,7 @@ def _check_manifest(out: pathlib.Path, campaign: Campaign, create: bool = True) 
     ident = campaign.identity()
     if path.exists():
         try:
-            old = json.loads(path.read_text())
+            old = json.loads(path.read_text(encoding="utf-8"))
             if not isinstance(old, dict):
                 raise ValueError("not a JSON object")
         except (OSError, UnicodeDecodeError, ValueError) as e:
@@ -35,6 +54,14 @@ def _check_manifest(out: pathlib.Path, campaign: Campaign, create: bool = True) 
                 "against the settings; use another --out, or delete the folder to "
                 "start the campaign again"
             ) from None
+        checksum = old.pop(_CHECKSUM, None)
+        if checksum is not None and checksum != fingerprint(old):
+            raise ValueError(
+                f"{path} was edited after the campaign wrote it (its settings no "
+                "longer match its checksum), so the chunks beside it cannot be trusted "
+                "to belong to them; restore it, use another --out, or delete the "
+                "folder to start again"
+            )
         if old != ident:
             diff = {k: (old.get(k), v) for k, v in ident.items() if old.get(k) != v}
             raise ValueError(
@@ -50,9 +77,7 @@ def _check_manifest(out: pathlib.Path, campaign: Campaign, create: bool = True) 
                 "against; use another --out or delete it"
             )
         out.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".json.tmp")
-        tmp.write_text(json.dumps(ident, indent=2))
-        os.replace(tmp, path)
+        write_text(path, json.dumps({**ident, _CHECKSUM: fingerprint(ident)}, indent=2))
 
 
 # Errors numpy raises on a chunk file that is not a complete .npz of plain arrays.
@@ -103,6 +128,20 @@ def _chunk_problem(
         arrays = _read_chunk(path, method)
     except ValueError as e:
         return str(e).split(": ", 1)[1]
+    if "identity" not in arrays:
+        return "it carries no campaign settings (an older or foreign file)"
+    if str(arrays["identity"]) != fingerprint(campaign.identity()):
+        try:
+            theirs = json.loads(str(arrays["settings"]))
+        except (KeyError, ValueError):
+            theirs = {}
+        ours = campaign.identity()
+        diff = {k: (theirs.get(k), v) for k, v in ours.items() if theirs.get(k) != v}
+        return "computed with other campaign settings " + (
+            ", ".join(f"{k} {a!r}, not {b!r}" for k, (a, b) in diff.items())
+            if diff and theirs
+            else "(its fingerprint differs)"
+        )
     shape = (campaign.batch, windows, 6)
     if arrays["values"].shape != shape or arrays["stderr"].shape != shape:
         return f"values of shape {arrays['values'].shape}, expected {shape}"

@@ -17,7 +17,7 @@ from ._settings import (
     THESIS_SECONDS,
     THESIS_STD,
 )
-from ._storage import _read_chunk
+from ._storage import _IDENTITY_KEYS, _read_chunk
 
 
 def load_results(campaign: Campaign, out: pathlib.Path) -> dict[str, dict]:
@@ -29,7 +29,9 @@ def load_results(campaign: Campaign, out: pathlib.Path) -> dict[str, dict]:
             for c in range(campaign.chunks)
         ]
         merged = {
-            k: np.concatenate([p[k] for p in parts]) for k in parts[0] if k != "seconds"
+            k: np.concatenate([p[k] for p in parts])
+            for k in parts[0]
+            if k not in ("seconds", *_IDENTITY_KEYS)
         }
         merged["seconds"] = np.array([float(p["seconds"]) for p in parts])
         keep = np.arange(campaign.samples)

@@ -5,7 +5,15 @@ import sys
 import typer
 
 from .._errors import LogError
-from . import _campaign, _diagnose, _estimate, _fit, _simulate  # noqa: F401 (registers)
+from . import (  # noqa: F401 (registers)
+    _campaign,
+    _diagnose,
+    _estimate,
+    _fit,
+    _recursive,  # noqa: F401 (registers `replay`)
+    _rocket,  # noqa: F401 (registers)
+    _simulate,
+)
 from ._common import _os_error, app
 
 
@@ -17,6 +25,8 @@ _ORDER = (
     "fit",
     "compare",
     "diagnose",
+    "replay",
+    "rocket",
     "check",
     "simulate",
     "estimate",
@@ -32,7 +42,14 @@ def _rank(info) -> int:
     return _ORDER.index(name) if name in _ORDER else len(_ORDER)
 
 
+# commands whose module names no panel: the panel they belong in
+_PANELS = {"replay": "Fit and diagnose", "rocket": "Fit and diagnose"}
+
 app.registered_commands.sort(key=_rank)
+for _info in [*app.registered_commands, *app.registered_groups]:
+    _name = _info.name or (_info.callback and _info.callback.__name__)
+    if not isinstance(_info.rich_help_panel, str) and _name in _PANELS:
+        _info.rich_help_panel = _PANELS[_name]
 
 
 def main() -> None:

@@ -366,7 +366,7 @@ def _entry(vehicle: str, model=None, **tuning):
     """The registry entry of `--model FILE` or `--vehicle NAME|FILE`, with the
     tuning options given (one error line for an option the vehicle does not
     take)."""
-    from .._vehicle._registry import vehicle_entry
+    from .._registry import vehicle_entry
 
     try:
         return vehicle_entry(str(model or vehicle), **tuning)
@@ -493,3 +493,15 @@ def with_vehicle(flight, name_or_file: str):
         )
     meta = {**flight.metadata, "S_ref": s_ref, "c_ref": c_ref}
     return dataclasses.replace(flight, metadata=meta)
+
+
+def _log_arg(log: pathlib.Path, resample: bool):
+    """The log as the entry reads it: a path, or a resampled [`FlightLog`][]."""
+    if not resample:
+        return log
+    from .._log._format import read_log
+
+    try:
+        return read_log(log, resample=True)
+    except LogError as e:
+        _fail(str(e))

@@ -14,6 +14,7 @@ from ._common import (
     _fail,
     _global_fit_failed,
     _json_out,
+    _log_arg,
     _os_error,
     AddOption,
     AlphaOrderOption,
@@ -35,18 +36,6 @@ from ._common import (
     VehicleOption,
 )
 from ._fit import _fit_model, FIT_PANEL
-
-
-def _log_arg(log: pathlib.Path, resample: bool):
-    """The log as the entry reads it: a path, or a resampled [`FlightLog`][]."""
-    if not resample:
-        return log
-    from .._log._format import read_log
-
-    try:
-        return read_log(log, resample=True)
-    except LogError as e:
-        _fail(str(e))
 
 
 @app.command(rich_help_panel=FIT_PANEL)
@@ -101,11 +90,11 @@ def compare(
             max_iter=max_iter,
         )
         return
-    from .. import _diagnose
+    from .._report import _runs
 
     _check_out(out, "folder")
     try:
-        result, _ = _diagnose.run_compare(
+        result, _ = _runs.run_compare(
             entry, _log_arg(log, resample), out, max_iter=max_iter
         )
     except LogError as e:
@@ -142,17 +131,22 @@ def _print_compare(result):
             f"{name:>8s} {unit:>8s} {k * m['rms']:10.3g} {m['tic']:7.3f} "
             f"{m['r2']:8.4f} {m['misfit_ratio']:9.2f} {m['ljung_box_p']:8.2g}"
         )
-    from .._diagnose._run import worst_place
+    from .._report._runs import worst_place
 
     for w in result["localise"]["worst"][:3]:
         typer.echo(f"worst: {worst_place(w)}")
 
 
 def _print_ranking(report):
+    from .._diagnose._rule import ranking_lines
+
     typer.echo(report["message"])
+    if isinstance(report.get("rule"), dict):
+        typer.echo(f"decision rule: {report['rule']['text']}")
+    effects = [r for r in report["ranking"] if r["effect"] != "process_noise"]
     for r in report["ranking"]:
-        mark = "*" if r["significant"] else " "
         if r["effect"] == "process_noise":
+            mark = "*" if r["significant"] else " "
             typer.echo(
                 f"{mark} {'process_noise':24s} statistic {r['statistic']:8.1f}  "
                 f"p = {r['p_value']:.2g}  cost fall "
@@ -160,14 +154,7 @@ def _print_ranking(report):
                 f"{r['dof']} dof) F = "
                 + ", ".join(f"{k} {v:.3g}" for k, v in r["intensities"].items())
             )
-            continue
-        close = r.get("hard_to_tell_from") or []
-        tied = f"  (cannot be told from {', '.join(close)})" if close else ""
-        typer.echo(
-            f"{mark} {r['effect']:24s} statistic {r['statistic']:8.1f}  "
-            f"p = {r['p_value']:.2g}  cost fall {100 * r['cost_reduction']:5.1f}%  "
-            f"estimate {r['estimate']:.4g} +/- {r['stderr']:.2g}{tied}"
-        )
+    typer.echo("\n".join(ranking_lines(effects, top=len(effects))))
 
 
 def _write_diagnosis(report: dict, out: pathlib.Path, name: str) -> None:
@@ -224,7 +211,7 @@ def diagnose(
     filter-error fit's likelihood ratio, and every effect tested again at that fit
     (a term missing even under process noise ranks first).
     """
-    from ._fem import diagnosis_states
+    from ._fem import diagnosis_states, process_noise_diagnosis
     from ._runners import run_model_diagnose
 
     entry = _entry(
@@ -250,6 +237,7 @@ def diagnose(
             process_noise=diagnosis_states(tuple(process_noise or ()), spec),
             records=records,
             max_iter=max_iter,
+            score_process_noise=process_noise_diagnosis,
         )
         report["model_effects"] = list(add or ())
         if out is not None and report["ranking"]:

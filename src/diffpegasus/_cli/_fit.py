@@ -154,7 +154,7 @@ def _run_registered(spec, logs, columns, holds, method, max_iter) -> dict:
 
     import numpy as np
 
-    from .._estimate._estimator import estimate
+    from .._estimate._entry import estimate
     from .._estimate._methods import ESTIMATORS
     from ._runners import load_records, num, parse_holds
 
@@ -221,7 +221,7 @@ def _format_registered(report: dict) -> str:
 @app.command(rich_help_panel="Reference")
 def vehicles(as_json: JsonOption = False):
     """List the built-in vehicles (use with --vehicle)."""
-    from .._vehicle import vehicle_descriptions
+    from .._registry import vehicle_descriptions
 
     descriptions = vehicle_descriptions()
     if as_json:
@@ -318,13 +318,13 @@ def fit(
         )
         return
     log = logs[0]
-    from .. import _diagnose
-    from ._diagnose import _log_arg
+    from .._report import _runs
+    from ._common import _log_arg
     from ._runners import fit_report
 
     _check_out(out, "folder")
     try:
-        result, after = _diagnose.run_fit(
+        result, after = _runs.run_fit(
             entry, _log_arg(log, resample), add, out, max_iter=max_iter
         )
     except LogError as e:
@@ -410,10 +410,10 @@ def demo(
     show the model failing, diagnose, add the top effect, refit, report the planted
     value beside the one found. Takes a few minutes (most of it compiling).
     """
-    from .._diagnose import run_compare, run_diagnose, run_fit
     from .._log._format import write_log
     from .._report._markdown import planted_versus_found
     from .._report._plotting import plot_trajectory
+    from .._report._runs import run_compare, run_diagnose, run_fit
 
     entry = _entry("pegasus")
     out.mkdir(parents=True, exist_ok=True)

@@ -8,13 +8,12 @@ import sys
 import numpy as np
 
 from .._diagnose._candidates import diagnosis_message, score_candidates
-from .._diagnose._rule import DecisionRule
+from .._diagnose._rule import rule_summary
 from .._errors import LogError
 from .._estimate._fit import Fit, output_error
 from .._estimate._modelfile import ModelSpec
 from .._files import save_figure
-from .._log._columns import load_columns, load_record
-from .._model import Record
+from .._registry._records import load_records as load_records
 
 
 def _say(message: str) -> None:
@@ -60,133 +59,6 @@ def parse_holds(holds: list[str], spec: ModelSpec) -> ModelSpec:
         else model.replace(fixed=tuple(fixed))
     )
     return dataclasses.replace(spec, model=model)
-
-
-def load_records(spec: ModelSpec, files, columns=None):
-    """One record per file, through the model's column map updated by `columns`
-    (or the model file's `read` function when it has one and no `columns` given)."""
-    _check_distinct(files)
-    user = dict(load_columns(columns))
-    if spec.name.endswith(".py") and spec.columns:
-        _check_map_keys(spec.model, load_columns(spec.columns), spec.name)
-    _check_map_keys(spec.model, user, "--columns")
-    cmap = dict(load_columns(spec.columns)) if spec.columns else {}
-    cmap.update(user)
-    reader = spec.read if columns is None else None
-    model = spec.model
-    records = _load(spec, model, files, cmap, reader)
-    _check_distinct_records(records, files)
-    _check_enough_data(spec.model, records, files)
-    # two files of one name (run1/data.csv, run2/data.csv) keep apart in reports
-    names = [r.name for r in records]
-    if len(set(names)) < len(names):
-        records = [
-            Record(r.t, r.inputs, r.measured, x0=r.x0, name=str(f))
-            for r, f in zip(records, files, strict=True)
-        ]
-    return records
-
-
-def _check_distinct(files) -> None:
-    """One file given twice (two spellings of its path) would count its data twice
-    and shrink every standard error by sqrt(2)."""
-    import os
-
-    seen = {}
-    for f in files:
-        try:
-            key = os.path.realpath(f)
-        except OSError:
-            continue
-        if key in seen:
-            raise LogError(
-                f"{f}: the same file as {seen[key]} (given twice); each record once, "
-                "or its data count twice and the standard errors shrink by sqrt(2)"
-            )
-        seen[key] = f
-
-
-def _check_distinct_records(records, files) -> None:
-    """Two files holding the same numbers are one record given twice."""
-    for i in range(len(records)):
-        for j in range(i):
-            a, b = records[i], records[j]
-            if (
-                a.t.shape == b.t.shape
-                and np.array_equal(a.measured, b.measured)
-                and np.array_equal(a.inputs, b.inputs)
-            ):
-                raise LogError(
-                    f"{files[i]}: the same inputs and outputs as {files[j]} (a copy?); "
-                    "each record once, or its data count twice and the standard "
-                    "errors shrink by sqrt(2)"
-                )
-
-
-def _check_enough_data(model, records, files) -> None:
-    """More measured values than unknowns (the free parameters and one noise
-    variance per output), or the fit cannot tell them apart."""
-    values = sum(r.measured.size for r in records)
-    unknowns = int(np.sum(model.free)) + len(model.outputs)
-    if values <= unknowns:
-        raise LogError(
-            f"{', '.join(map(str, files))}: {values} measured values for {unknowns} "
-            f"unknowns ({int(np.sum(model.free))} free parameters and "
-            f"{len(model.outputs)} output noise variances); a fit needs more data than "
-            "unknowns: longer records"
-        )
-
-
-def _check_map_keys(model, cmap: dict, where: str) -> None:
-    """A column-map key that is no channel of the model is a typo, not a no-op."""
-    known = {"t", *model.states, *model.inputs, *model.outputs}
-    unknown = sorted(k for k in cmap if k not in known)
-    if unknown:
-        raise LogError(
-            f"{where}: column map names {', '.join(map(repr, unknown))}, not a "
-            f"channel of the model (t, {', '.join(sorted(known - {'t'}))})"
-        )
-
-
-def _x0(spec: ModelSpec, path):
-    """The model file's initial state for `path`: one for every record, or a dict
-    by file name."""
-    if not isinstance(spec.x0, dict):
-        return spec.x0
-    path = pathlib.Path(path)
-    for key in (str(path), path.name, path.stem):
-        if key in spec.x0:
-            return spec.x0[key]
-    return None
-
-
-def _load(spec, model, files, cmap, reader):
-    # inputs `manoeuvre_k` select per-manoeuvre parameters (e.g. the state biases
-    # of `dp.lateral_model(manoeuvres=n)`): 1 on the k-th file, 0 on the others
-    selectors = [n for n in model.inputs if n.startswith("manoeuvre_")]
-    if not selectors:
-        return [
-            load_record(model, f, cmap, x0=_x0(spec, f), reader=reader) for f in files
-        ]
-    if len(selectors) != len(files):
-        raise LogError(
-            f"{spec.name} selects {len(selectors)} manoeuvres (inputs "
-            f"{', '.join(selectors)}), but {len(files)} files were given"
-        )
-    base = model.replace(inputs=tuple(n for n in model.inputs if n not in selectors))
-    records = []
-    for k, f in enumerate(files):
-        rec = load_record(base, f, cmap, x0=_x0(spec, f), reader=reader)
-        inputs = np.column_stack(
-            [
-                rec.inputs[:, base.inputs.index(n)]
-                if n in base.inputs
-                else np.full(len(rec.t), float(n == selectors[k]))
-                for n in model.inputs
-            ]
-        )
-        records.append(Record(rec.t, inputs, rec.measured, x0=rec.x0, name=rec.name))
-    return records
 
 
 def num(x) -> float | None:
@@ -423,11 +295,14 @@ def run_model_diagnose(
     shooting=None,
     process_noise: tuple[str, ...] | None = None,
     records=None,
-    max_iter: int = 200,
+    max_iter: int | None = None,
+    score_process_noise=None,
 ) -> dict:
     """Fit `spec`'s model with its candidates held, then rank the candidates by
     score test; the JSON-ready report (`ranking`, `significant`, `message`). With
-    `process_noise` (states), process noise is scored too (`_fem.py`)."""
+    `process_noise` (states), process noise is scored too, by
+    `score_process_noise(spec, result, ranking, report, states)` (the filter-error
+    fit's `process_noise_diagnosis`, which the command passes in)."""
     if not spec.candidates:
         raise LogError(
             f"{spec.name} names no candidate terms to test (a model file lists held "
@@ -453,9 +328,9 @@ def run_model_diagnose(
         )
         return report
     ranking = score_candidates(result, spec.candidates)
-    # the workflow's measured decision rule and verdict (see _diagnose/_rule.py)
+    # the decision rule shared with the Pegasus workflow (see _diagnose/_rule.py)
     report["message"] = diagnosis_message(ranking, result)
-    report["rule"] = DecisionRule().describe()
+    report["rule"] = rule_summary(ranking)
     for row in ranking:
         row["hard_to_tell_from"] = [n.split(".")[0] for n in row["hard_to_tell_from"]]
     report["ranking"] = ranking
@@ -467,9 +342,7 @@ def run_model_diagnose(
             "file asks for them)"
         )
     elif process_noise:
-        from ._fem import process_noise_diagnosis
-
-        process_noise_diagnosis(spec, result, ranking, report, process_noise)
+        score_process_noise(spec, result, ranking, report, process_noise)
     if not result.converged:
         report["message"] = (
             f"the output-error fit did not converge ({result.message}); "

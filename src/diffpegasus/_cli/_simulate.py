@@ -105,8 +105,8 @@ def simulate(
     in the log's sidecar.
     """
     from .._log._format import write_log
+    from .._registry import vehicle_entry
     from .._report._plotting import plot_trajectory
-    from .._vehicle._registry import vehicle_entry
 
     _check_out(out, "file")
     try:

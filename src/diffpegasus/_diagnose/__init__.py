@@ -14,11 +14,6 @@ __getattr__, __dir__, __all__ = attach(
             "score_candidates",
         ),
         "_metrics": ("channel_metrics",),
-        "_run": (
-            "run_compare",
-            "run_diagnose",
-            "run_fit",
-        ),
         "_workflow": (
             "derivative_table",
             "diagnose",

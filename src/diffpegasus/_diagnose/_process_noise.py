@@ -185,7 +185,7 @@ def best_filter_error(result: Fit, process_noise, **fem_options) -> FilterErrorF
             start=start,
             **options,
         )
-        for start in (result.params, None)
+        for start in (result.params, result.model.start)
     ]
     return min(
         fits,

@@ -18,7 +18,7 @@ from .._estimate._fit import Fit, fit as engine_fit
 from .._estimate._modelfile import ModelSpec
 from ._candidates import diagnosis_message, score_candidates
 from ._metrics import binned_misfit, channel_metrics, residual_noise_sigma
-from ._rule import DecisionRule
+from ._rule import rule_summary
 
 
 # A fit runs to convergence: None is the engine's adaptive budget (it stops when the
@@ -290,30 +290,24 @@ def derivative_table(ff: FlightFit, points: int = 5) -> list[dict] | None:
     return rows
 
 
-def diagnose(
-    ff: FlightFit,
-    *,
-    level: float = 0.01,
-    min_statistic: float = DecisionRule.min_statistic,
-) -> dict:
+def diagnose(ff: FlightFit, *, level: float = 0.01) -> dict:
     """Rank the held candidates of `ff`'s model by score test at its fit and
-    decide by the decision rule (see [`score_candidates`][]).
+    decide by the decision rule calibrated on this fit's residuals (see
+    [`score_candidates`][]): `level` is the family-wise false-alarm level.
 
     **Returns:** `{"ranking": [...], "significant": [effects], "message",
-    "rule"}`, each ranking row as [`score_candidates`][]'s with
-    `hard_to_tell_from` as `[{"effect", "correlation"}]` and `parameter` the
-    effect's own parameter name.
+    "rule"}`, significant rows first, each ranking row as [`score_candidates`][]'s
+    with `hard_to_tell_from` as `[{"effect", "correlation"}]` and `parameter` the
+    effect's own parameter name; `rule` holds the threshold used and the
+    false-alarm level it holds.
     """
-    ranking = score_candidates(ff.result, ff.spec.candidates, level, min_statistic)
-    return ranking_report(ff, ranking, level, min_statistic)
+    ranking = score_candidates(ff.result, ff.spec.candidates, level)
+    return ranking_report(ff, ranking)
 
 
-def ranking_report(ff: FlightFit, ranking, level=0.01, min_statistic=None) -> dict:
+def ranking_report(ff: FlightFit, ranking) -> dict:
     """The diagnosis dict of a ranking (see [`diagnose`][])."""
-    min_statistic = (
-        DecisionRule.min_statistic if min_statistic is None else min_statistic
-    )
-    message = diagnosis_message(ranking, ff.result, level, min_statistic)
+    message = diagnosis_message(ranking, ff.result)
     rows = []
     for r in ranking:
         row = dict(r)
@@ -330,5 +324,5 @@ def ranking_report(ff: FlightFit, ranking, level=0.01, min_statistic=None) -> di
         "ranking": rows,
         "significant": [r["effect"] for r in rows if r["significant"]],
         "message": message,
-        "rule": DecisionRule(level, min_statistic).describe(),
+        "rule": rule_summary(ranking),
     }

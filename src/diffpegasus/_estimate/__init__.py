@@ -21,16 +21,28 @@ __getattr__, __dir__, __all__ = attach(
             "equation_error",
             "EquationErrorFit",
         ),
+        "_entry": ("estimate",),
         "_estimator": (
             "AbstractEstimator",
             "AbstractFit",
-            "estimate",
         ),
         "_methods": (
             "EquationError",
             "ESTIMATORS",
             "FilterError",
+            "FrequencyEquationError",
+            "FrequencyOutputError",
             "OutputError",
+        ),
+        "_fourier": (
+            "finite_fourier",
+            "frequency_grid",
+        ),
+        "_frequency": (
+            "default_band",
+            "frequency_equation_error",
+            "frequency_output_error",
+            "FrequencyFit",
         ),
         "_solver": (
             "BlockLevenbergMarquardt",

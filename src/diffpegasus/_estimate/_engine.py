@@ -615,14 +615,15 @@ def explain(
     names what went wrong and what to try ("" when it converged).
 
     **Arguments:** `code` the solve's result; `information` `(unknowns,
-    unknowns)` the Fisher information (zero rows for held unknowns); `free`
-    `(unknowns,)`; `names` a name per unknown (`None` for those not worth naming,
-    e.g. node states); `iterations`; `change` the last relative change of the
-    cost; `defect` the largest continuity defect relative to its tolerance (`None`
-    without multiple shooting).
+    unknowns)` the outputs' information about the unknowns that can be named
+    (parameters, biases, intensities: `A^T A` of the whitened residuals'
+    Jacobian in those columns); `free` `(unknowns,)`; `names` a name per
+    unknown (`None` for one not worth naming); `iterations`; `change` the last
+    relative change of the cost; `defect` the largest continuity defect relative
+    to its tolerance (`None` without multiple shooting).
 
-    A converged fit whose information is numerically singular (an eigenvalue of
-    the unit-diagonal information below the rounding of its largest, numpy's rank
+    A fit whose information is numerically singular (an eigenvalue of the
+    unit-diagonal information below the rounding of its largest, numpy's rank
     rule) is reported as `no_excitation`, naming the parameters of the null
     direction: their estimates are not unique.
     """

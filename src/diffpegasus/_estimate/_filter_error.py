@@ -462,7 +462,8 @@ def fit_filter_error(
       intensity is estimated.
     - `start`: start values of the model parameters `(params,)` (default: the
       output-error estimates when the intensities are not given, else
-      `model.start`).
+      `model.start`); given, it is the start, the output-error fit from it only
+      scales the intensities.
     - `full_R`: estimate the full innovation covariance instead of its diagonal
       (the default, as output error and FVSysID do). Process noise correlates the
       innovations of outputs driven by the same state (alpha and az): in the
@@ -592,7 +593,7 @@ def filter_error(
     lengths = [len(rec.t) for rec in records]
     result, reason = explain(
         sol.result,
-        information=sol.information,
+        information=_gram(sol.jacobian),
         free=free,
         names=[*model.parameters, *(f"F[{s}]" for s in names)],
         iterations=int(sol.iterations),
@@ -631,8 +632,11 @@ def filter_error(
 
 
 def _output_error_start(model, records, start, prob):
-    """Parameters and residuals to start the filter from: an output-error fit's
-    (from `start`) when it ends finite, else `start`'s simulation."""
+    """Parameters and residuals to start the filter from. The residuals are those
+    of an output-error fit from `start` (default the model's) when it ends finite,
+    else of `start`'s simulation; the parameters are that fit's estimates when no
+    `start` is given, else `start` itself (a caller trying several starts keeps
+    them apart)."""
     theta0 = np.asarray(model.start if start is None else start, float)
     oe = output_error(
         model.replace(start=dict(zip(model.parameters, theta0.tolist(), strict=True))),
@@ -643,7 +647,7 @@ def _output_error_start(model, records, start, prob):
         residuals = [
             rec.measured - y for rec, y in zip(records, oe.outputs, strict=True)
         ]
-        return np.asarray(oe.params, float), residuals
+        return (np.asarray(oe.params, float) if start is None else theta0), residuals
     residuals = []
     for i, rec in enumerate(records):
         xs = simulate(model, rec, theta0, np.asarray(prob.x0[i]))
@@ -654,6 +658,13 @@ def _output_error_start(model, records, start, prob):
             np.nan_to_num(rec.measured - np.asarray(ys), posinf=0, neginf=0)
         )
     return theta0, residuals
+
+
+def _gram(jacobian):
+    """`A^T A` of the whitened innovations' Jacobian `(records, length, outputs,
+    unknowns)`, held unknowns' columns included (the caller masks them)."""
+    a = jacobian.reshape(-1, jacobian.shape[-1])
+    return a.T @ a
 
 
 def _corrected_stderr(jacobian, whitened, covariance):

@@ -168,6 +168,23 @@ class Fit(AbstractFit):
         return rows
 
 
+def _output_information(jacobian, record, nx, p, nb):
+    """The outputs' information about the parameters and biases, node states
+    held: `A^T A` of the whitened output Jacobian's parameter and bias columns,
+    `(p + records nb, p + records nb)`. Whether the inputs excite a parameter is a
+    question about these columns alone (the continuity defects, weighted by a
+    tolerance, can dwarf them in the full information without adding any)."""
+    n_seg, length, n_out, _ = jacobian.shape
+    n_rec = int(record.max()) + 1
+    a = np.zeros((n_seg, length * n_out, p + n_rec * nb))
+    a[..., :p] = jacobian[..., nx : nx + p].reshape(n_seg, -1, p)
+    for s in range(n_seg if nb else 0):
+        col = p + record[s] * nb
+        a[s, :, col : col + nb] = jacobian[s, ..., nx + p :].reshape(-1, nb)
+    a = a.reshape(-1, a.shape[-1])
+    return a.T @ a
+
+
 def _initial_nodes(model, records, lay, start):
     """Node guesses: measured states where the outputs have them, else a forward
     simulation of the start model from the record's initial state."""
@@ -361,7 +378,9 @@ def output_error(
     sd, sd_c = np.sqrt(var), np.sqrt(var_c)
     block = sol.covariance[ns : ns + p, ns : ns + p]
     d = np.sqrt(np.clip(np.diag(block), 1e-300, None))
-    correlation = block / (d[:, None] * d[None, :])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # NaN where the information is singular (the result says so)
+        correlation = block / (d[:, None] * d[None, :])
     nodes = sol.z[:ns].reshape(-1, nx)
     record = np.asarray(lay.record)
     starts = np.flatnonzero(np.r_[True, record[1:] != record[:-1]])
@@ -370,12 +389,12 @@ def output_error(
         segs = np.flatnonzero(record == i)
         outputs.append(sol.outputs[segs].reshape(-1, len(model.outputs))[: len(rec.t)])
     multiple = isinstance(shooting, MultipleShooting)
-    names = [None] * ns + list(model.parameters)
+    names = list(model.parameters)
     names += [f"bias {b} ({rec.name})" for rec in records for b in biases]
     result, reason = explain(
         sol.result,
-        information=sol.information,
-        free=np.asarray(lay.free_columns(np.asarray(model.free), nx, p)),
+        information=_output_information(sol.jacobian, record, nx, p, nb),
+        free=np.r_[np.asarray(model.free), np.ones(len(records) * nb, bool)],
         names=names,
         iterations=int(sol.iterations),
         change=float(sol.change),

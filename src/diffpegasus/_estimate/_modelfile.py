@@ -137,19 +137,14 @@ def _check_parameters(model: Model, name: str) -> None:
 
 
 def _candidates(value, model: Model, name: str) -> tuple[str, ...]:
-    """`candidates`: held parameters of the model that `diagnose` tests."""
+    """`candidates`: parameters of the model that `diagnose` tests, held at their
+    start values (usually 0)."""
     value = (value,) if isinstance(value, str) else tuple(value)
     for c in value:
         if c not in model.parameters:
             raise LogError(
                 f"{name}: candidates names {c!r}, not a parameter of the model "
                 f"({', '.join(model.parameters)})"
-            )
-        if c not in model.fixed:
-            raise LogError(
-                f"{name}: candidate {c!r} is estimated by the model; a candidate is a "
-                "term held at its start (usually 0) that diagnose tests: add it to "
-                "the model's fixed=(...), or remove it from candidates"
             )
     return value
 
@@ -211,6 +206,11 @@ def spec_from_namespace(ns: dict, name: str) -> ModelSpec:
     model = ns["model"]
     _check_parameters(model, name)
     candidates = _candidates(ns.get("candidates", ()), model, name)
+    # a candidate is a held term (as `diagnose_model` holds them): held here too, so
+    # that `fit` and `diagnose` of the file agree on what is estimated
+    held = tuple(c for c in candidates if c not in model.fixed)
+    if held:
+        model = ns["model"] = model.replace(fixed=(*model.fixed, *held))
     initial_state = ns.get("initial_state", "fixed")
     if initial_state not in ("fixed", "estimated"):
         raise LogError(f"{name}: initial_state must be 'fixed' or 'estimated'")

@@ -9,7 +9,7 @@ import functools
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Float
+from jaxtyping import Array, Bool, Float
 
 from .._estimate._engine import linearise, row_jacobian
 
@@ -26,6 +26,16 @@ class ScoreTest(eqx.Module):
     (predicted fraction of the weighted residual sum of squares removed);
     `correlation` `(k, k)` between the tested parameters' sensitivities once the
     free unknowns are projected out (near +/-1: the data cannot tell them apart).
+
+    What a calibration of the statistic against the log needs (see
+    `diffpegasus._diagnose._calibration`): `rows` `(samples, outputs, k)`, the
+    whitened output sensitivities of each tested direction with the free unknowns
+    projected out (the efficient score is `sum rows * residuals`); `residuals`
+    `(samples, outputs)`, the whitened output residuals; `valid` `(samples,)`,
+    which rows are samples (not padding of the last shooting segment); `curvature`
+    `(k,)`, the information of each projected direction; `slope` `(k,)`, the
+    score (the cost's derivative along each projected direction, continuity
+    defects included).
     """
 
     statistic: Float[Array, " k"]
@@ -35,6 +45,11 @@ class ScoreTest(eqx.Module):
     cost_ratio: Float[Array, " k"]
     ls_reduction: Float[Array, " k"]
     correlation: Float[Array, "k k"]
+    rows: Float[Array, "samples outputs k"]
+    residuals: Float[Array, "samples outputs"]
+    valid: Bool[Array, " samples"]
+    curvature: Float[Array, " k"]
+    slope: Float[Array, " k"]
 
 
 @jax.jit
@@ -123,4 +138,9 @@ def score(model, layout, z, r, free, candidates, *, nx, p) -> ScoreTest:
         cost_ratio=jnp.prod(jnp.clip(ratio_ch, 1e-12), axis=0),
         ls_reduction=slope**2 / s / total,
         correlation=(direction.T @ h @ direction) / (norms[:, None] * norms[None, :]),
+        rows=rows,
+        residuals=ewf,
+        valid=layout.valid.reshape(-1),
+        curvature=s,
+        slope=slope,
     )

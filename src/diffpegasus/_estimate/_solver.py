@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import optimistix as optx
 from jaxtyping import Array, Bool, Float, Int, PyTree, Scalar
 
+from .._model import Model
 from ._engine import (
     _cost,
     assemble,
@@ -38,7 +39,6 @@ from ._engine import (
     residuals_at,
     Solution,
 )
-from ._model import Model
 
 
 class OutputErrorProblem(eqx.Module):

@@ -7,6 +7,7 @@ import pathlib
 
 import numpy as np
 
+from .._vehicle._lateral import LATERAL_COLUMNS
 from ._format import _NUMBER, LogError
 
 
@@ -49,3 +50,11 @@ def read_asc(path: str | os.PathLike) -> dict[str, np.ndarray]:
         raise LogError(f"{path}: no data rows after the header and units rows")
     arr = np.asarray(data)
     return {name: arr[:, k] for k, name in enumerate(names)}
+
+
+def read_lateral_asc(path, columns: dict | None = None) -> dict[str, np.ndarray]:
+    """The lateral channels of an FVSysID `.asc` file (see [`LATERAL_COLUMNS`][];
+    `columns` overrides names), SI units and radians as in the file."""
+    data = read_asc(path)
+    names = {**LATERAL_COLUMNS, **(columns or {})}
+    return {k: data[v] for k, v in names.items() if v in data}

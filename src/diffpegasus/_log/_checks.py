@@ -27,12 +27,24 @@ CHECKS = (
     "air_data",
     "coefficients",
     "geometry",
+    "specific_force",
+    "drag",
 )
 # Largest plausible pitch rate (rad/s) and pitch acceleration (rad/s^2).
 _RATE_LIMITS = {"q": 5.0, "qdot": 50.0}
 # A measured/implied ratio outside [1/_FACTOR, _FACTOR] is a unit or scale mistake;
 # real flights (wind, sensor misalignment, non-standard day) stay within 10-20 %.
 _FACTOR = 2.0
+# The kinematic checks narrow that band where the log itself pins the ratio down: the
+# part of the measured motion the implied one does not explain is sqrt(1 - r^2) / r of
+# it (r the partial correlation), and the band is 1 + 2 of those, at least the 25 %
+# real flights can differ by (wind, misalignment) and at most _FACTOR. A log whose
+# channels agree closely thus shows a knots-for-m/s (1.94) or similar mistake that
+# the factor 2 let through.
+_FLOOR = 1.25
+# What an attitude or accelerometer misalignment of 2 degrees can shift a mean
+# specific force by, as a fraction of the forces involved (sin 2 deg).
+_MISALIGNMENT = math.sin(math.radians(2.0))
 # Below this partial correlation the data cannot tell the ratio (too little motion
 # beyond the noise), so the kinematic check says nothing.
 _MIN_CORRELATION = 0.9
@@ -101,11 +113,11 @@ def _ratio(y: np.ndarray, x: np.ndarray, t: np.ndarray) -> tuple[float, float]:
     a straight line in time is removed from both (a constant sensor bias integrates
     to such a line, so it does not spoil the ratio)."""
     tc = (t - t.mean()) / (np.ptp(t) or 1.0)
-    basis = np.column_stack([np.ones_like(tc), tc])
-    q, _ = np.linalg.qr(basis)
+    tt = float(tc @ tc) or 1.0
 
     def detrend(z):
-        return z - q @ (q.T @ z)
+        # tc has zero mean, so [1, tc] are orthogonal: the projection in closed form
+        return z - z.mean() - (float(tc @ z) / tt) * tc
 
     yr, xr = detrend(y), detrend(x)
     sxx, syy, sxy = float(xr @ xr), float(yr @ yr), float(xr @ yr)
@@ -202,6 +214,7 @@ def _check_kinematics(c, name, skip):
                 "and m/s",
                 1 / 0.3048: "V looks like ft/s; airspeed is in m/s",
                 1 / 1.943844: "V looks like knots; airspeed is in m/s",
+                1.943844: "V looks like knots; airspeed is in m/s",
                 0.1: "ax and az look 10 times too large",
                 10.0: "ax and az look 10 times too small",
                 -1.0: "az looks positive up; body z points down, so az is about "
@@ -209,12 +222,104 @@ def _check_kinematics(c, name, skip):
             }
         if not (math.isfinite(k) and r >= _MIN_CORRELATION):
             continue
+        band = _band(r)
+        if 1 / band <= k <= band:
+            continue
+        raise PlausibilityError(
+            f"{name}: {what.format(k=_g(k))}, over rows 1-{len(t)}; the channels "
+            f"agree closely (correlation {r:.3f}), so a ratio beyond {band:.2f} is a "
+            f"unit or scale mistake{_unit_hint(k, hints)}" + _skip_note(check)
+        )
+
+
+def _band(r: float) -> float:
+    """How far a kinematic ratio may stray from 1 at partial correlation `r`."""
+    unexplained = math.sqrt(max(1.0 - r * r, 0.0)) / r
+    return min(max(1.0 + 2.0 * unexplained, _FLOOR), _FACTOR)
+
+
+def _check_specific_force(c, name):
+    """The mean accelerometer readings against what the record's own motion and
+    gravity require: in the pitch plane, with u = V cos(alpha), w = V sin(alpha),
+    du/dt = ax - g sin(theta) - q w and dw/dt = az + g cos(theta) + q u, so over the
+    record mean(ax) = du/T + mean(g sin theta + q w), and likewise for az. A factor
+    beyond 2 that is also more than a 2-degree misalignment can shift the mean is a
+    unit mistake (e.g. ax logged in g, read as m/s^2)."""
+    if not all(col in c for col in ("t", "V", "alpha", "theta", "q")):
+        return
+    t, v, alpha, theta, q = (c[k] for k in ("t", "V", "alpha", "theta", "q"))
+    span = float(t[-1] - t[0])
+    if span <= 0:
+        return
+    dt = float(t[1] - t[0])
+    u, w = v * np.cos(alpha), v * np.sin(alpha)
+
+    def mean(x):
+        return float(_integral(x, dt)[-1]) / span
+
+    for col, implied, sense in (
+        ("ax", (u[-1] - u[0]) / span + mean(G * np.sin(theta) + q * w), "axial"),
+        ("az", (w[-1] - w[0]) / span + mean(-G * np.cos(theta) - q * u), "normal"),
+    ):
+        if col not in c:
+            continue
+        measured = mean(c[col])
+        scale = max(abs(implied), abs(measured), G)
+        if abs(measured - implied) <= _MISALIGNMENT * scale:
+            continue
+        k = measured / implied if implied else math.inf
         if 1 / _FACTOR <= k <= _FACTOR:
             continue
         raise PlausibilityError(
-            f"{name}: {what.format(k=_g(k))}, over rows 1-{len(t)}"
-            f"{_unit_hint(k, hints)}" + _skip_note(check)
+            f"{name}: column {col!r} averages {_g(measured)} m/s^2, but the record's "
+            f"own motion ('V', 'alpha', 'theta', 'q') and gravity require a mean "
+            f"{sense} specific force of {_g(implied)} m/s^2 ({_g(k)} times); "
+            + (
+                f"{col} looks like units of g (accelerations are in m/s^2)"
+                if abs(math.log(abs(k) * G)) < math.log(1.3)
+                else f"check the units of {col} (m/s^2), V (m/s) and the angles (rad)"
+            )
+            + _skip_note("specific_force")
         )
+
+
+def _check_drag(c, meta, name):
+    """Thrust against mass and acceleration: the aerodynamic force along the flight
+    path, D = -((mass ax - thrust) cos alpha + mass az sin alpha), is a drag, not a
+    push; a median push beyond what a 2-degree misalignment of the thrust line or the
+    accelerometers explains means the thrust is too small for the mass (e.g. lbf
+    logged as N) or the mass too large."""
+    if not all(col in c for col in ("thrust", "mass", "ax", "az", "alpha")):
+        return
+    thrust, mass = c["thrust"], c["mass"]
+    powered = thrust > _MISALIGNMENT * mass * G
+    if "qbar" in c:
+        powered &= c["qbar"] >= 0.2 * float(np.max(c["qbar"]))
+    if np.count_nonzero(powered) < 2:
+        return
+    alpha, ax, az = c["alpha"][powered], c["ax"][powered], c["az"][powered]
+    m, f = mass[powered], thrust[powered]
+    drag = -((m * ax - f) * np.cos(alpha) + m * az * np.sin(alpha))
+    allowance = _MISALIGNMENT * (f + m * np.hypot(ax, az))
+    j = int(np.argsort(drag)[len(drag) // 2])
+    if drag[j] + allowance[j] >= 0:
+        return
+    i = int(np.flatnonzero(powered)[j])
+    ratio = (m[j] * ax[j] * np.cos(alpha[j]) + m[j] * az[j] * np.sin(alpha[j])) / (
+        f[j] * np.cos(alpha[j])
+    )
+    raise PlausibilityError(
+        f"{name}: the forces imply a drag of {_g(drag[j])} N (the median over the "
+        f"powered rows, e.g. row {i + 1}: 'mass' {num(m[j])} kg times 'ax' "
+        f"{num(ax[j])} m/s^2 exceeds 'thrust' {num(f[j])} N), a forward push no "
+        f"airframe gives: the thrust would have to be at least {_g(ratio)} times "
+        "larger for this mass"
+        + _unit_hint(ratio, {4.4482216: " (thrust in lbf logged as N?)"}).replace(
+            "; ", ""
+        )
+        + "; check thrust (N), mass (kg) and ax (m/s^2)"
+        + _skip_note("drag")
+    )
 
 
 def _check_air_data(c, name):
@@ -379,3 +484,7 @@ def check_physics(
         _check_air_data(channels, name)
     if "coefficients" not in skip:
         _check_coefficients(channels, metadata, name)
+    if "specific_force" not in skip:
+        _check_specific_force(channels, name)
+    if "drag" not in skip:
+        _check_drag(channels, metadata, name)

@@ -1,48 +1,54 @@
 """Reading the numbers of a large all-numeric CSV quickly, in bounded memory.
 
 The file is read in blocks of whole lines; per block, NumPy checks that every line
-has the header's number of commas and no empty cell, then parses the block's numbers
-in C (`np.fromstring`) and keeps only the columns asked for. Time is linear in the
+has the header's number of commas, then its C reader (`np.loadtxt`) converts only
+the columns asked for (an empty cell there fails it; one in a column no map asks
+for does not matter). Time is linear in the
 file's size and memory is the kept columns plus one block, whatever the number of
 rows. Anything irregular (a ragged row, an empty or quoted cell, a word, a blank
 line, a non-ASCII digit) makes it return `None`: the callers' careful readers then
 find the problem and name its row, column and value.
 """
 
+import io
 import os
-import re
-import warnings
 
 import numpy as np
 
 
 _BLOCK_BYTES = 8 * 2**20
-# A cell holding only blanks: np.fromstring reads it as -1 instead of failing.
-_BLANK_CELL = re.compile(rb"(?:^|,)[ \t]*(?:,|$)", re.MULTILINE)
 _NEWLINE, _COMMA = ord("\n"), ord(",")
 
 
-def _block_values(block: bytes, width: int) -> np.ndarray | None:
-    """The numbers of `block` (whole lines, each ending in a newline) as a
-    `(lines, width)` array, or `None` if any line is not `width` plain numbers."""
+def _block_values(block: bytes, width: int, columns: list[int]) -> np.ndarray | None:
+    """The `columns` of `block` (whole lines, each ending in a newline) as a
+    `(lines, len(columns))` array, or `None` if any line is not `width` plain
+    numbers."""
     if b"\r" in block:
         block = block.replace(b"\r", b"")
     raw = np.frombuffer(block, np.uint8)
-    ends = np.flatnonzero(raw == _NEWLINE)
-    commas = np.flatnonzero(raw == _COMMA)
-    per_line = np.diff(np.searchsorted(commas, ends), prepend=0)
-    if np.any(per_line != width - 1) or _BLANK_CELL.search(block):
+    newline, comma = raw == _NEWLINE, raw == _COMMA
+    ends = np.flatnonzero(newline)
+    per_line = np.diff(np.searchsorted(np.flatnonzero(comma), ends), prepend=0)
+    if np.any(per_line != width - 1):
+        return None  # a ragged row or a blank line (NumPy would read past them)
+    try:
+        # NumPy's C reader parses only the kept columns (the others are skipped,
+        # not converted): with a few of many columns mapped, most cells cost nothing
+        values = np.loadtxt(
+            io.BytesIO(block),
+            delimiter=",",
+            usecols=columns,
+            ndmin=2,
+            comments=None,
+            encoding="ascii",
+            dtype=float,
+        )
+    except (ValueError, UnicodeDecodeError):
         return None
-    with warnings.catch_warnings():
-        # a cell np.fromstring cannot parse ends it early with a warning
-        warnings.simplefilter("error")
-        try:
-            values = np.fromstring(block.replace(b"\n", b","), sep=",")
-        except (ValueError, DeprecationWarning):
-            return None
-    if values.size != len(ends) * width:
+    if values.shape != (len(ends), len(columns)):
         return None
-    return values.reshape(len(ends), width)
+    return values
 
 
 def read_numeric_csv(
@@ -64,16 +70,16 @@ def read_numeric_csv(
             cut = chunk.rfind(b"\n") + 1
             block, rest = chunk[:cut], chunk[cut:]
             if block:
-                values = _block_values(block, width)
+                values = _block_values(block, width, columns)
                 if values is None:
                     return None
-                kept.append(values[:, columns])
+                kept.append(values)
         rest = rest.rstrip(b" \t\r\n")
         if rest:
-            values = _block_values(rest + b"\n", width)
+            values = _block_values(rest + b"\n", width, columns)
             if values is None:
                 return None
-            kept.append(values[:, columns])
+            kept.append(values)
     if not kept:
         return np.empty((0, len(columns)))
     return np.concatenate(kept)

@@ -167,10 +167,10 @@ def write_log(path: str | os.PathLike, log: FlightLog) -> pathlib.Path:
             digest = hashlib.file_digest(f, "sha256").hexdigest()
         side_text = side_text[:-1].rstrip() + f',\n  "{CSV_HASH_KEY}": "{digest}"\n}}'
         atomic_write(sidecar_path(path), lambda f: f.write(side_text))
+        commit(tmp, path)
     except BaseException:
         discard(tmp)
         raise
-    commit(tmp, path)
     return path
 
 

@@ -1,5 +1,4 @@
-"""What flight computers leave in their logs, cleaned with a message, and units
-checked against what a rocket on its pad and in flight must read.
+"""What flight computers leave in their logs, cleaned with a message.
 
 Cleaned (each with one message naming file and column): exact duplicate rows,
 rows repeating a time with other values, rows with no time, samples a channel
@@ -7,7 +6,7 @@ leaves empty, positions held between GNSS fixes, and a final run of samples that
 fall faster than free fall from apogee allows (a write cut short). Reported but
 kept: dropouts (gaps on the log's own sample grid), changes of sample rate, a log
 that starts after liftoff. Refused with one [`LogError`][] line naming file,
-column, row and value: time running backwards, and a unit the data contradict.
+column, row and value: time running backwards.
 """
 
 import dataclasses
@@ -40,25 +39,34 @@ class Series:
 
 
 def _seg_rates(t: np.ndarray) -> list[tuple[float, float]]:
-    """Sample-rate segments [(start time, median step)]. A running median of the
-    steps (21 samples) put in half-octave bins marks where the rate changes; a run
-    shorter than 20 samples, or one whose steps are not mostly (half) its own step
-    within 10 % (gaps of a telemetry link, not a new rate), joins the run before."""
+    """Sample-rate segments [(start time, median step)]. The steps' medians over
+    blocks of 20 or more samples (at most 2000 blocks), in half-octave bins, mark
+    where the rate changes; a run whose steps are not mostly (half) its own step
+    within 25 % or the time's resolution (gaps of a telemetry link: 2 steps and
+    more, not a new rate) joins the run before, and neighbours within a factor 1.5
+    merge; each change is then placed to the sample within its blocks."""
     dt = np.diff(t)
-    if dt.size < 42:
+    if dt.size < 40:
         return [(float(t[0]), float(np.median(dt)) if dt.size else 0.0)]
-    k = 21
-    padded = np.pad(dt, k // 2, mode="edge")
-    med = np.median(np.lib.stride_tricks.sliding_window_view(padded, k), axis=1)
-    level = np.round(2 * np.log2(med))
-    starts = np.concatenate([[0], np.flatnonzero(np.diff(level)) + 1])
+    distinct = np.unique(dt)
+    resolution = float(np.min(np.diff(distinct))) if distinct.size > 1 else 0.0
+
+    def regular(seg):
+        step = float(np.median(seg))
+        return np.mean(np.abs(seg - step) <= max(0.25 * step, resolution)) >= 0.5
+
+    if regular(dt) and np.ptp(dt) <= max(0.1 * np.median(dt), resolution):
+        return [(float(t[0]), float(np.median(dt)))]
+    block = max(20, -(-dt.size // 2000))
+    edges = np.arange(0, dt.size, block)
+    level = np.array(
+        [np.round(2 * np.log2(np.median(dt[e : e + block]))) for e in edges]
+    )
+    starts = edges[np.concatenate([[0], np.flatnonzero(np.diff(level)) + 1])]
     bounds = list(zip(starts, [*starts[1:], dt.size], strict=True))
     kept: list[list[int]] = []
     for a, b in bounds:
-        seg = dt[a:b]
-        step = float(np.median(seg))
-        regular = np.mean(np.abs(seg - step) <= 0.1 * step) >= 0.5
-        if kept and (b - a < 20 or not regular):
+        if kept and not regular(dt[a:b]):
             kept[-1][1] = b
         else:
             kept.append([a, b])
@@ -70,7 +78,17 @@ def _seg_rates(t: np.ndarray) -> list[tuple[float, float]]:
                 merged[-1][1] = b
                 continue
         merged.append([a, b])
-    return [(float(t[a]), float(np.median(dt[a:b]))) for a, b in merged]
+    steps = [float(np.median(dt[a:b])) for a, b in merged]
+    starts = [0]
+    for j in range(1, len(merged)):
+        lo, hi = max(merged[j][0] - block, 0), min(merged[j][0] + block, dt.size)
+        w = np.log(dt[lo:hi])
+        left = np.concatenate([[0.0], np.cumsum(np.abs(w - np.log(steps[j - 1])))])
+        right = np.concatenate(
+            [np.cumsum(np.abs(w - np.log(steps[j]))[::-1])[::-1], [0.0]]
+        )
+        starts.append(lo + int(np.argmin(left + right)))
+    return [(float(t[a]), step) for a, step in zip(starts, steps, strict=True)]
 
 
 def timing_messages(t: np.ndarray, where: str) -> list[str]:
@@ -112,7 +130,11 @@ def clean_stream(
     file = spec.file
     messages: list[str] = []
     rows = np.arange(1, len(data) + 1)
-    t = data[:, cols[spec.time.column]] * spec.time.factor
+    t = (
+        spec.time.step * np.arange(len(data), dtype=float)
+        if spec.time.step is not None
+        else data[:, cols[spec.time.column]] * spec.time.factor
+    )
     names = [c for c in spec.channels if not c.axis_auto]
     raw = (
         np.column_stack([data[:, cols[c.column]] for c in names])
@@ -216,223 +238,6 @@ def _drop_held_fixes(out: dict[str, Series], messages: list[str]) -> None:
             f"{out[names[0]].file}: the GNSS position is held between fixes; kept the "
             f"{int(np.count_nonzero(~held))} rows where it changes"
         )
-
-
-# --- units ---------------------------------------------------------------------------
-
-
-def _fix_hint(alternative: str) -> str:
-    return f"(give it {alternative} in the column map)"
-
-
-def check_accel_axial(s: Series, pad: np.ndarray, messages: list[str]) -> None:
-    """An axial accelerometer's unit and gravity convention against its pad
-    reading (g times the sine of the rail's elevation, 0.6-1 g for rails 37-90
-    degrees up, gravity included; 5 % more for a sensor's bias) or, without pad samples, its boost (thrust beats
-    weight: above 1 g; below 60 g for a rocket that carries a flight computer). The
-    series is converted to specific force with gravity included."""
-    c = s.spec
-    removed = c.gravity == "removed"
-    if pad.size >= 5:
-        raw = float(np.median(s.v[pad])) / c.factor
-        row = s.rows[pad[len(pad) // 2]]
-        units = [(c.unit or "m/s^2", c.factor)] if c.unit_from else []
-        units += [
-            (u, f)
-            for u, f in (("m/s^2", 1.0), ("g", G0))
-            if f != c.factor or not c.unit_from
-        ]
-        gravities = [c.gravity] if c.gravity else []
-        gravities += [g for g in ("included", "removed") if g != c.gravity]
-        options = [
-            (u, f, g, raw * f + (G0 if g == "removed" else 0.0))
-            for u, f in units
-            for g in gravities
-        ]
-        fits = [o for o in options if 0.6 * G0 <= o[3] <= 1.05 * G0]
-        # what the map or the format said, as much of it as the reading allows
-        fits.sort(key=lambda o: (o[2] != c.gravity, o[1] != c.factor))
-        if not fits:
-            raise LogError(
-                f"{s.where}, row {row}: reads {raw:.4g} {c.unit or 'm/s^2'} on the "
-                "pad, where an axial accelerometer reads about 1 g (gravity included) "
-                "or 0 (1 g removed); check its unit and scale"
-            )
-        unit, factor, grav, _ = fits[0]
-        declared_unit = bool(c.unit_from)
-        if (declared_unit and factor != c.factor) or (c.gravity and grav != c.gravity):
-            if declared_unit and factor != c.factor:
-                what = f"1 g in {unit}, not in {c.unit}: the column looks like {unit}"
-            else:
-                what = (
-                    "about 1 g: gravity is included"
-                    if grav == "included"
-                    else "about 0: 1 g is removed"
-                )
-            fix = {"unit": unit, "gravity": grav}
-            raise LogError(
-                f"{s.where}, row {row}: reads {raw:.4g} on the pad, {what} "
-                f"(give it {fix} in the column map)".replace("'", '"')
-            )
-        s.v = s.v / c.factor * factor + (G0 if grav == "removed" else 0.0)
-        said = [f"unit {unit}"] if not declared_unit else []
-        said += [f"gravity {grav}"] if not c.gravity else []
-        if said or grav == "removed":
-            messages.append(
-                f"{s.where}: reads {raw:.3g} on the pad"
-                + (f": taken as {' and '.join(said)}" if said else "")
-                + (
-                    "; 1 g removed by the log, g0 added back"
-                    if grav == "removed"
-                    else ""
-                )
-            )
-        return
-    # no pad: the boost decides the unit; gravity from the map or the format
-    if c.gravity is None:
-        raise LogError(
-            f"{s.where}: the log has no samples on the pad to tell whether gravity is "
-            'included; give it "gravity": "included" or "removed" in the column map'
-        )
-    sf = s.v + (G0 if removed else 0.0)
-    peak = float(np.max(sf))
-    if peak < G0 or peak > 60 * G0:
-        unit = "g" if peak < G0 else "m/s^2"
-        hint = _fix_hint(f'"unit": "{unit}"')
-        if c.unit_from:
-            raise LogError(
-                f"{s.where}, row {s.rows[int(np.argmax(sf))]}: the boost peaks at "
-                f"{peak / c.factor:.4g} {c.unit or 'm/s^2'}, {peak / G0:.3g} g: the "
-                f"column looks like {unit} {hint}"
-            )
-        factor = G0 if unit == "g" else 1.0
-        s.v = s.v / c.factor * factor
-        messages.append(f"{s.where}: the boost reads like {unit}: taken as {unit}")
-        sf = s.v + (G0 if removed else 0.0)
-    s.v = sf
-    if removed:
-        messages.append(f"{s.where}: 1 g removed by the log; g0 added back")
-
-
-def check_pressure(s: Series, pad: np.ndarray, messages: list[str]) -> None:
-    """Static pressure on the pad must lie between 30 and 110 kPa (from 9 km up to
-    below sea level); hPa and kPa are recognised by where the reading lands."""
-    sel = pad if pad.size else np.arange(min(5, len(s.v)))
-    p = float(np.median(s.v[sel]))
-    if 30e3 <= p <= 110e3:
-        return
-    raw = p / s.spec.factor
-    for unit, factor in (("Pa", 1.0), ("hPa", 100.0), ("kPa", 1e3), ("mbar", 100.0)):
-        if 30e3 <= raw * factor <= 110e3:
-            break
-    else:
-        unit = None
-    row = s.rows[sel[len(sel) // 2]]
-    if unit is None or s.spec.unit_from:
-        what = (
-            f"the column looks like {unit} "
-            + _fix_hint(f'"unit": "{unit.lower() if unit != "mbar" else "hpa"}"')
-            if unit
-            else "no unit makes it a pressure near the ground"
-        )
-        raise LogError(
-            f"{s.where}, row {row}: pad pressure {raw:.6g} {s.spec.unit or 'Pa'} is "
-            f"not 30-110 kPa; {what}"
-        )
-    s.v = s.v / s.spec.factor * factor
-    messages.append(f"{s.where}: pad pressure {raw:.6g}: read as {unit}")
-
-
-def check_altitude_unit(
-    s: Series,
-    t_burnout: float,
-    h_burnout: float,
-    t_apogee: float,
-    h_apogee: float,
-    messages: list[str],
-) -> float:
-    """The coast from burnout to apogee decides metres against feet: against gravity
-    and drag the rocket climbs at least g t^2 / 2 in a coast of t seconds (drag only
-    adds deceleration, so more height is lost per second), and the six rockets of
-    the shipped data climb 1.07-1.26 times that; a unit that makes it less than 0.8
-    times or more than 2.5 times (a coast ratio of 3.28 is the same flight in feet
-    read as metres) is refused or, with no unit given, replaced. Returns the factor
-    applied to the series (1 if none)."""
-    coast = t_apogee - t_burnout
-    if not (np.isfinite(coast) and coast > 2.0):
-        return 1.0
-    ratio = (h_apogee - h_burnout) / (0.5 * G0 * coast**2)
-    if 0.8 <= ratio <= 2.5:
-        return 1.0
-    c = s.spec
-    raw_ratio = ratio / c.factor
-    better = [
-        (u, f) for u, f in (("m", 1.0), ("ft", 0.3048)) if 0.8 <= raw_ratio * f <= 2.5
-    ]
-    verdict = (
-        f"the column looks like {better[0][0]} "
-        + _fix_hint(f'"unit": "{better[0][0]}"')
-        if better
-        else "check its unit and scale"
-    )
-    detail = (
-        f"{s.where}: climbs {h_apogee - h_burnout:.0f} m in the {coast:.1f} s "
-        f"coast from burnout to apogee, {ratio:.2f} times a drag-free coast "
-        f"(g t^2/2 = {0.5 * G0 * coast**2:.0f} m)"
-    )
-    if c.unit_from or not better:
-        raise LogError(f"{detail}; {verdict}")
-    factor = better[0][1] / c.factor
-    s.v = s.v * factor
-    messages.append(f"{detail}: no unit given, read as {better[0][0]}")
-    return factor
-
-
-def check_imu(series: dict[str, Series], pad_of, messages: list[str]) -> None:
-    """3-axis accelerometers must read |a| near 1 g on the pad, gyros less than 20
-    deg/s (a still rocket; MEMS biases are a few deg/s): channels that do not are
-    dropped with a message (a board that logs its IMU columns but never filled
-    them)."""
-    acc = [n for n in ("accel_x", "accel_y", "accel_z") if n in series]
-    if len(acc) == 3:
-        pads = [pad_of(series[n]) for n in acc]
-        if all(p.size >= 5 for p in pads):
-            m = np.array([np.median(series[n].v[p]) for n, p in zip(acc, pads)])
-            norm = float(np.linalg.norm(m))
-            if not 0.7 * G0 <= norm <= 1.3 * G0:
-                s = series[acc[0]]
-                raw = norm / s.spec.factor
-                if 0.7 <= raw <= 1.3 and s.spec.factor == 1.0:
-                    raise LogError(
-                        f"{s.where}: the 3-axis accelerometer reads |a| = {raw:.3g} "
-                        "on the pad, 1 g in g; the columns look like g "
-                        + _fix_hint('"unit": "g"')
-                    )
-                for n in acc:
-                    del series[n]
-                messages.append(
-                    f"{s.file}: 3-axis accelerometer reads |a| = {norm:.3g} m/s^2 on "
-                    "the pad, not about 1 g: no usable data, accel_x/y/z not used"
-                )
-    for n in ("gyro_x", "gyro_y", "gyro_z"):
-        if n in series:
-            s = series[n]
-            p = pad_of(s)
-            if p.size >= 5:
-                w = abs(float(np.median(s.v[p])))
-                if w > np.deg2rad(20.0):
-                    del series[n]
-                    messages.append(
-                        f"{s.where}: reads {np.rad2deg(w):.3g} deg/s on the pad, "
-                        f"where a still rocket reads near 0: {n} not used"
-                    )
-                    continue
-            if float(np.max(np.abs(s.v))) > 60.0 and s.spec.factor == 1.0:
-                raise LogError(
-                    f"{s.where}, row {s.rows[int(np.argmax(np.abs(s.v)))]}: "
-                    f"{float(np.max(np.abs(s.v))):.4g} rad/s is no rocket's rate; the "
-                    "column looks like deg/s " + _fix_hint('"unit": "deg/s"')
-                )
 
 
 def impossible_tail(

@@ -10,8 +10,11 @@ drag), apogee the top of a smoothing spline whose smoothing the data choose
 than air density alone can explain, landing where the descent stops.
 """
 
+import dataclasses
+
 import numpy as np
 import scipy.interpolate
+import scipy.ndimage
 
 
 G0 = 9.80665
@@ -21,8 +24,28 @@ _K_NOISE = 5.0
 # Under one canopy the descent rate scales with 1/sqrt(density): at most ~25 %
 # slower from 5 km to the ground; a main canopy slows the descent 2-5 times.
 _DEPLOY_RATIO = 0.6
+# the descent's breaks are searched on at most this many bin averages (a 4 kHz log
+# descends for 10^6 samples; the breaks need no more than ~0.05 s)
+_MOST_DESCENT = 4000
 # No canopy lets a rocket down slower than 1 m/s: below it the rocket is not descending
 _MIN_DESCENT = 1.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Event:
+    """A flight event found in the data.
+
+    **Fields:**
+
+    - `t`: time, s since liftoff (liftoff itself is at 0).
+    - `how`: one sentence saying from which channel and by which rule it was found.
+    - `value`: the quantity that marks it, where one does (apogee altitude in m,
+      burnout speed in m/s, ...), else `nan`.
+    """
+
+    t: float
+    how: str
+    value: float = float("nan")
 
 
 def robust_sigma(x: np.ndarray) -> float:
@@ -54,14 +77,19 @@ def liftoff_from_altitude(
 ) -> tuple[float, bool, str]:
     """Liftoff time from altitude (m above the pad or anything with the pad near
     0): the break of `h = L` (pad) then `L + c (t - t0)^2` fitted to the samples up
-    to 1 % of the climb; when no pad sample precedes it (the log starts airborne)
-    the arc is extrapolated back to `h = 0`. Returns `(t0, late, how)`."""
+    to 1 % of the climb (or ten times the altitude noise); when no pad sample
+    precedes it (the log starts airborne) the arc is extrapolated back to `h = 0`.
+    Returns `(t0, late, how)`."""
     h0 = float(np.median(h[: max(1, min(5, len(h) // 20))]))
     climb = apogee - h0
-    above = np.flatnonzero(h - h0 > 0.01 * climb)
-    end = int(above[0]) if above.size else len(h) - 1
+    # the arc up to 1 % of the climb, or ten times the altitude's noise if more:
+    # from the last sample below that level before the climb's top
+    top = int(np.argmax(h))
+    level = max(0.01 * climb, 10 * robust_sigma(h))
+    below = np.flatnonzero(h[:top] - h0 <= level)
+    end = int(below[-1]) + 1 if below.size else 0
     end = min(len(h), max(end + 1, 8))
-    tw, hw = t[:end], h[:end]
+    tw, hw = _binned(t[:end], h[:end], 2000)
 
     def sse(t0, fix_pad):
         s = np.maximum(tw - t0, 0.0) ** 2
@@ -98,22 +126,51 @@ def liftoff_from_altitude(
     )
 
 
+def accel_pad(t: np.ndarray, x: np.ndarray, t_guess: float) -> np.ndarray:
+    """Indices of an accelerometer's pad samples: those before the boost's first
+    rise to half its peak (the peak within 1 s of `t_guess`) that sit within
+    `_K_NOISE` noise of the level of the earliest half of them. Empty when fewer
+    than five (a log that starts at ignition)."""
+    window = np.flatnonzero((t >= t_guess - 1.0) & (t <= t_guess + 1.0))
+    if window.size == 0:
+        return np.array([], int)
+    first = float(np.median(x[: max(1, min(5, window[0] + 1))]))
+    peak = float(x[window].max())
+    rise = np.flatnonzero(x > first + 0.5 * (peak - first))
+    end = int(rise[0]) if rise.size else 0
+    if end < 5:
+        return np.array([], int)
+    early = x[: max(1, end // 2)]
+    level = float(np.median(early))
+    sigma = max(1.4826 * float(np.median(np.abs(early - level))), 0.5 * quantum(early))
+    pad = np.flatnonzero(np.abs(x[:end] - level) <= _K_NOISE * sigma)
+    return pad if pad.size >= 5 else np.array([], int)
+
+
 def liftoff_from_accel(t: np.ndarray, x: np.ndarray, t_guess: float) -> float | None:
-    """Refine liftoff with an accelerometer that has pad samples: the start of the
-    rise from its pad reading by more than `_K_NOISE` of its pad noise that leads
-    to the boost (walking back from half the boost peak). `None` without enough pad
-    samples or a clear boost."""
-    pad = np.flatnonzero(t < t_guess)
-    pad = pad[: max(0, int(0.9 * len(pad)))]
-    if len(pad) < 5:
-        return None
-    level = float(np.median(x[pad]))
-    sigma = max(
-        1.4826 * float(np.median(np.abs(x[pad] - level))), 0.5 * quantum(x[pad])
-    )
+    """Refine liftoff with an accelerometer: the start of the rise from its pad
+    reading by more than `_K_NOISE` of its pad noise that leads to the boost
+    (walking back from half the boost peak). A log that starts at ignition (fewer
+    than five pad samples) takes its first samples as the pad level and the
+    record's noise. `None` if the log starts above half the boost or no boost
+    stands out."""
     window = np.flatnonzero((t >= t_guess - 1.0) & (t <= t_guess + 1.0))
     if window.size == 0:
         return None
+    pad = accel_pad(t, x, t_guess)
+    if pad.size:
+        level = float(np.median(x[pad]))
+        sigma = max(
+            1.4826 * float(np.median(np.abs(x[pad] - level))), 0.5 * quantum(x[pad])
+        )
+    else:
+        # a log that starts at ignition: its first samples (before half the boost)
+        # are the pad, its noise that of the whole record
+        first = x[: max(1, min(3, int(window[0]) + 1))]
+        level = float(np.median(first))
+        sigma = max(robust_sigma(x), 0.5 * quantum(x))
+        if x[0] > level + 0.5 * (float(x[window].max()) - level) or sigma == 0:
+            return None
     peak = float(x[window].max())
     if peak - level < 4 * _K_NOISE * sigma:
         return None
@@ -125,35 +182,41 @@ def liftoff_from_accel(t: np.ndarray, x: np.ndarray, t_guess: float) -> float | 
 
 def burnout_from_accel(t: np.ndarray, sf: np.ndarray, t_lift: float) -> float | None:
     """The first time after the boost's peak that the specific force along the axis
-    (gravity included) turns negative and stays so for five samples: thrust below
-    drag. Linear interpolation between the samples around the crossing."""
+    (gravity included), as a running median of three samples (one noisy sample is
+    not a burnout), turns negative: thrust below drag. Linear interpolation between
+    the samples around the crossing."""
     after = np.flatnonzero(t >= t_lift)
     if after.size < 10:
         return None
     # the boost peak: largest in the first samples after liftoff, not a later shock
     head = after[t[after] <= t_lift + max(1.0, 0.05 * (t[after[-1]] - t_lift))]
     k = int(head[np.argmax(sf[head])]) if head.size else int(after[0])
-    neg = sf[k:] < 0
-    run = np.convolve(neg.astype(int), np.ones(5, int), "valid") == 5
-    if not run.any():
+    neg = _median3(sf[k:]) < 0
+    if not neg.any():
         return None
-    i = k + int(np.argmax(run))
+    i = k + int(np.argmax(neg))
     if i == 0:
         return float(t[0])
     a, b = sf[i - 1], sf[i]
     return float(t[i - 1] + (t[i] - t[i - 1]) * a / (a - b)) if a > 0 else float(t[i])
 
 
+def _binned(t, h, most: int):
+    """At most `most` points: longer series averaged in bins of equal count."""
+    if len(t) <= most:
+        return t, h
+    edges = np.linspace(0, len(t), most + 1).astype(int)
+    counts = np.diff(edges)
+    return (
+        np.add.reduceat(t, edges[:-1]) / counts,
+        np.add.reduceat(h, edges[:-1]) / counts,
+    )
+
+
 def _spline(t, h, most: int = 120):
     """A cubic smoothing spline whose smoothing generalised cross-validation
-    chooses, through at most `most` points (longer series are averaged in bins of
-    equal count first: the GCV search costs time in proportion to the points)."""
-    if len(t) > most:
-        edges = np.linspace(0, len(t), most + 1).astype(int)
-        counts = np.diff(edges)
-        t = np.add.reduceat(t, edges[:-1]) / counts
-        h = np.add.reduceat(h, edges[:-1]) / counts
-    return scipy.interpolate.make_smoothing_spline(t, h)
+    chooses, through at most `most` points (the GCV search costs ~3 ms a point)."""
+    return scipy.interpolate.make_smoothing_spline(*_binned(t, h, most))
 
 
 def apogee(t: np.ndarray, h: np.ndarray, t_lift: float) -> tuple[float, float]:
@@ -247,7 +310,7 @@ def descent_changes(
     sel = np.flatnonzero((t > t_apogee) & (h < h_apogee - 0.03 * abs(h_apogee)))
     if sel.size < 12:
         return []
-    tt, hh = t[sel], h[sel]
+    tt, hh = _binned(t[sel], h[sel], _MOST_DESCENT)
     found = []
 
     def search(a, b, depth):
@@ -275,10 +338,9 @@ def descent_changes(
     for i in range(1, len(cuts) - 1):
         a, b = cuts[i - 1], cuts[i + 1]
         r = _two_lines(tt[a:b], hh[a:b]) if b - a >= 12 else None
+        # a drop that does not hold between its neighbours was a local wiggle
         if r is not None and -r[1] > _MIN_DESCENT and -r[2] < _DEPLOY_RATIO * -r[1]:
             refined.append((float(tt[a + r[0]]), -r[1], -r[2]))
-        else:
-            refined.append(found[i - 1])
     return refined
 
 
@@ -290,9 +352,7 @@ def shocks(t: np.ndarray, x: np.ndarray, t_from: float) -> list[float]:
     if sel.size < 10:
         return []
     y = x[sel]
-    k = 11
-    pad = np.pad(y, k // 2, mode="edge")
-    med = np.median(np.lib.stride_tricks.sliding_window_view(pad, k), axis=1)
+    med = scipy.ndimage.median_filter(y, 11, mode="nearest")
     dev = np.abs(y - med)
     sigma = max(1.4826 * float(np.median(dev)), 0.5 * quantum(y))
     hits = np.flatnonzero((dev > 2 * _K_NOISE * sigma) & (dev > 2 * G0))

@@ -57,6 +57,7 @@ class ChannelSpec:
     gravity: str | None = None
     filtered: bool = False
     axis_auto: bool = False
+    step: float | None = None  # time only: samples `step` seconds apart from 0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,12 +69,36 @@ class StreamSpec:
     label: str = ""
 
 
+_SUFFIXES = {
+    "m_s2": "m/s^2",
+    "m_s_2": "m/s^2",
+    "mps2": "m/s^2",
+    "m_s": "m/s",
+    "mps": "m/s",
+    "ft_s": "ft/s",
+    "deg_s": "deg/s",
+    "rad_s": "rad/s",
+    "hpa": "hpa",
+    "kpa": "kpa",
+    "pa": "pa",
+    "ft": "ft",
+    "m": "m",
+    "g": "g",
+    "ms": "ms",
+    "s": "s",
+    "degc": "degc",
+}
+
+
 def _bracket_unit(name: str) -> str:
     """The unit written in a column name: 'alt(ft)' -> 'ft', 'Altitude (Ft-AGL)' ->
-    'ft', 'velocity[m/s]' -> 'm/s', 'Axial Accel (Gs)' -> 'g'; '' if none known."""
+    'ft', 'velocity[m/s]' -> 'm/s', 'Axial Accel (Gs)' -> 'g', 'accel_m_s2' ->
+    'm/s^2'; '' if none known."""
     m = re.search(r"[\(\[]([^\)\]]*)[\)\]]\s*$", name)
     if not m:
-        return ""
+        # a suffix: altitude_m, accel_m_s2, time_s, pressure_hPa
+        m = re.search(r"_(" + "|".join(_SUFFIXES) + r")$", name.strip().lower())
+        return _SUFFIXES[m.group(1)] if m else ""
     text = m.group(1).strip().lower()
     text = re.sub(r"[-_ ]*(agl|asl|msl)$", "", text)
     text = {"gs": "g", "sec": "s", "secs": "s", "feet": "ft", "meters": "m"}.get(
@@ -149,6 +174,11 @@ def load_map(source: Any) -> tuple[dict, pathlib.Path | None]:
     its file names are relative to."""
     if isinstance(source, dict):
         return source, None
+    if not isinstance(source, str | pathlib.PurePath):
+        raise LogError(
+            "column map: give a table of channels or the path of a .json / .toml "
+            f"file, got {type(source).__name__}"
+        )
     path = pathlib.Path(source)
     try:
         text = path.read_text(encoding="utf-8-sig")
@@ -177,20 +207,32 @@ def streams_from_map(
                 f"{len(files)} were given; list them as "
                 '{"streams": [{"file": ..., "time": ..., ...}]}'
             )
-        data = {"streams": [{**data, "file": str(files[0])}]}
+        flat = _time_key({**data, "file": str(files[0])})
+        if "time" not in flat:
+            header = Header(files[0])
+            times = [n for n in header.names if _is_time(n)]
+            if len(times) != 1:
+                raise LogError(
+                    f'{where}: give the time column as "time" (the header of '
+                    f"{files[0].name} has {len(times) or 'no'} time-like columns: "
+                    f"{', '.join(header.names)})"
+                )
+            flat["time"] = times[0]
+        data = {"streams": [flat]}
     streams = data["streams"]
     if not isinstance(streams, list) or not streams:
         raise LogError(f"{where}: 'streams' must be a list of tables")
     out = []
     for k, s in enumerate(streams, start=1):
         here = f"{where}: stream {k}"
+        s = _time_key(s) if isinstance(s, dict) else s
         if not isinstance(s, dict) or "file" not in s or "time" not in s:
             raise LogError(f"{here}: needs 'file' and 'time'")
         file = pathlib.Path(s["file"])
         if not file.is_absolute() and root is not None:
             file = root / file
         header = Header(file)
-        time = channel_spec("time", s["time"], here, header)
+        time = _time_spec(s["time"], here, header)
         channels = tuple(
             channel_spec(n, v, here, header)
             for n, v in s.items()
@@ -206,6 +248,32 @@ def streams_from_map(
             )
         )
     return out
+
+
+def _time_key(stream: dict) -> dict:
+    """`t`, the time channel's name in every other column map, as `time`."""
+    if "t" in stream and "time" not in stream:
+        stream = {k if k != "t" else "time": v for k, v in stream.items()}
+    return stream
+
+
+def _time_spec(spec: Any, where: str, header: Header) -> ChannelSpec:
+    """The time column, or `{"step": seconds}` for a file with no time column
+    (samples that far apart from 0, as in every column map)."""
+    if isinstance(spec, dict) and "step" in spec:
+        step = spec["step"]
+        if (
+            isinstance(step, bool)
+            or not isinstance(step, int | float)
+            or not step > 0
+            or step == float("inf")
+        ):
+            raise LogError(
+                f"{where}: time: step must be a positive number of seconds, got "
+                f"{step!r}"
+            )
+        return ChannelSpec("time", "", 1.0, unit="s", unit_from="map", step=float(step))
+    return channel_spec("time", spec, where, header)
 
 
 # --- layouts recognised from the header ---------------------------------------------

@@ -12,6 +12,7 @@ import csv
 import math
 import pathlib
 import re
+import warnings
 
 import numpy as np
 
@@ -46,7 +47,7 @@ class Header:
         except UnicodeDecodeError:
             raise LogError(f"{path}: not a UTF-8 text file") from None
         self.sep = max(_SEPARATORS, key=line.count)
-        if line.count(self.sep) == 0:
+        if line.count(self.sep) == 0 and len(line.split()) > 1:
             raise LogError(
                 f"{path}: the first line has no ',', ';' or tab: not a CSV file "
                 "with a header row"
@@ -84,16 +85,18 @@ def read_columns(header: Header, columns: list[int]) -> tuple[np.ndarray, list[s
     path = header.path
     columns = sorted(set(columns))
     try:
-        data = np.loadtxt(
-            path,
-            delimiter=header.sep,
-            skiprows=header.skip,
-            usecols=columns,
-            dtype=float,
-            comments=None,
-            ndmin=2,
-            encoding="utf-8-sig",
-        )
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # "input contained no data": checked after
+            data = np.loadtxt(
+                path,
+                delimiter=header.sep,
+                skiprows=header.skip,
+                usecols=columns,
+                dtype=float,
+                comments=None,
+                ndmin=2,
+                encoding="utf-8-sig",
+            )
         return data, []
     except (ValueError, IndexError):
         pass

@@ -17,7 +17,6 @@ __getattr__, __dir__, __all__ = attach(
             "LATERAL_OUTPUTS",
             "lateral_record",
             "LATERAL_START",
-            "read_lateral_asc",
         ),
         "_lateral_sixdof": (
             "implied_lateral_derivatives",
@@ -42,12 +41,5 @@ __getattr__, __dir__, __all__ = attach(
             "vehicle_model",
         ),
         "_mach_spline": ("MachSplineAerodynamics",),
-        "_registry": (
-            "AbstractModelEntry",
-            "AbstractVehicleEntry",
-            "vehicle_descriptions",
-            "vehicle_entry",
-            "vehicle_spec",
-        ),
     },
 )

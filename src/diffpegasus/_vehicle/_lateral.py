@@ -334,14 +334,4 @@ def lateral_record(
     return Record(t, inputs, measured, x0=x0, name=name)
 
 
-def read_lateral_asc(path, columns: dict | None = None) -> dict[str, np.ndarray]:
-    """The lateral channels of an FVSysID `.asc` file (see [`LATERAL_COLUMNS`][];
-    `columns` overrides names), SI units and radians as in the file."""
-    from .._log._asc import read_asc
-
-    data = read_asc(path)
-    names = {**LATERAL_COLUMNS, **(columns or {})}
-    return {k: data[v] for k, v in names.items() if v in data}
-
-
 # --- the 6-DOF lateral equations as a model --------------------------------------

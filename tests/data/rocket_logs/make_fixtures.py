@@ -76,7 +76,7 @@ def main():
     )
     with open(HERE / "altos.csv", "w") as f:
         f.write(head + "\n")
-        for k, (ti, hi, ai) in enumerate(zip(t, h, sf)):
+        for k, (ti, hi, ai) in enumerate(zip(t, h, sf, strict=False)):
             row = (
                 f"6, 5115, 1,N0CALL, {ti:8.2f}, 3, boost, {ai - G0:7.2f}, "
                 f"{pressure(hi):9.2f}, {hi + 1320:8.2f}, {hi:8.2f}, {0.0:7.2f}, 30.0, "
@@ -96,16 +96,18 @@ def main():
     g = rng.normal(0, 1.0, (t.size, 3))
     with open(cats / "imu.csv", "w") as f:
         f.write("ts,id,Ax,Ay,Az,Gx,Gy,Gz\n")
-        for row in zip(t, ax, ay, az, *g.T):
-            f.write("{:.3f},IMU0,{:.4f},{:.4f},{:.4f},{:.3f},{:.3f},{:.3f}\n".format(*row))
+        for row in zip(t, ax, ay, az, *g.T, strict=False):
+            f.write(
+                "{:.3f},IMU0,{:.4f},{:.4f},{:.4f},{:.3f},{:.3f},{:.3f}\n".format(*row)
+            )
     p = pressure(h + rng.normal(0, 0.5, t.size))
     with open(cats / "baro.csv", "w") as f:
         f.write("ts,id,T,P\n")
-        for ti, pi in zip(t, p):
+        for ti, pi in zip(t, p, strict=False):
             f.write(f"{ti:.3f},BARO0,30.0,{pi:.0f}\n")
     with open(cats / "filteredDataInfo.csv", "w") as f:
         f.write("ts,filteredAltitudeAGL,filteredAcceleration\n")
-        for ti, hi, ai in zip(t, h, sf):
+        for ti, hi, ai in zip(t, h, sf, strict=False):
             a = ai - G0 if ti < T_APOGEE + 0.5 else 0.0
             f.write(f"{ti + 0.005:.3f},{hi:.4f},{a:.4f}\n")
     tg = np.arange(-0.6, 70.0, 0.2)
@@ -118,7 +120,12 @@ def main():
     h, sf = flight(t)
     with open(HERE / "altimeter.csv", "w") as f:
         f.write("t(s),alt(ft),accel(g)\n")
-        for ti, hi, ai in zip(t, h + rng.normal(0, 0.3, t.size), sf + rng.normal(0, 0.2, t.size)):
+        for ti, hi, ai in zip(
+            t,
+            h + rng.normal(0, 0.3, t.size),
+            sf + rng.normal(0, 0.2, t.size),
+            strict=False,
+        ):
             f.write(f"{ti:.2f},{hi / 0.3048:.2f},{ai / G0:.3f}\n")
 
 

@@ -8,6 +8,10 @@ module here and one line below (see `_estimate/_estimator.py`).
 from .._estimator import AbstractEstimator
 from ._equation_error import EquationError as EquationError
 from ._filter_error import FilterError as FilterError
+from ._frequency import (
+    FrequencyEquationError as FrequencyEquationError,
+    FrequencyOutputError as FrequencyOutputError,
+)
 from ._output_error import OutputError as OutputError
 
 
@@ -15,4 +19,6 @@ ESTIMATORS: dict[str, type[AbstractEstimator]] = {
     "oem": OutputError,
     "fem": FilterError,
     "eqe": EquationError,
+    "fdoe": FrequencyOutputError,
+    "fdee": FrequencyEquationError,
 }

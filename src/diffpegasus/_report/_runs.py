@@ -5,16 +5,7 @@ and returns a JSON-ready dict."""
 import pathlib
 import sys
 
-from .._log._format import FlightLog
-from .._report._markdown import (
-    derivative_markdown,
-    metrics_table,
-    ranking_table,
-    write_index,
-    write_report,
-)
-from .._report._units import channel_units, effect_unit, with_unit
-from ._workflow import (
+from .._diagnose._workflow import (
     derivative_table,
     diagnose,
     fit_log,
@@ -24,6 +15,15 @@ from ._workflow import (
     MAX_ITER,
     ranking_report,
 )
+from .._log._format import FlightLog
+from ._markdown import (
+    derivative_markdown,
+    metrics_table,
+    ranking_table,
+    write_index,
+    write_report,
+)
+from ._units import channel_units, effect_unit, with_unit
 
 
 def _say(message: str) -> None:
@@ -108,7 +108,7 @@ def run_compare(
     result["display_units"] = {n: list(u) for n, u in units.items()}
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
-        from .._report._discrepancy_plots import plot_fits, plot_regimes
+        from ._discrepancy_plots import plot_fits, plot_regimes
 
         plot_fits(
             [("baseline", base)],
@@ -158,7 +158,7 @@ def run_diagnose(
     with `process_noise` (states, or a dict of start intensities) process noise
     is a candidate too (the filter-error fit's likelihood ratio)."""
     if base is None:
-        from ._candidates import diagnose_model
+        from .._diagnose._candidates import diagnose_model
 
         spec, records = entry.problem([log], add=tuple(add), candidates=True)
         _fitting(log)(spec.model)
@@ -188,7 +188,7 @@ def run_diagnose(
     result["model_effects"] = list(add)
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
-        from .._report._discrepancy_plots import plot_ranking
+        from ._discrepancy_plots import plot_ranking
 
         plot_ranking(result, out / "diagnose.png")
         write_report(
@@ -239,7 +239,7 @@ def run_fit(
     }
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
-        from .._report._discrepancy_plots import plot_fits
+        from ._discrepancy_plots import plot_fits
 
         plot_fits(
             [("before", before), ("after", after)],

@@ -1,14 +1,15 @@
 """The HFB-320 vehicles as registry entries: the longitudinal business jet and
 the lateral-directional textbook model (see [`AbstractVehicleEntry`][])."""
 
+from .._errors import LogError
 from .._estimate._modelfile import ModelSpec
-from .._log._format import FlightLog, LogError
-from ._registry import AbstractModelEntry, hold_candidates
+from .._log._format import FlightLog
+from . import AbstractModelEntry, hold_candidates
 
 
 def _planted(hidden, allowed, vehicle: str):
     """`NAME=VALUE` texts as `({name: value}, turbulence sigma)`."""
-    from ._effects import parse_assignment, Turbulence
+    from .._vehicle._effects import parse_assignment, Turbulence
 
     planted, turbulence = {}, 0.0
     for text in hidden:
@@ -41,7 +42,7 @@ class HFB320Entry(AbstractModelEntry):
 
     def spec(self, add=(), candidates=False, manoeuvres=1) -> ModelSpec:
         del manoeuvres
-        from ._hfb320 import (
+        from .._vehicle._hfb320 import (
             CANDIDATES,
             COLUMNS,
             effect_parameter,
@@ -80,7 +81,8 @@ class HFB320Entry(AbstractModelEntry):
         input="pulse",
         perturb=False,
     ) -> FlightLog:
-        from ._hfb320 import CANDIDATES, simulate_log
+        from .._vehicle._hfb320 import CANDIDATES
+        from ._hfb320_simulator import simulate_log
 
         if perturb:
             raise LogError("--perturb: the HFB-320 has no Monte Carlo model")
@@ -98,7 +100,7 @@ class HFB320Entry(AbstractModelEntry):
         return FlightLog(channels=channels, metadata=meta)
 
     def geometry(self):
-        from ._hfb320 import CBAR, S_REF
+        from .._vehicle._hfb320 import CBAR, S_REF
 
         return float(S_REF), float(CBAR)
 
@@ -116,7 +118,7 @@ class HFB320LateralEntry(AbstractModelEntry):
     )
 
     def spec(self, add=(), candidates=False, manoeuvres=1) -> ModelSpec:
-        from ._lateral import LATERAL_COLUMNS, LATERAL_EFFECTS, lateral_model
+        from .._vehicle._lateral import LATERAL_COLUMNS, LATERAL_EFFECTS, lateral_model
 
         unknown = [a for a in add if a not in LATERAL_EFFECTS]
         if unknown:
@@ -149,7 +151,7 @@ class HFB320LateralEntry(AbstractModelEntry):
         input="pulse",
         perturb=False,
     ) -> FlightLog:
-        from ._lateral_sixdof import simulate_lateral_log
+        from .._vehicle._lateral_sixdof import simulate_lateral_log
 
         if perturb:
             raise LogError("--perturb: the business jet has no Monte Carlo model")
@@ -185,6 +187,6 @@ class HFB320LateralEntry(AbstractModelEntry):
         return FlightLog(channels=channels, metadata=meta)
 
     def geometry(self):
-        from ._hfb320 import CBAR, S_REF
+        from .._vehicle._hfb320 import CBAR, S_REF
 
         return float(S_REF), float(CBAR)

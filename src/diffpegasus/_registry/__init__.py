@@ -89,7 +89,7 @@ def records_of(
 ) -> list[Record]:
     """One record per file through `spec`'s column map (updated by `columns`): the
     `problem` of an entry whose model does not depend on the data."""
-    from .._cli._runners import load_records
+    from ._records import load_records
 
     try:
         return load_records(spec, list(files), columns)
@@ -137,7 +137,11 @@ class ModelFileEntry(AbstractModelEntry):
 
     def spec(self, add=(), candidates=False, manoeuvres=1) -> ModelSpec:
         del manoeuvres
-        from ._parts import effect_parameter, PITCH_PLANE_EFFECTS, vehicle_model
+        from .._vehicle._parts import (
+            effect_parameter,
+            PITCH_PLANE_EFFECTS,
+            vehicle_model,
+        )
 
         spec = load_model_file(self.path)
         if spec.vehicle is None:
@@ -201,8 +205,8 @@ class ModelFileEntry(AbstractModelEntry):
 
 
 def _entries() -> dict[str, type[AbstractVehicleEntry]]:
-    from ._hfb320_entry import HFB320Entry, HFB320LateralEntry
-    from ._pegasus._entry import PegasusEntry
+    from ._hfb320 import HFB320Entry, HFB320LateralEntry
+    from ._pegasus import PegasusEntry
 
     # one line per built-in vehicle
     return {

@@ -17,10 +17,11 @@ import pathlib
 
 import numpy as np
 
-from ..._estimate._model import Model, Record
-from ..._estimate._modelfile import ModelSpec
-from ..._log._format import FlightLog, LogError
-from .._registry import AbstractVehicleEntry
+from .._errors import LogError
+from .._estimate._modelfile import ModelSpec
+from .._log._format import FlightLog
+from .._model import Model, Record
+from . import AbstractVehicleEntry
 
 
 # Measured channels the model is fitted to (SI units, radians).
@@ -76,7 +77,7 @@ def default_candidates(alpha_order: int = 3) -> tuple[str, ...]:
     """The library effects a diagnosis of the launch vehicle tests: every effect,
     `sensor_bias` on every output, minus those the baseline contains (the alpha^2
     effects when `alpha_order >= 2`) and `sensor_bias:h`."""
-    from .._effects import EFFECTS
+    from .._vehicle._effects import EFFECTS
 
     names = [n for n in EFFECTS if n != "sensor_bias"]
     names += [f"sensor_bias:{c}" for c in OUTPUTS]
@@ -116,8 +117,8 @@ class PegasusEntry(AbstractVehicleEntry):
     def vehicle(self):
         """The vehicle the diagnosis fits: Mach-spline aerodynamics, the log's
         thrust, mass properties and cp station, the standard atmosphere."""
-        from .._mach_spline import MachSplineAerodynamics
-        from .._parts import (
+        from .._vehicle._mach_spline import MachSplineAerodynamics
+        from .._vehicle._parts import (
             FlightVehicle,
             Geometry,
             LoggedMass,
@@ -143,7 +144,7 @@ class PegasusEntry(AbstractVehicleEntry):
 
     def check_addable(self, add) -> None:
         """One `LogError` for an effect that cannot be added to the model."""
-        from .._effects import make_effect
+        from .._vehicle._effects import make_effect
 
         for name in add:
             try:
@@ -165,7 +166,7 @@ class PegasusEntry(AbstractVehicleEntry):
         """The `dp.Model`: effects `add` estimated, the others of the candidate
         set composed and held at zero when `candidates`; the Mach breakpoints held
         (start values come with the data, see `problem`)."""
-        from .._parts import vehicle_model
+        from .._vehicle._parts import vehicle_model
 
         self.check_addable(add)
         effects = tuple(dict.fromkeys((self.candidates() if candidates else ()) + add))
@@ -180,15 +181,15 @@ class PegasusEntry(AbstractVehicleEntry):
         )
 
     def read(self, files) -> list[FlightLog]:
-        from ..._log._format import read_log
+        from .._log._format import read_log
 
         return [f if isinstance(f, FlightLog) else read_log(f) for f in files]
 
     def problem(self, files, *, columns=None, add=(), candidates=False):
-        from ..._estimate._coefficients import reconstruct_coefficients
-        from ..._estimate._fit import MultipleShooting
-        from .._mach_spline import fit_mach_spline
-        from .._parts import effect_parameter
+        from .._estimate._coefficients import reconstruct_coefficients
+        from .._estimate._fit import MultipleShooting
+        from .._vehicle._mach_spline import fit_mach_spline
+        from .._vehicle._parts import effect_parameter
 
         if columns is not None:
             raise LogError(
@@ -270,7 +271,7 @@ class PegasusEntry(AbstractVehicleEntry):
         input="pulse",
         perturb=False,
     ) -> FlightLog:
-        from ._simulator import simulate_pegasus_log
+        from ._pegasus_simulator import simulate_pegasus_log
 
         try:
             return simulate_pegasus_log(
@@ -286,7 +287,7 @@ class PegasusEntry(AbstractVehicleEntry):
             raise LogError(str(e)) from None
 
     def geometry(self):
-        from ._vehicle import C_REF, S_REF
+        from .._vehicle._pegasus._vehicle import C_REF, S_REF
 
         return S_REF, C_REF
 

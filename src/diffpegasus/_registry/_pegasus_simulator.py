@@ -8,7 +8,7 @@ def seeded(effect, seed: int):
     """`effect` with its realisation drawn from `seed` when it is random (the
     turbulence), so that a seed picks the gusts as it picks the sensor noise;
     other effects unchanged."""
-    from .._effects import Turbulence
+    from .._vehicle._effects import Turbulence
 
     if isinstance(effect, Turbulence):
         return dataclasses.replace(effect, seed=int(seed))
@@ -32,14 +32,14 @@ def simulate_pegasus_log(
     import jax
     import jax.numpy as jnp
 
-    from ..._simulate._solve import (
+    from .._simulate._solve import (
         elevator_command,
         flight_to_log,
         PegasusConfig,
         Perturbation,
         simulate,
     )
-    from .._effects import parse_assignment
+    from .._vehicle._effects import parse_assignment
 
     effects = tuple(seeded(parse_assignment(h), seed) for h in hidden)
     config = PegasusConfig(

@@ -5,7 +5,8 @@ import runpy
 
 import numpy as np
 
-from .._log._format import FlightLog, LogError
+from .._errors import LogError
+from .._log._format import FlightLog
 
 
 def simulate_model_file(
@@ -27,9 +28,8 @@ def simulate_model_file(
     file's `noise` (a dict output name -> sigma, default none) drawn from `seed`.
     """
     from .._estimate._fit import simulate_outputs
-    from .._simulate._inputs import three_two_one_one
-    from ._effects import parse_assignment
-    from ._parts import effect_parameter
+    from .._vehicle._effects import parse_assignment
+    from .._vehicle._parts import effect_parameter
 
     model = spec.model
     if input not in ("pulse", "3211"):
@@ -55,11 +55,15 @@ def simulate_model_file(
         params[name] = float(effect.value())
     rate = 50.0 if sample_rate is None else float(sample_rate)
     t = np.arange(0.0, (30.0 if duration is None else duration) + 0.5 / rate, 1 / rate)
-    pulse = three_two_one_one(amplitude, 1.0, start=2.0)
     inputs = np.column_stack(
         [np.full_like(t, float(trim.get(n, 0.0))) for n in model.inputs]
     )
-    inputs[:, 0] += np.array([float(pulse(x)) for x in t])
+    # 3-2-1-1: levels +a, -a, +a, -a held 3, 2, 1 and 1 s from 2 s
+    edges = 2.0 + np.cumsum([0.0, 3.0, 2.0, 1.0, 1.0])
+    level = np.searchsorted(edges, t, side="right") - 1
+    sign = np.array([1.0, -1.0, 1.0, -1.0])
+    inside = (level >= 0) & (level < 4)
+    inputs[:, 0] += np.where(inside, amplitude * sign[np.clip(level, 0, 3)], 0.0)
     theta = np.array([params[k] for k in model.parameters])
     y = simulate_outputs(model, t, inputs, theta, spec.x0, oversample=10)
     rng = np.random.default_rng(seed)

@@ -1,0 +1,216 @@
+"""Simulated rocket flights from RocketPy (an independent 6-DOF simulator) for the
+rocket tests and the validation benchmark.
+
+Each flight gets a folder under tests/data/rocket_sim/<name>/ with `rocket.toml` (the
+facts, the planted truth under [truth]), `motor.csv`, `drag.csv` (the planted
+power-off curve) and `log.csv` (time s, barometric altitude m above the pad as a
+flight computer computes it from static pressure with the standard atmosphere,
+axial specific force m/s^2 with gravity included), sampled at 50 Hz to apogee.
+
+Planted effects per flight: a drag curve, a thrust scale (the motor file holds the
+catalogue curve, RocketPy flies the scaled one), constant wind, barometer lag
+(first-order), static-pressure error (per dynamic pressure) and white noise on both
+channels. Run: `python scripts/make_rocket_fixtures.py` (RocketPy from PyPI).
+"""
+
+import pathlib
+
+import numpy as np
+
+
+OUT = pathlib.Path(__file__).resolve().parents[1] / "tests" / "data" / "rocket_sim"
+G0 = 9.80665
+
+# catalogue thrust curve of a 75 mm L motor (rounded points of a public RASP file)
+THRUST = np.array(
+    [
+        [0.0, 0.0],
+        [0.02, 50],
+        [0.05, 200],
+        [0.09, 1110],
+        [0.14, 1250],
+        [0.25, 1211],
+        [0.9, 1220],
+        [1.2, 1280],
+        [2.0, 1150],
+        [2.6, 1000],
+        [3.0, 900],
+        [3.3, 700],
+        [3.5, 300],
+        [3.8, 0.0],
+    ]
+)
+
+FLIGHTS = {
+    # name: drag curve (Mach, CD), thrust scale, wind (u east, v north) m/s,
+    # baro lag s, static-pressure error, noise (altitude m, accel m/s^2), seed
+    "clean": dict(
+        drag=[
+            (0.0, 0.50),
+            (0.3, 0.46),
+            (0.6, 0.45),
+            (0.8, 0.50),
+            (0.9, 0.58),
+            (1.2, 0.70),
+        ],
+        scale=1.0,
+        wind=(0.0, 0.0),
+        lag=0.0,
+        static=0.0,
+        noise=(0.5, 0.3),
+        seed=1,
+    ),
+    "planted": dict(
+        drag=[
+            (0.0, 0.62),
+            (0.3, 0.55),
+            (0.6, 0.50),
+            (0.8, 0.55),
+            (0.9, 0.66),
+            (1.2, 0.80),
+        ],
+        scale=0.94,
+        wind=(6.0, -3.0),
+        lag=0.15,
+        static=0.04,
+        noise=(1.0, 0.5),
+        seed=2,
+    ),
+}
+
+
+def flight(name, spec):
+    from rocketpy import Environment, Flight, GenericMotor, Rocket
+
+    folder = OUT / name
+    folder.mkdir(parents=True, exist_ok=True)
+    np.savetxt(folder / "motor.csv", THRUST, delimiter=",", fmt="%.4f")
+    np.savetxt(folder / "drag.csv", np.array(spec["drag"]), delimiter=",", fmt="%.4f")
+    flown = THRUST.copy()
+    flown[:, 1] *= spec["scale"]
+    env = Environment(latitude=39.39, longitude=-8.29, elevation=150)
+    u, v = spec["wind"]
+    env.set_atmospheric_model(
+        type="custom_atmosphere",
+        pressure=None,
+        temperature=None,
+        wind_u=[(0, u), (8000, u)],
+        wind_v=[(0, v), (8000, v)],
+    )
+    motor = GenericMotor(
+        thrust_source=flown,
+        burn_time=3.8,
+        chamber_radius=0.0375,
+        chamber_height=0.5,
+        chamber_position=0.25,
+        propellant_initial_mass=1.9,
+        nozzle_radius=0.03,
+        dry_mass=1.6,
+        dry_inertia=(0.05, 0.05, 0.002),
+        center_of_dry_mass_position=0.25,
+    )
+    drag = [tuple(p) for p in spec["drag"]]
+    rocket = Rocket(
+        radius=0.052,
+        mass=8.2,
+        inertia=(4.4, 4.4, 0.015),
+        power_off_drag=drag,
+        power_on_drag=drag,
+        center_of_mass_without_motor=1.2,
+        coordinate_system_orientation="tail_to_nose",
+    )
+    rocket.add_motor(motor, position=0.0)
+    rocket.add_nose(length=0.52, kind="von karman", position=2.72)
+    rocket.add_trapezoidal_fins(
+        n=4, root_chord=0.2, tip_chord=0.07, span=0.1, position=0.21
+    )
+    rocket.set_rail_buttons(1.1, 0.3)
+    fl = Flight(
+        rocket=rocket,
+        environment=env,
+        rail_length=12,
+        inclination=84,
+        heading=133,
+        terminate_on_apogee=True,
+        max_time_step=0.01,
+    )
+    t = np.arange(0.0, float(fl.apogee_time), 0.02)
+    rng = np.random.default_rng(spec["seed"])
+    # static pressure at the rocket, the ports' error, then the flight computer's
+    # standard-atmosphere altitude above the pad's reading
+    z = np.array([fl.z(s) for s in t])
+    p = np.array([env.pressure(h) for h in z])
+    speed = np.array([fl.free_stream_speed(s) for s in t])
+    rho = np.array([env.density(h) for h in z])
+    p_read = p + spec["static"] * 0.5 * rho * speed**2
+    if spec["lag"] > 0:  # first-order lag, exact for a piecewise-constant input
+        k = np.exp(-0.02 / spec["lag"])
+        for i in range(1, len(p_read)):
+            p_read[i] = k * p_read[i - 1] + (1 - k) * p_read[i]
+    h_std = 44330.77 * (1 - (p_read / 101325.0) ** 0.190263)
+    pad = 44330.77 * (1 - (env.pressure(150.0) / 101325.0) ** 0.190263)
+    alt = h_std - pad + rng.normal(0, spec["noise"][0], len(t))
+    # specific force along the body axis: body z from the attitude quaternion
+    acc = np.array([[fl.ax(s), fl.ay(s), fl.az(s)] for s in t])
+    e0, e1, e2, e3 = (np.array([getattr(fl, f"e{i}")(s) for s in t]) for i in range(4))
+    axis = np.stack(
+        [2 * (e1 * e3 + e0 * e2), 2 * (e2 * e3 - e0 * e1), 1 - 2 * (e1**2 + e2**2)],
+        axis=1,
+    )
+    g = np.array([env.gravity(h) for h in z])
+    f = np.einsum("ij,ij->i", acc, axis) + g * axis[:, 2]
+    f += rng.normal(0, spec["noise"][1], len(t))
+    np.savetxt(
+        folder / "log.csv",
+        np.column_stack([t, alt, f]),
+        delimiter=",",
+        fmt="%.3f",
+        header="time_s,altitude_m,accel_axial_m_s2",
+        comments="",
+    )
+    (folder / "rocket.toml").write_text(f"""\
+# A flight simulated by RocketPy {__import__("importlib.metadata").metadata.version("rocketpy")} (scripts/make_rocket_fixtures.py)
+name = "sim-{name}"
+
+[rocket]
+mass_without_motor_kg = 8.2
+radius_m = 0.052
+
+[motor]
+thrust_file = "motor.csv"
+propellant_initial_mass_kg = 1.9
+dry_mass_kg = 1.6
+
+[aero]
+power_off_drag_file = "drag.csv"
+power_on_drag_file = "drag.csv"
+
+[launch]
+elevation_m = 150
+rail_length_m = 12
+inclination_deg = 84
+heading_deg = 133
+
+[atmosphere]
+surface_temperature_K = {float(env.temperature(150.0)):.3f}
+
+[results]
+recorded_apogee_agl_m = {float(fl.apogee) - 150.0:.2f}
+
+[truth]
+thrust_scale = {spec["scale"]}
+wind_east_m_s = {u}
+wind_north_m_s = {v}
+baro_lag_s = {spec["lag"]}
+static_error = {spec["static"]}
+noise_altitude_m = {spec["noise"][0]}
+noise_accel_m_s2 = {spec["noise"][1]}
+apogee_geometric_agl_m = {float(fl.apogee) - 150.0:.3f}
+max_mach = {float(fl.max_mach_number):.4f}
+""")
+    print(name, "apogee", fl.apogee - 150.0, "max Mach", fl.max_mach_number)
+
+
+if __name__ == "__main__":
+    for name, spec in FLIGHTS.items():
+        flight(name, spec)

@@ -1,0 +1,141 @@
+"""Write the rocket documentation pages: for each flight folder given, the same as
+`diffpegasus rocket fit <folder>/rocket.toml --out docs/rockets/<name>` (figures and
+summary.json), then docs/rockets/<name>.md and the table docs/rockets/validation.md.
+
+Run: `python scripts/rocket_docs.py FOLDER [FOLDER ...]` (each FOLDER holding a
+rocket.toml and its logs).
+"""
+
+import json
+import pathlib
+import sys
+import time
+
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs" / "rockets"
+
+
+def pct(v):
+    return "-" if v is None else f"{v:+.2f} %"
+
+
+def m(v):
+    return "-" if v is None else f"{v:.0f}"
+
+
+def page(name, row):
+    lines = [
+        f"# {row['flight']}",
+        "",
+        "Reproduce (the flight's folder from RocketPy's public flight data, MIT):",
+        "",
+        "```bash",
+        f"diffpegasus rocket fit {name}/rocket.toml --out docs/rockets/{name}",
+        "```",
+        "",
+        f"Channels fitted: {', '.join(row['outputs'])}. Fit "
+        f"{'converged' if row['converged'] else 'did NOT converge'} in "
+        f"{row['fit_seconds']:.0f} s (this machine, cold: compilation included).",
+        "",
+        "| quantity | value |",
+        "|---|---|",
+        f"| apogee in the log (barometric, m AGL) | {m(row['apogee_logged_m'])} |",
+        f"| apogee reconstructed (m) | {m(row['apogee_reconstructed_m'])} "
+        f"({pct(row['reconstructed_error_pct'])}) |",
+        f"| apogee predicted from the log to {row['prediction_uses_log_to_s']:.1f} s "
+        f"(burnout + 2 s) (m) | {m(row['apogee_predicted_m'])} "
+        f"({pct(row['predicted_error_pct'])}) |",
+        f"| team's pre-flight simulation (m) | {m(row['apogee_team_preflight_m'])} "
+        f"({pct(row['team_preflight_error_pct'])}) |",
+        f"| re-flown with the team's CD, catalogue thrust (m) | "
+        f"{m(row['apogee_resimulated_team_cd_m'])} |",
+        f"| altitude RMS over the ascent (m) | {row['altitude_rms_m']:.1f} "
+        f"({row['altitude_rms_pct_of_apogee']:.2f} % of apogee) |",
+        f"| thrust scale | {row['thrust_scale']:.3f} ± "
+        f"{row['thrust_scale_stderr']:.3f} |",
+    ]
+    for k, (v, s) in row["estimates"].items():
+        if k != "thrust_scale":
+            lines.append(f"| {k.replace('_', ' ')} | {v:.4g} ± {s:.2g} |")
+    lines += [
+        "",
+        "CD(Mach), power off (± is 1.96 standard errors, coloured-residual corrected):",
+        "",
+        "| Mach | CD identified | 95% band | team CD |",
+        "|---|---|---|---|",
+    ]
+    for r in row["cd_table"]:
+        lines.append(
+            f"| {r['mach']:.2f} | {r['cd']:.3f} | ± {1.96 * r['stderr']:.3f}"
+            f" | {r['team_cd']:.3f} |"
+        )
+    lines += [
+        "",
+        f"![altitude]({name}/altitude.png)",
+        f"![acceleration]({name}/acceleration.png)",
+        f"![drag]({name}/drag.png)",
+        f"![apogee]({name}/apogee.png)",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def main():
+    from diffpegasus._log._rocketlogs import read_rocket_log
+
+    from diffpegasus.rocket import read_rocket, run_flight
+
+    rows = {}
+    for folder in map(pathlib.Path, sys.argv[1:]):
+        name = folder.name
+        t0 = time.perf_counter()
+        rocket = read_rocket(folder / "rocket.toml")
+        log = read_rocket_log(folder / "rocket.toml")
+        row = run_flight(rocket, log, DOCS / name)
+        row["command_seconds"] = time.perf_counter() - t0
+        (DOCS / f"{name}.md").write_text(page(name, row))
+        rows[name] = row
+        print(
+            name,
+            {
+                k: row[k]
+                for k in (
+                    "apogee_logged_m",
+                    "apogee_reconstructed_m",
+                    "apogee_predicted_m",
+                    "altitude_rms_m",
+                    "fit_seconds",
+                )
+            },
+            flush=True,
+        )
+    table = DOCS / "validation.json"
+    old = json.loads(table.read_text()) if table.exists() else {}
+    old.update(rows)
+    table.write_text(json.dumps(old, indent=1, default=float))
+    lines = [
+        "# Rocket flights: apogee and altitude",
+        "",
+        "Reproduce: `python scripts/rocket_docs.py FOLDER ...` (one folder per flight, "
+        "each the same as `diffpegasus rocket fit FOLDER/rocket.toml --out ...`).",
+        "",
+        "| flight | channels | apogee logged (m) | reconstructed | predicted at "
+        "burnout + 2 s | team pre-flight | altitude RMS (% of apogee) | fit (s) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for name, r in old.items():
+        lines.append(
+            f"| [{r['flight']}]({name}.md) | {', '.join(r['outputs'])} | "
+            f"{m(r['apogee_logged_m'])} | {m(r['apogee_reconstructed_m'])} "
+            f"({pct(r['reconstructed_error_pct'])}) | {m(r['apogee_predicted_m'])} "
+            f"({pct(r['predicted_error_pct'])}) | {m(r['apogee_team_preflight_m'])} "
+            f"({pct(r['team_preflight_error_pct'])}) | {r['altitude_rms_m']:.1f} m "
+            f"({r['altitude_rms_pct_of_apogee']:.2f} %) | {r['fit_seconds']:.0f} |"
+        )
+    lines.append("")
+    (DOCS / "validation.md").write_text("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,185 @@
+"""`rocket fit | compare | diagnose`: a rocket flight from its `rocket.toml` and logs."""
+
+import json
+import pathlib
+from typing import Annotated
+
+import typer
+
+from .._errors import LogError
+from ._common import _fail, app
+
+
+rocket_app = typer.Typer(
+    help="Rocket flights: CD(Mach), thrust and apogee from a flight computer's log.",
+    no_args_is_help=True,
+)
+app.add_typer(rocket_app, name="rocket")
+
+TomlArgument = Annotated[
+    pathlib.Path,
+    typer.Argument(help="The rocket's rocket.toml (see the rockets guide)"),
+]
+LogsOption = Annotated[
+    list[pathlib.Path] | None,
+    typer.Option(
+        "--log",
+        help="A log file of the flight (repeat for several; "
+        "default: the files the rocket.toml's [log] tables name)",
+    ),
+]
+MapOption = Annotated[
+    pathlib.Path | None,
+    typer.Option("--columns", help="Column map (.json or .toml) for the log files"),
+]
+OutOption = Annotated[
+    pathlib.Path | None, typer.Option(help="Folder for the figures and summary.json")
+]
+JsonOption = Annotated[bool, typer.Option("--json", help="Print one JSON object")]
+
+
+def _load(toml, logs, columns):
+    from .._vehicle._rocket import read_rocket
+
+    if not toml.is_file():
+        _fail(f"{toml}: no such file")
+    try:
+        rocket = read_rocket(toml)
+        from .._log._rocketlogs import read_rocket_log
+
+        log = read_rocket_log(list(logs) if logs else toml, columns)
+    except LogError as e:
+        _fail(str(e))
+    return rocket, log
+
+
+def _pct(v):
+    return "-" if v is None else f"{v:+.2f}%"
+
+
+def _m(v):
+    return "-" if v is None else f"{v:.0f} m"
+
+
+@rocket_app.command("fit")
+def fit_command(
+    toml: TomlArgument,
+    log: LogsOption = None,
+    columns: MapOption = None,
+    out: OutOption = None,
+    as_json: JsonOption = False,
+):
+    """Fit CD(Mach), thrust scale and the barometer to the ascent; reconstruct and
+    predict the apogee (from the log up to 2 s after burnout); re-simulate with the
+    team's drag curve; write figures with --out."""
+    from .._rocket._pipeline import run_flight
+
+    rocket, flight_log = _load(toml, log, columns)
+    row = run_flight(rocket, flight_log, out)
+    if as_json:
+        typer.echo(json.dumps(row, default=float))
+        return
+    typer.echo(
+        f"{row['flight']}: fitted {', '.join(row['outputs'])} "
+        f"in {row['fit_seconds']:.1f} s"
+        + ("" if row["converged"] else " (NOT converged)")
+    )
+    typer.echo(f"  apogee logged          {_m(row['apogee_logged_m'])}")
+    typer.echo(
+        f"  apogee reconstructed   {_m(row['apogee_reconstructed_m'])} "
+        f"({_pct(row['reconstructed_error_pct'])})"
+    )
+    typer.echo(
+        f"  apogee predicted       {_m(row['apogee_predicted_m'])} "
+        f"({_pct(row['predicted_error_pct'])}, log to "
+        f"{row['prediction_uses_log_to_s']:.1f} s)"
+    )
+    typer.echo(
+        f"  team pre-flight        {_m(row['apogee_team_preflight_m'])} "
+        f"({_pct(row['team_preflight_error_pct'])})"
+    )
+    typer.echo(
+        f"  altitude RMS           {row['altitude_rms_m']:.1f} m "
+        f"({row['altitude_rms_pct_of_apogee']:.2f}% of apogee)"
+    )
+    typer.echo(
+        f"  thrust scale           {row['thrust_scale']:.3f} "
+        f"+/- {row['thrust_scale_stderr']:.3f}"
+    )
+    if out is not None:
+        typer.echo(f"  figures and summary.json in {out}")
+
+
+@rocket_app.command("compare")
+def compare_command(
+    toml: TomlArgument,
+    log: LogsOption = None,
+    columns: MapOption = None,
+    as_json: JsonOption = False,
+):
+    """CD(Mach) identified (95% band) beside the team's curve, and the apogee flown
+    with each."""
+    from .._rocket._pipeline import run_flight
+
+    rocket, flight_log = _load(toml, log, columns)
+    row = run_flight(rocket, flight_log, None)
+    if as_json:
+        typer.echo(
+            json.dumps(
+                {
+                    k: row[k]
+                    for k in (
+                        "flight",
+                        "cd_table",
+                        "apogee_logged_m",
+                        "apogee_reconstructed_m",
+                        "apogee_resimulated_team_cd_m",
+                    )
+                },
+                default=float,
+            )
+        )
+        return
+    typer.echo(f"{row['flight']}: CD(Mach), power off")
+    typer.echo("  Mach   CD      95% band          team")
+    for r in row["cd_table"]:
+        lo, hi = r["cd"] - 1.96 * r["stderr"], r["cd"] + 1.96 * r["stderr"]
+        typer.echo(
+            f"  {r['mach']:.2f}   {r['cd']:.3f}   [{lo:6.3f}, {hi:6.3f}]   "
+            f"{r['team_cd']:.3f}"
+        )
+    typer.echo(
+        f"  apogee: logged {_m(row['apogee_logged_m'])}, identified CD "
+        f"{_m(row['apogee_reconstructed_m'])}, team CD and catalogue thrust "
+        f"{_m(row['apogee_resimulated_team_cd_m'])}"
+    )
+
+
+@rocket_app.command("diagnose")
+def diagnose_command(
+    toml: TomlArgument,
+    log: LogsOption = None,
+    columns: MapOption = None,
+    as_json: JsonOption = False,
+):
+    """Name the effects the flight shows beyond drag and thrust (wind, rail
+    friction, barometer lag, static-pressure errors, mass error, air brakes, ...)."""
+    from .._rocket._diagnose import diagnose
+    from .._rocket._identify import prepare
+
+    rocket, flight_log = _load(toml, log, columns)
+    named, rows, _ = diagnose(prepare(rocket, flight_log))
+    if as_json:
+        typer.echo(
+            json.dumps(
+                {"flight": rocket.name, "named": named, "tests": rows}, default=float
+            )
+        )
+        return
+    typer.echo(f"{rocket.name}: " + (", ".join(named) if named else "nothing named"))
+    for r in rows:
+        mark = "*" if r["statistic"] > r["threshold"] else " "
+        typer.echo(
+            f" {mark} round {r['round']}: {r['candidate']:<34} "
+            f"Wald {r['statistic']:9.1f} (threshold {r['threshold']:.1f})"
+        )

@@ -1,0 +1,543 @@
+"""Recursive (real-time) estimation: a state, a jit-compiled update per sample, and
+the current estimates with error bounds at any time.
+
+The problem is a linear regression sample by sample: `q` equations
+
+    y_k = H_k theta + o_k        (or  d/dt y = H theta + o  for a derivative row)
+
+in `p` parameters, with `H_k` `(q, p)`, `y_k`, `o_k` `(q,)` (see
+[`model_regression`][] for the equations of a model file). A derivative row (a state
+equation) is differenced between samples, `(y_k - y_(k-1)) / dt` against the
+regressors and offsets averaged over the two samples: second-order at the midpoint,
+no delay, no smoothing filter.
+
+Two estimators share the contract ([`AbstractRecursiveEstimator`][]: `init`,
+`update`, `estimates`):
+
+- [`RecursiveLeastSquares`][]: exponentially weighted least squares (forgetting
+  factor `lam`), equations weighted by their running residual variance.
+- [`RecursiveFourier`][]: Morelli's recursive Fourier transform equation error: the
+  running transforms (with the same forgetting) of the regressors and regressands at
+  a few frequencies, solved as a complex least-squares problem whenever estimates
+  are asked for. Only the band of the rigid-body dynamics enters, so the
+  high-frequency noise of differenced signals never does.
+
+**Error bounds** (Grauer & Morelli's point: recursive bounds must account for
+coloured residuals to match the scatter). For least squares with forgetting the
+estimate is `theta = P sum_i w_i H_i^T y_i`, `P = (sum_i w_i H_i^T H_i)^-1`,
+`w_i = lam^(k-i)`, so its covariance is the sandwich `P (sum_ij w_i w_j H_i^T
+E[e_i e_j] H_j) P`: kept recursively for lags up to `lags` samples from running
+sums of `w_i w_(i-l) H_i^T H_(i-l)` and the residuals' running autocovariance
+(Bartlett-weighted, so it stays positive). `stderr` keeps only lag 0 (white
+residuals; already smaller than the textbook `P s^2`, which ignores that the
+weights enter squared). For the recursive Fourier transform the residual transforms
+at different frequencies are nearly independent, so the bound is the per-frequency
+sandwich of the batch method ([`frequency_equation_error`][]), with the scores of
+frequencies closer than the memory resolves (`1 / T`) summed first. Both corrected
+bounds may fall below the white ones: differencing a noisy state makes neighbouring
+residuals negatively correlated, and the estimate's error smaller than the white
+bound says.
+"""
+
+import abc
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Bool, Complex, Float, Int
+
+
+class RecursiveState(eqx.Module):
+    """Everything an estimator carries between samples.
+
+    **Fields:** `theta` `(p,)` the current estimate (least squares) or the last one
+    computed (Fourier); `info` `(p, p)` and `rhs` `(p,)` the weighted normal
+    equations `sum_i w_i H_i^T H_i` (plus the decaying prior) and `sum_i w_i H_i^T
+    y_i`; `r` `(q,)` running residual variance per
+    equation; `count` samples absorbed; `prev_h`, `prev_y`, `prev_o`: the previous
+    sample (for derivative rows); `lag_h` `(lags, q, p)` and `lag_e` `(lags, q)` the
+    recent normalised regressors and residuals; `sums` `(lags + 1, q, p, p)` the
+    running `sum w_i w_(i-l) h_i h_(i-l)^T`; `autocov` `(lags + 1, q)`; `fh`
+    `(f, q, p)`, `fy` `(f, q)` the running transforms, `phasor`, `rotation` `(f,)`.
+    """
+
+    theta: Float[Array, " p"]
+    info: Float[Array, "p p"]
+    rhs: Float[Array, " p"]
+    r: Float[Array, " q"]
+    count: Int[Array, ""]
+    prev_h: Float[Array, "q p"]
+    prev_y: Float[Array, " q"]
+    prev_o: Float[Array, " q"]
+    lag_h: Float[Array, "lags q p"]
+    lag_e: Float[Array, "lags q"]
+    sums: Float[Array, "lags1 q p p"]
+    autocov: Float[Array, "lags1 q"]
+    fh: Complex[Array, "f q p"]
+    fy: Complex[Array, "f q"]
+    phasor: Complex[Array, " f"]
+    rotation: Complex[Array, " f"]
+
+
+class RecursiveEstimates(eqx.Module):
+    """The estimates at one time: `theta` `(p,)`, `stderr` `(p,)` (white
+    residuals), `stderr_corrected` `(p,)` (coloured residuals, never below
+    `stderr`)."""
+
+    theta: Float[Array, " p"]
+    stderr: Float[Array, " p"]
+    stderr_corrected: Float[Array, " p"]
+
+
+class AbstractRecursiveEstimator(eqx.Module):
+    """A recursive estimator: `init`, then `update` once per sample (jit it, or run
+    [`replay`][]), `estimates` at any time.
+
+    **Fields every estimator has:** `forgetting` (the factor `lam` in (0, 1]; the
+    memory is about `dt / (1 - lam)` seconds), `derivative` `(q,)` which rows are
+    state equations (regressand `d/dt y`), `dt` (s).
+    """
+
+    forgetting: eqx.AbstractVar[float]
+    derivative: eqx.AbstractVar[tuple[bool, ...]]
+    dt: eqx.AbstractVar[float]
+
+    def __check_init__(self):
+        if not 0.0 < self.forgetting <= 1.0:
+            raise ValueError(f"forgetting must be in (0, 1], got {self.forgetting}")
+        if not self.dt > 0:
+            raise ValueError(f"dt must be positive, got {self.dt}")
+
+    @abc.abstractmethod
+    def init(self, theta0: Float[Array, " p"], prior: float = 1e6) -> RecursiveState:
+        """The state before the first sample: estimate `theta0`, prior variance
+        `prior` (parameter units squared) on every parameter."""
+
+    @abc.abstractmethod
+    def absorb(
+        self, state: RecursiveState, h: Float[Array, "q p"], y: Float[Array, " q"]
+    ) -> RecursiveState:
+        """Take one sample's equations `y = h theta` (rows already differenced)."""
+
+    @abc.abstractmethod
+    def estimates(self, state: RecursiveState) -> RecursiveEstimates:
+        """The current estimates and their standard errors."""
+
+    def update(
+        self,
+        state: RecursiveState,
+        h: Float[Array, "q p"],
+        y: Float[Array, " q"],
+        o: Float[Array, " q"],
+    ) -> RecursiveState:
+        """Absorb the sample `(h, y, o)`: `y = h theta + o`, or for derivative rows
+        `d/dt y = h theta + o` (differenced against the previous sample; the first
+        sample only primes them)."""
+        deriv = jnp.asarray(self.derivative)
+        first = state.count == 0
+        dy = (y - state.prev_y) / self.dt - 0.5 * (o + state.prev_o)
+        hm = 0.5 * (h + state.prev_h)
+        use = ~(deriv & first)
+        rows_y = jnp.where(deriv, dy, y - o) * use
+        rows_h = jnp.where(deriv[:, None], hm, h) * use[:, None]
+        state = self.absorb(state, rows_h, rows_y)
+        return eqx.tree_at(
+            lambda s: (s.prev_h, s.prev_y, s.prev_o, s.count),
+            state,
+            (h, y, o, state.count + 1),
+        )
+
+
+def _empty_state(p, q, lags, frequencies, dt, theta0, prior):
+    f = jnp.asarray(frequencies, float)
+    rotation = jnp.exp(-2j * jnp.pi * f * dt)
+    return RecursiveState(
+        theta=jnp.asarray(theta0, float),
+        info=jnp.eye(p) / prior,
+        rhs=jnp.asarray(theta0, float) / prior,
+        r=jnp.full(q, jnp.nan),
+        count=jnp.zeros((), int),
+        prev_h=jnp.zeros((q, p)),
+        prev_y=jnp.zeros(q),
+        prev_o=jnp.zeros(q),
+        lag_h=jnp.zeros((lags, q, p)),
+        lag_e=jnp.zeros((lags, q)),
+        sums=jnp.zeros((lags + 1, q, p, p)),
+        autocov=jnp.zeros((lags + 1, q)),
+        fh=jnp.zeros((len(f), q, p), rotation.dtype),
+        fy=jnp.zeros((len(f), q), rotation.dtype),
+        phasor=jnp.ones_like(rotation),
+        rotation=rotation,
+    )
+
+
+def _running_variance(r, e, lam, active):
+    """Exponentially weighted mean square of `e` per equation; the first value
+    starts it. Rows that took no part (`active` False) keep theirs."""
+    # a memory of at least 50 samples so that short memories still average noise
+    lam_r = jnp.minimum(lam, 0.98)
+    new = jnp.where(jnp.isnan(r), e**2, lam_r * r + (1 - lam_r) * e**2)
+    return jnp.where(active, new, r)
+
+
+def _inverse(m):
+    """Inverse of a symmetric positive definite matrix, scaled to unit diagonal
+    first (columns in very different units)."""
+    d = jnp.sqrt(jnp.maximum(jnp.diag(m), 1e-300))
+    return jnp.linalg.inv(m / jnp.outer(d, d)) / jnp.outer(d, d)
+
+
+def _solve(m, b):
+    """`m^-1 b` for a symmetric positive definite `m`, scaled as [`_inverse`][]."""
+    d = jnp.sqrt(jnp.maximum(jnp.diag(m), 1e-300))
+    return jnp.linalg.solve(m / jnp.outer(d, d), b / d) / d
+
+
+def _weights(r):
+    """Per equation `sqrt(g / r)`, `g` the geometric mean of the variances `r`: the
+    equations weighted against each other by their residual variance, while a
+    sample's weight as a whole does not move with the residual level (that would
+    let a noise-free stretch outweigh every later sample). 1 before a variance
+    exists, and always for a single equation."""
+    ok = jnp.isfinite(r) & (r > 0)
+    logr = jnp.log(jnp.where(ok, r, 1.0))
+    mean = jnp.sum(jnp.where(ok, logr, 0.0)) / jnp.maximum(jnp.sum(ok), 1)
+    return jnp.where(ok, jnp.exp(0.5 * (mean - logr)), 1.0)
+
+
+class RecursiveLeastSquares(AbstractRecursiveEstimator):
+    """Recursive least squares with exponential forgetting, bounds corrected for
+    coloured residuals (see the module docstring).
+
+    **Fields:** `forgetting` (`lam`), `derivative` `(q,)` bool, `dt` (s), `lags`:
+    how many lags of the residuals' autocovariance enter the corrected bound
+    (default 64 samples: it should span the residuals' correlation time; the cost
+    of an update grows with it).
+    """
+
+    forgetting: float = eqx.field(static=True)
+    derivative: tuple[bool, ...] = eqx.field(static=True)
+    dt: float = eqx.field(static=True)
+    lags: int = eqx.field(static=True, default=64)
+
+    def init(self, theta0, prior=1e6):
+        p, q = len(theta0), len(self.derivative)
+        return _empty_state(p, q, self.lags, np.zeros(0), self.dt, theta0, prior)
+
+    def absorb(self, state, h, y):
+        lam = self.forgetting
+        active = jnp.any(h != 0, axis=1)
+        # the running variance of the prediction errors (before this sample):
+        # never the near-zero residual of a fit with fewer samples than parameters
+        r = _running_variance(state.r, y - h @ state.theta, lam, active)
+        wq = _weights(r)
+        hn, yn = h * wq[:, None], y * wq
+        # the information form of recursive least squares: the same estimate as
+        # the covariance form's gain update, without its loss of positive
+        # definiteness when regressors are nearly collinear (a trim speed and an
+        # intercept)
+        info = lam * state.info + hn.T @ hn
+        rhs = lam * state.rhs + hn.T @ yn
+        theta = _solve(info, rhs)
+        e_norm = yn - hn @ theta
+        # lag sums: sum_i w_i w_(i-l) h_i h_(i-l)^T, newest sample's terms added
+        past = jnp.concatenate([hn[None], state.lag_h], axis=0)  # (lags+1, q, p)
+        decay = lam ** jnp.arange(self.lags + 1)
+        cross = jnp.einsum("qa,lqb->lqab", hn, past) * decay[:, None, None, None]
+        sums = lam**2 * state.sums + cross
+        past_e = jnp.concatenate([e_norm[None], state.lag_e], axis=0)
+        lam_c = jnp.minimum(lam, 0.98)
+        started = state.count > self.lags
+        autocov = jnp.where(
+            started,
+            lam_c * state.autocov + (1 - lam_c) * e_norm[None, :] * past_e,
+            state.autocov
+            + (e_norm[None, :] * past_e - state.autocov) / (state.count + 1.0),
+        )
+        return eqx.tree_at(
+            lambda s: (
+                s.theta,
+                s.info,
+                s.rhs,
+                s.r,
+                s.lag_h,
+                s.lag_e,
+                s.sums,
+                s.autocov,
+            ),
+            state,
+            (theta, info, rhs, r, past[:-1], past_e[:-1], sums, autocov),
+        )
+
+    def estimates(self, state):
+        pm = _inverse(state.info)
+        c = state.autocov  # (lags+1, q)
+        white = jnp.einsum("q,qab->ab", c[0], state.sums[0])
+        sym = state.sums[1:] + jnp.swapaxes(state.sums[1:], -1, -2)
+        # a flat (truncated) lag window: a tapered one would miss most of the
+        # negative lag-1 correlation that differencing puts in the derivative rows
+        # (whose effect on the estimate telescopes away), and part of a slow one
+        coloured = white + jnp.einsum("lq,lqab->ab", c[1:], sym)
+        var = jnp.clip(jnp.diag(pm @ white @ pm), 0.0)
+        var_c = jnp.diag(pm @ coloured @ pm)
+        # may be below the white bound (negatively correlated residuals); a
+        # truncated window can make it negative: then the white bound stands
+        var_c = jnp.where(var_c > 0, var_c, var)
+        return RecursiveEstimates(state.theta, jnp.sqrt(var), jnp.sqrt(var_c))
+
+
+class RecursiveFourier(AbstractRecursiveEstimator):
+    """Morelli's recursive Fourier transform equation error (see the module
+    docstring).
+
+    **Fields:** `frequencies` (Hz; e.g. 0.1 to 1.5 Hz every 0.04 Hz for aircraft
+    rigid-body dynamics: the band of the manoeuvre, spaced at least `(1 - lam) / dt`
+    apart so that the transforms stay independent), `forgetting` (default 1: the
+    transforms span all the data), `derivative` `(q,)` bool, `dt` (s).
+    """
+
+    frequencies: tuple[float, ...] = eqx.field(static=True)
+    forgetting: float = eqx.field(static=True)
+    derivative: tuple[bool, ...] = eqx.field(static=True)
+    dt: float = eqx.field(static=True)
+
+    def __check_init__(self):
+        if not self.frequencies or min(self.frequencies) <= 0:
+            raise ValueError("frequencies must be positive (0 Hz carries the biases)")
+        if max(self.frequencies) >= 0.5 / self.dt:
+            raise ValueError(
+                f"frequencies up to {max(self.frequencies):g} Hz reach the Nyquist "
+                f"frequency {0.5 / self.dt:g} Hz of samples every {self.dt:g} s"
+            )
+
+    def init(self, theta0, prior=1e6):
+        p, q = len(theta0), len(self.derivative)
+        return _empty_state(p, q, 0, self.frequencies, self.dt, theta0, prior)
+
+    def absorb(self, state, h, y):
+        lam = self.forgetting
+        ph = state.phasor * self.dt
+        fh = lam * state.fh + ph[:, None, None] * h[None]
+        fy = lam * state.fy + ph[:, None] * y[None]
+        phasor = state.phasor * state.rotation
+        phasor = phasor / jnp.abs(phasor)
+        return eqx.tree_at(lambda s: (s.fh, s.fy, s.phasor), state, (fh, fy, phasor))
+
+    def estimates(self, state):
+        fh, fy = state.fh, state.fy  # (f, q, p), (f, q)
+        p = fh.shape[-1]
+        n_rows = jnp.sum(jnp.any(jnp.abs(fh) > 0, axis=-1), axis=0)  # (q,)
+
+        # which parameters the data move yet, judged without weights (a
+        # noise-free equation's weight would dwarf every other column)
+        plain = jnp.real(jnp.einsum("fqa,fqa->a", fh.conj(), fh))
+        known = plain > 1e-12 * jnp.max(plain)
+
+        def solve(w):
+            info = 2.0 * jnp.real(jnp.einsum("q,fqa,fqb->ab", w, fh.conj(), fh))
+            rhs = 2.0 * jnp.real(jnp.einsum("q,fqa,fq->a", w, fh.conj(), fy))
+            d = jnp.diag(info)
+            scale = jnp.sqrt(jnp.maximum(d, 1e-300))
+            cov = jnp.linalg.inv(
+                info / jnp.outer(scale, scale) + jnp.diag(~known * 1.0)
+            ) / jnp.outer(scale, scale)
+            theta = jnp.where(known, cov @ rhs, state.theta)
+            e = fy - jnp.einsum("fqa,a->fq", fh, theta)
+            power = jnp.sum(jnp.abs(e) ** 2, axis=0) / jnp.maximum(
+                n_rows - 0.5 * p, 1.0
+            )
+            return theta, cov, known, e, power
+
+        # equations weighted by their residual power (one pass to find it)
+        _, _, _, _, power = solve(jnp.ones(fh.shape[1]))
+        # relative weights, at most 1e8 apart (a noise-free equation)
+        power = jnp.maximum(power, 1e-8 * jnp.max(power))
+        w = jnp.where(n_rows > 0, 1.0 / jnp.maximum(power, 1e-300), 0.0)
+        theta, cov, known, e, _ = solve(w)
+        # the transforms at frequencies closer than the memory's resolution
+        # (1 / T, T the time span or the forgetting's time constant) are
+        # correlated: their scores are summed before the outer product
+        f = jnp.asarray(self.frequencies)
+        span = jnp.maximum(state.count * self.dt, self.dt)
+        if self.forgetting < 1.0:
+            span = jnp.minimum(span, self.dt / (1.0 - self.forgetting))
+        near = (jnp.abs(f[:, None] - f[None, :]) < 1.0 / span).astype(float)
+        v = 2.0 * jnp.einsum("q,fqa,fq->fa", w, fh.conj(), e)  # (f, p)
+        middle = 0.5 * jnp.real(jnp.einsum("fa,fg,gb->ab", v, near, v.conj()))
+        cov_c = cov @ middle @ cov
+        var = jnp.where(known, jnp.clip(jnp.diag(cov), 0.0), jnp.inf)
+        var_c = jnp.diag(cov_c)
+        var_c = jnp.where(known & (var_c > 0), var_c, var)
+        return RecursiveEstimates(theta, jnp.sqrt(var), jnp.sqrt(var_c))
+
+
+class RecursiveHistory(eqx.Module):
+    """Estimates at every sample of a replay: `t` `(n,)` s, `theta`, `stderr`,
+    `stderr_corrected` `(n, p)`."""
+
+    t: Float[Array, " n"]
+    theta: Float[Array, "n p"]
+    stderr: Float[Array, "n p"]
+    stderr_corrected: Float[Array, "n p"]
+
+
+@eqx.filter_jit
+def replay(
+    estimator: AbstractRecursiveEstimator,
+    h: Float[Array, "n q p"],
+    y: Float[Array, "n q"],
+    o: Float[Array, "n q"],
+    theta0: Float[Array, " p"],
+    t0: float = 0.0,
+    prior: float = 1e6,
+) -> RecursiveHistory:
+    """Run `estimator` over a record's regression, sample by sample (one compiled
+    `lax.scan` of `update`), and keep the estimates after every sample.
+
+    **Arguments:** the regression `h` `(n, q, p)`, `y`, `o` `(n, q)` (see the module
+    docstring and [`model_regression`][]), the start `theta0` `(p,)`, the first
+    sample's time `t0` (s), the prior variance.
+
+    **Returns:** a [`RecursiveHistory`][].
+    """
+
+    def step(state, sample):
+        state = estimator.update(state, *sample)
+        est = estimator.estimates(state)
+        return state, (est.theta, est.stderr, est.stderr_corrected)
+
+    _, (theta, sd, sd_c) = jax.lax.scan(step, estimator.init(theta0, prior), (h, y, o))
+    t = t0 + jnp.arange(h.shape[0]) * estimator.dt
+    return RecursiveHistory(t, theta, sd, sd_c)
+
+
+class Regression(eqx.Module):
+    """A model's equation-error regression over a record, for the recursive
+    estimators: `h` `(n, q, p)`, `y`, `o` `(n, q)`, `derivative` `(q,)`, the names of
+    the equations and of the `p` parameters (the model's estimable ones), and
+    `index` `(p,)` their positions in the model's parameters."""
+
+    h: Float[Array, "n q p"]
+    y: Float[Array, "n q"]
+    o: Float[Array, "n q"]
+    derivative: tuple[bool, ...] = eqx.field(static=True)
+    equations: tuple[str, ...] = eqx.field(static=True)
+    parameters: tuple[str, ...] = eqx.field(static=True)
+    index: tuple[int, ...] = eqx.field(static=True)
+    mask: Bool[Array, " q"] | None = None
+
+
+def model_regression(model, record) -> Regression:
+    """The equation-error regression of a [`Model`][] on a [`Record`][]: a state
+    equation for every state measured (an output of the same name; a derivative
+    row) and an output equation for every output a free parameter enters that is
+    not itself a state, with the measured states in place of the model's. The model
+    must be linear (affine) in its free parameters in these equations; the
+    parameters no equation contains are left out.
+
+    **Returns:** a [`Regression`][] whose `p` parameters are the estimable ones.
+    """
+    record.check(model)
+    nx = len(model.states)
+    xs = record.measured_states(model, np.arange(len(record.t)))
+    measured = ~np.isnan(xs[0])
+    xs = np.nan_to_num(xs)
+    start = np.asarray(model.start, float)
+    free = np.asarray(model.free)
+
+    def equations(theta, t, x, u):
+        return jnp.concatenate([model.f(t, x, u, theta), model.g(t, x, u, theta)])
+
+    def at(theta):
+        return jax.vmap(equations, (None, 0, 0, 0))(
+            theta, jnp.asarray(record.t), jnp.asarray(xs), jnp.asarray(record.inputs)
+        )
+
+    jac_fn = jax.jit(lambda th: (at(th), jax.jacfwd(at)(th)))
+    values, jac = (np.asarray(a) for a in jac_fn(jnp.asarray(start)))
+    step = 0.3 * np.maximum(np.abs(start), 1.0) * free
+    _, jac2 = (np.asarray(a) for a in jac_fn(jnp.asarray(start + step)))
+    rows = [i for i in range(nx) if measured[i]]
+    rows += [
+        nx + j
+        for j, name in enumerate(model.outputs)
+        if name not in model.states and np.any(jac[:, nx + j][:, free] != 0)
+    ]
+    jac, jac2, values = jac[:, rows], jac2[:, rows], values[:, rows]
+    nonlinear = np.abs(jac - jac2)[..., free].max(axis=(0, 1)) > 1e-7 * np.maximum(
+        np.abs(jac)[..., free].max(axis=(0, 1)), 1e-300
+    )
+    if nonlinear.any():
+        name = np.asarray(model.parameters)[free][int(np.argmax(nonlinear))]
+        raise ValueError(
+            f"the model's equations are not linear in the parameter {name!r}: "
+            "recursive equation error solves a least-squares problem; write the "
+            "model with it entering linearly, or hold it (fixed=...)"
+        )
+    used = free & np.any(jac != 0, axis=(0, 1))
+    if not used.any():
+        raise ValueError("no free parameter enters the model's equations")
+    index = np.flatnonzero(used)
+    h = jac[..., index]
+    offset = values - h @ start[index]
+    names = [model.states[i] for i in range(nx) if measured[i]]
+    names += [f"{model.outputs[r - nx]}" for r in rows[len(names) :]]
+    y = np.column_stack(
+        [xs[:, r] if r < nx else record.measured[:, r - nx] for r in rows]
+    )
+    derivative = tuple(r < nx for r in rows)
+    return Regression(
+        h=jnp.asarray(h),
+        y=jnp.asarray(y),
+        o=jnp.asarray(offset),
+        derivative=derivative,
+        equations=tuple(
+            f"d{n}/dt" if d else n for n, d in zip(names, derivative, strict=True)
+        ),
+        parameters=tuple(model.parameters[i] for i in index),
+        index=tuple(int(i) for i in index),
+    )
+
+
+COEFFICIENT_PARAMETERS = (
+    "CL0", "CLa", "CLde", "CD0", "CDa", "CDde", "CM0", "CMa", "CMde",
+)  # fmt: skip
+
+
+def coefficient_regression(channels: dict, s_ref: float, c_ref: float) -> Regression:
+    """The launch vehicle's regression: `CL, CD, CM` reconstructed from the
+    measured channels ([`reconstruct_coefficients`][]) each on `[1, alpha, de]`
+    (1/rad): three equations, nine parameters ([`COEFFICIENT_PARAMETERS`][]); the
+    intercepts carry the trim and the untracked terms."""
+    from ._coefficients import reconstruct_coefficients
+
+    coeffs = reconstruct_coefficients(
+        {k: jnp.asarray(v) for k, v in channels.items()}, s_ref, c_ref
+    )
+    alpha, de = jnp.asarray(channels["alpha"]), jnp.asarray(channels["de"])
+    row = jnp.stack([jnp.ones_like(alpha), alpha, de], axis=-1)  # (n, 3)
+    n = row.shape[0]
+    h = jnp.zeros((n, 3, 9))
+    for j in range(3):
+        h = h.at[:, j, 3 * j : 3 * j + 3].set(row)
+    y = jnp.stack([coeffs.CL, coeffs.CD, coeffs.CM], axis=-1)
+    return Regression(
+        h=h,
+        y=y,
+        o=jnp.zeros_like(y),
+        derivative=(False, False, False),
+        equations=("CL", "CD", "CM"),
+        parameters=COEFFICIENT_PARAMETERS,
+        index=tuple(range(9)),
+    )
+
+
+def forgetting_for(memory: float, dt: float) -> float:
+    """The forgetting factor whose memory (time constant) is `memory` seconds at
+    samples every `dt` seconds: `exp(-dt / memory)`; 1 for an infinite memory."""
+    if memory is None or not np.isfinite(memory):
+        return 1.0
+    if not memory > 0:
+        raise ValueError(f"memory must be positive seconds, got {memory}")
+    return float(np.exp(-dt / memory))

@@ -1,0 +1,1 @@
+"""Rocket flights: identification, prediction, diagnosis and reports."""

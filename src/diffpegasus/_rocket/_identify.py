@@ -1,0 +1,365 @@
+"""Identify a rocket's drag and thrust from its flight log on the one engine.
+
+[`fit_rocket`][] fits `CD(Mach)` knots (power off; power on by the team's ratio), a
+thrust scale and the motor's start time, plus any effects asked for, to the ascent
+by output error with multiple shooting ([`fit`][]), and reports the trajectory, the
+reconstructed apogee and `CD(Mach)` with its band from the coloured-residual standard
+errors. [`equation_error_drag`][] turns measured coast acceleration into `CD` points
+with the fitted trajectory's air data, as a check beside it.
+"""
+
+import dataclasses
+
+import numpy as np
+
+from .._errors import LogError
+from .._estimate._fit import Fit, fit, MultipleShooting, simulate
+from .._vehicle._rocket import DragKnots, EFFECTS, Flight, Rocket, rocket_model
+from .._vehicle._rocket._model import observe as _observe
+from ._data import ascent_record, pad_pressure
+
+
+BASE_FREE = ("thrust_scale", "motor_time")
+SENSOR_FREE = ("baro_lag", "static_error")
+ACCEL_FREE = ("temperature",)  # the accelerometer fixes the length scale
+# Mach between drag knots: an accelerometer reads drag directly, as finely as a
+# team's tables; an altitude alone carries it twice integrated, so half as finely
+KNOT_SPACING = {True: 0.1, False: 0.2}
+
+
+@dataclasses.dataclass(frozen=True)
+class RocketFit:
+    """One flight's identification.
+
+    **Fields:** `rocket`, `flight` (the model's [`Flight`][]), `fit` (the engine's
+    [`Fit`][]), `record`, `outputs`, `t` `(samples,)` s, `states` `(samples, 6)`
+    (east, north, up m; velocities m/s), `baro` `(samples,)` m the model's
+    barometric altitude, `accel` `(samples,)` m/s^2 its axial specific force, `mach`
+    `(samples,)`, `apogee` m (barometric, as the log reports it), `apogee_time` s.
+    """
+
+    rocket: Rocket
+    flight: Flight
+    fit: Fit
+    record: object
+    outputs: tuple
+    t: np.ndarray
+    states: np.ndarray
+    baro: np.ndarray
+    accel: np.ndarray
+    mach: np.ndarray
+    apogee: float
+    apogee_time: float
+
+    @property
+    def knots(self) -> DragKnots:
+        return self.flight.knots
+
+    def cd(self, mach):
+        """`(cd, stderr)` of power-off `CD` at `mach` `(m,)` from the knots and their
+        covariance (coloured-residual standard errors, estimate correlations)."""
+        names = self.fit.model.parameters
+        idx = [names.index(n) for n in self.knots.names]
+        est = self.fit.params[idx] * self.fit.params[names.index("cd_scale")]
+        sd = self.fit.stderr_corrected[idx]
+        cov = self.fit.correlation[np.ix_(idx, idx)] * np.outer(sd, sd)
+        w = self.knots.weights(mach)
+        var = np.einsum("mk,kl,ml->m", w, cov, w)
+        return w @ est, np.sqrt(np.clip(var, 0, None))
+
+    def estimate(self, name) -> tuple[float, float]:
+        i = self.fit.model.parameters.index(name)
+        return float(self.fit.params[i]), float(self.fit.stderr_corrected[i])
+
+    def rms(self) -> float:
+        """m, RMS of the barometric altitude residual over the logged ascent."""
+        has = self.record.inputs[:, 1] > 0
+        e = self.record.measured[has, 0] - self.fit.outputs[0][has, 0]
+        return float(np.sqrt(np.mean(e**2)))
+
+
+def default_start(rocket: Rocket, knots: DragKnots, temperature: float) -> dict:
+    """Start values: the team's power-off curve at the knots (0.5 without one),
+    the team's power-on ratio, catalogue thrust, the motor lighting so that it lifts
+    off at log time 0, the day's pad temperature, nothing else."""
+    start = dict.fromkeys(EFFECTS, 0.0)
+    if rocket.team_drag_off is not None:
+        m, c = rocket.team_drag_off
+        good = m >= 0.05  # some tables fall to 0 at rest
+        cd = np.interp(knots.mach, m[good], c[good])
+    else:
+        cd = np.full(len(knots.mach), 0.5)
+    start.update(zip(knots.names, cd, strict=True))
+    ratio = 1.0
+    if rocket.team_drag_on is not None and rocket.team_drag_off is not None:
+        grid = np.linspace(0.2, 0.8, 13)
+        on = np.interp(grid, *rocket.team_drag_on)
+        off = np.interp(grid, *rocket.team_drag_off)
+        ratio = float(np.clip(np.median(on / off), 0.5, 2.0))
+    t, f, _ = rocket.motor.tables()
+    weight = rocket.loaded_mass * 9.80665 * np.sin(np.radians(rocket.inclination))
+    lift = t[np.argmax(f > weight)] if np.any(f > weight) else 0.0
+    start.update(
+        power_on_ratio=ratio,
+        thrust_scale=1.0,
+        cd_scale=1.0,
+        motor_time=-max(float(lift), rocket.holddown),
+        temperature=temperature,
+        altitude_bias=0.0,
+        accel_bias=0.0,
+    )
+    return start
+
+
+def top_speed(record, rocket) -> float:
+    """m/s, the flight's top speed from the data: the integral of the axial specific
+    force less gravity along the rail over the boost where the log has an
+    accelerometer, else the largest climb rate of the barometric altitude (straight
+    lines over 0.5 s) over the sine of the rail's inclination."""
+    sin = np.sin(np.radians(rocket.inclination))
+    if record.inputs.shape[1] > 2 and record.inputs[:, 2].sum() > 10:
+        has = record.inputs[:, 2] > 0
+        t, f = record.t[has], record.measured[has, 1]
+        a = np.where(t > 0, f - 9.80665 * sin, 0.0)
+        v = np.r_[0.0, np.cumsum(0.5 * (a[1:] + a[:-1]) * np.diff(t))]
+        return float(np.max(v))
+    has = record.inputs[:, 1] > 0
+    t, h = record.t[has], record.measured[has, 0]
+    best = 0.0
+    step = max(1, int(0.1 / record.dt))
+    for i in range(0, len(t), step):
+        w = (t >= t[i]) & (t <= t[i] + 0.5)
+        if w.sum() >= 3:
+            best = max(best, float(np.polyfit(t[w], h[w], 1)[0]))
+    return best / sin
+
+
+def measured_thrust_scale(record, rocket) -> float:
+    """The thrust scale the accelerometer reads (an equation-error start): the
+    impulse `sum m f dt` over the samples with the motor burning (specific force
+    above the gravity component along the rail, mass falling with the catalogue
+    impulse) over the catalogue impulse at the same samples (the motor lit so that
+    it lifts off at 0); 1 without an accelerometer. Drag makes
+    it read a few per cent low; the fit takes it from there."""
+    if record.inputs.shape[1] < 3 or record.inputs[:, 2].sum() < 10:
+        return 1.0
+    has = (record.inputs[:, 2] > 0) & (record.t > -0.05)
+    t, f = record.t[has], record.measured[has, 1]
+    sin = np.sin(np.radians(rocket.inclination))
+    burning = f > 9.80665 * sin + 5.0
+    if burning.sum() < 5:
+        return 1.0
+    tc, fc, burned = rocket.motor.tables()
+    start = default_start(rocket, DragKnots((0.1,)), 288.15)["motor_time"]
+    catalogue = np.interp(t - start, tc, fc, left=0.0, right=0.0)
+    mass = rocket.loaded_mass - rocket.motor.propellant_mass * np.interp(
+        t - start, tc, burned, left=0.0, right=1.0
+    )
+    dt = np.gradient(t)
+    # drag from the speed the accelerometer integrates to, sea-level-ish air and
+    # the start drag curve (the team's, else 0.5): a few per cent of the thrust
+    speed = np.cumsum(np.where(t > 0, f - 9.80665 * sin, 0.0) * dt)
+    if rocket.team_drag_off is not None:
+        cd = np.interp(speed / 340.0, *rocket.team_drag_off)
+    else:
+        cd = 0.5
+    drag = 0.5 * 1.1 * speed**2 * rocket.area * cd
+    impulse = float(np.sum(((mass * f + drag) * dt)[burning]))
+    total = float(np.sum((catalogue * dt)[burning]))
+    return float(np.clip(impulse / max(total, 1e-9), 0.5, 1.5))
+
+
+def knots_for(record, rocket, temperature) -> DragKnots:
+    """Knots about every `KNOT_SPACING` Mach (finer with an accelerometer) from 0.1
+    to the flight's top Mach (its top speed over the pad's speed of sound); beyond
+    the last, `CD` is constant."""
+    sound = float(np.sqrt(1.4 * 287.05287 * temperature))
+    top = max(top_speed(record, rocket) / sound, 0.3)
+    spacing = KNOT_SPACING[record.inputs.shape[1] > 2]
+    n = max(3, int(np.round((top - 0.1) / spacing)) + 1)
+    return DragKnots(tuple(float(m) for m in np.round(np.linspace(0.1, top, n), 3)))
+
+
+@dataclasses.dataclass(frozen=True)
+class Problem:
+    """A flight ready to fit: the rocket, its [`Flight`][] (one per problem, so
+    every fit of it shares one compiled program), the ascent record, its outputs and
+    the start values."""
+
+    rocket: Rocket
+    flight: Flight
+    record: object
+    outputs: tuple
+    start: dict
+
+
+def prepare(rocket: Rocket, log, *, knots: DragKnots | None = None) -> Problem:
+    """The [`Problem`][] of `rocket` flying `log`'s ascent: the record (see
+    [`ascent_record`][]), the pad's pressure and temperature, the drag knots (by
+    default over the flight's Mach range) and the start values."""
+    from .._vehicle._atmosphere import isa
+    from .._vehicle._rocket import pressure_altitude
+
+    record, outputs = ascent_record(log)
+    pressure = pad_pressure(log, rocket.elevation)
+    temperature = rocket.surface_temperature
+    if temperature is None:
+        temperature = float(isa(pressure_altitude(pressure)).temperature)
+    if rocket.airbrakes is not None:
+        tb, db = rocket.airbrakes
+        inputs = record.inputs.copy()
+        inputs[:, 0] = np.interp(record.t, tb, db, left=0.0, right=0.0)
+        record = type(record)(
+            record.t, inputs, record.measured, x0=record.x0, name=record.name
+        )
+    if knots is None:
+        knots = knots_for(record, rocket, temperature)
+    flight = Flight(rocket, knots, pressure)
+    start = default_start(rocket, knots, temperature)
+    start["thrust_scale"] = measured_thrust_scale(record, rocket)
+    return Problem(rocket, flight, record, outputs, start)
+
+
+def fit_rocket(
+    problem: Problem,
+    *,
+    free=SENSOR_FREE,
+    until=None,
+    drag: str = "knots",
+    start: dict | None = None,
+    shooting_interval: float = 2.0,
+    hold_temperature: bool = False,
+    throw: bool = True,
+) -> RocketFit:
+    """Fit the rocket's model to the ascent.
+
+    **Arguments:**
+
+    - `problem`: from [`prepare`][].
+    - `free`: effects estimated besides the drag, the thrust scale, the motor's
+      start time and the accelerometer's offset (names in the model's parameter
+      list); by default the barometer's lag and static-pressure error.
+    - `until`: s, use the log only up to this time (the model still runs to apogee;
+      the record keeps its length, so the fit shares the compiled program).
+    - `drag`: `"knots"` (the knots estimated) or `"scale"` (the start curve held,
+      one scale factor estimated: what a short log supports).
+    - `start`: start values by name, over the problem's.
+    - `shooting_interval`: s between multiple-shooting nodes.
+    - `hold_temperature`: hold the pad temperature even with an accelerometer.
+    - `throw`: raise on a failed fit (else the fit carries its result code).
+
+    **Returns:** a [`RocketFit`][].
+    """
+    values = dict(problem.start)
+    values.update(start or {})
+    unknown = [f for f in free if f not in values]
+    if unknown:
+        raise LogError(f"unknown effect(s) {unknown}; effects are {', '.join(EFFECTS)}")
+    knots = problem.flight.knots
+    if drag == "knots":
+        estimated = knots.names + BASE_FREE
+    elif drag == "scale":
+        estimated = ("cd_scale",) + BASE_FREE
+    else:
+        raise ValueError(f"drag must be 'knots' or 'scale', got {drag!r}")
+    if "accel" in problem.outputs:
+        estimated += ("accel_bias",)
+        if not hold_temperature:
+            estimated += tuple(a for a in ACCEL_FREE if a not in free)
+    estimated += tuple(free)
+    model = rocket_model(problem.flight, problem.outputs, values, estimated)
+    record = problem.record
+    if until is not None:
+        inputs = record.inputs.copy()
+        inputs[record.t > until, 1:] = 0.0
+        record = type(record)(
+            record.t, inputs, record.measured, x0=record.x0, name=record.name
+        )
+    result = fit(
+        model,
+        record,
+        shooting=MultipleShooting(interval=shooting_interval),
+        initial_state="fixed",
+        throw=throw,
+    )
+    return trajectory(problem.rocket, problem.flight, result, record, problem.outputs)
+
+
+def simulate_flight(problem: Problem, start: dict | None = None) -> RocketFit:
+    """The flight simulated (not fitted) from the pad with the problem's start values
+    (the team's drag curve, catalogue thrust) or `start` over them; `fit` is `None`."""
+    values = dict(problem.start)
+    values.update(start or {})
+    model = rocket_model(problem.flight, problem.outputs, values, ())
+    return trajectory(
+        problem.rocket,
+        problem.flight,
+        None,
+        problem.record,
+        problem.outputs,
+        model=model,
+        params=np.asarray(model.start),
+    )
+
+
+def trajectory(
+    rocket, flight, result, record, outputs, extra=30.0, *, model=None, params=None
+) -> RocketFit:
+    """The fitted flight integrated from the pad past the apogee (`extra` s beyond
+    the record, stopped at the top), with its barometric altitude, axial specific
+    force and Mach number."""
+    from .._model import Record
+
+    dt = record.dt
+    n = len(record.t) + int(extra / dt)
+    t = record.t[0] + dt * np.arange(n)
+    inputs = np.zeros((n, record.inputs.shape[1]))
+    inputs[:, 0] = np.interp(t, record.t, record.inputs[:, 0], right=0.0)
+    inputs[:, 1:] = 1.0
+    long = Record(t, inputs, np.zeros((n, len(outputs))), x0=record.x0)
+    model = result.model if model is None else model
+    params = result.params if params is None else params
+    x = simulate(model, long, params)
+    ys = np.asarray(_observed(flight, t, x, inputs, params, model.parameters))
+    baro, accel, mach = ys[:, 0], ys[:, 1], ys[:, 2]
+    falling = np.flatnonzero((x[:, 5] <= 0) & (t > 1.0))
+    top = int(falling[0]) if falling.size else n - 1
+    cut = min(n, top + int(1.0 / dt))
+    peak = int(np.argmax(baro[:cut]))
+    return RocketFit(
+        rocket=rocket,
+        flight=flight,
+        fit=result,
+        record=record,
+        outputs=outputs,
+        t=t[:cut],
+        states=x[:cut],
+        baro=baro[:cut],
+        accel=accel[:cut],
+        mach=mach[:cut],
+        apogee=float(baro[peak]),
+        apogee_time=float(t[peak]),
+    )
+
+
+_OBSERVED: dict = {}
+
+
+def _observed(flight, t, x, u, params, names):
+    """`(samples, 3)`: barometric altitude, axial specific force, Mach (one compiled
+    program per flight)."""
+    import jax
+    import jax.numpy as jnp
+
+    key = (id(flight), names)
+    if key not in _OBSERVED or _OBSERVED[key][0] is not flight:
+
+        def one(t, x, u, params):
+            p = dict(zip(names, params, strict=True))
+            _, _, air = flight.forces(t, x, u, p)
+            y = _observe(flight, t, x, jnp.stack([u[0], 1.0, 1.0]), p)
+            return jnp.stack([y[0], y[1], air[3]])
+
+        _OBSERVED[key] = (flight, jax.jit(jax.vmap(one, (0, 0, 0, None))))
+    fn = _OBSERVED[key][1]
+    return fn(jnp.asarray(t), jnp.asarray(x), jnp.asarray(u), jnp.asarray(params))

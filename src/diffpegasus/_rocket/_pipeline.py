@@ -1,0 +1,82 @@
+"""One rocket flight end to end: fit, predict, re-simulate, check, report."""
+
+import json
+import pathlib
+import time
+
+import numpy as np
+
+from ._checks import equation_error_drag, resimulate
+from ._data import baro_channel
+from ._identify import fit_rocket, prepare
+
+
+PREDICTION_HORIZON = 2.0  # s after burnout: what an air-brake controller has
+
+
+def burnout_time(log, problem, result) -> float:
+    """s since liftoff: the log's burnout event, else the fitted motor's end."""
+    if "burnout" in log.events:
+        return float(log.events["burnout"].t)
+    t0 = result.estimate("motor_time")[0]
+    return t0 + problem.rocket.motor.burn_time
+
+
+def run_flight(rocket, log, out=None, *, free=None) -> dict:
+    """Fit the ascent, predict the apogee from the log up to two seconds after
+    burnout, re-simulate with the team's drag curve, and (with `out`) write the
+    figures and `summary.json` there.
+
+    **Returns:** the summary (see [`summary`][]) with `cd_table` rows (Mach, CD,
+    standard error, team CD) added.
+    """
+    from .._vehicle._rocket._sensors import TRANSONIC_WIDTH
+    from ._identify import SENSOR_FREE
+    from ._report import figures, summary
+
+    t0 = time.perf_counter()
+    problem = prepare(rocket, log)
+    if free is None:
+        # a flight through Mach 1 carries the transonic jump of the static pressure
+        # the barometer's errors are told from the flight only against an
+        # accelerometer's independent kinematics; an altitude alone leaves them at 0
+        # (diagnose tests them)
+        through = problem.flight.knots.mach[-1] > 1.0 - TRANSONIC_WIDTH
+        free = SENSOR_FREE + (("transonic_error",) if through else ())
+        if "accel" not in problem.outputs:
+            free = ()
+    free = tuple(free)
+    result = fit_rocket(problem, free=free, throw=False)
+    seconds = time.perf_counter() - t0
+    cut = burnout_time(log, problem, result) + PREDICTION_HORIZON
+    # a few seconds of log cannot tell the barometer's errors or the day's
+    # temperature from the drag: the prediction holds them at their start values
+    prediction = fit_rocket(
+        problem, free=(), until=cut, drag="scale", hold_temperature=True, throw=False
+    )
+    team = resimulate(problem, result) if rocket.team_drag_off is not None else result
+    _, h = baro_channel(log)
+    t, _ = baro_channel(log)
+    log_apogee = float(np.max(h[t > 0]))
+    row = summary(problem, result, prediction, team, log_apogee, seconds)
+    mach = np.array(problem.flight.knots.mach)
+    cd, sd = result.cd(mach)
+    team_cd = (
+        np.interp(mach, *rocket.team_drag_off)
+        if rocket.team_drag_off is not None
+        else np.full(len(mach), np.nan)
+    )
+    row["cd_table"] = [
+        {"mach": float(m), "cd": float(c), "stderr": float(s), "team_cd": float(tc)}
+        for m, c, s, tc in zip(mach, cd, sd, team_cd, strict=True)
+    ]
+    row["estimates"] = {
+        k: list(result.estimate(k))
+        for k in ("thrust_scale", "motor_time", "temperature") + free
+    }
+    if out is not None:
+        ee = equation_error_drag(result)
+        figures(problem, result, prediction, team, ee, out)
+        path = pathlib.Path(out) / "summary.json"
+        path.write_text(json.dumps(row, indent=1, default=float))
+    return row

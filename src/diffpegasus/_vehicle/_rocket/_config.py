@@ -1,0 +1,174 @@
+"""A rocket's facts from its `rocket.toml`: masses, motor, launch rail, site, drag.
+
+The file is the documented template (see the rockets guide); only these keys are
+read, every other key is kept for people:
+
+    [rocket]  mass_without_motor_kg, radius_m
+    [motor]   thrust_file, propellant_initial_mass_kg, dry_mass_kg (default 0),
+              holddown_time_s (default 0: the motor lifts off as soon as thrust
+              exceeds weight)
+    [aero]    power_off_drag_file, power_on_drag_file (optional; the team's curves),
+              air_brakes_actuation_file (optional, time s / deployment 0-1)
+    [launch]  elevation_m, rail_length_m, inclination_deg (from horizontal),
+              heading_deg (from north)
+    [atmosphere] surface_temperature_K (or a notebook_surface_conditions text
+              "T 299.96 K, ..." or era5_near_surface_temperature_K); optional
+    [results] recorded_apogee_agl_m, preflight_simulated_apogee_agl_m (optional)
+
+Paths are relative to the file's folder.
+"""
+
+import pathlib
+import re
+import tomllib
+
+import equinox as eqx
+import numpy as np
+
+from ..._errors import LogError
+from ._drag import read_drag_curve
+from ._motor import Motor, read_motor
+
+
+class Rocket(eqx.Module):
+    """One rocket on one launch: the facts the model needs.
+
+    **Fields:**
+
+    - `name`.
+    - `dry_mass`: kg, the rocket with its empty motor casing.
+    - `motor`: the [`Motor`][] (propellant mass, thrust curve).
+    - `radius`: m, reference radius (reference area `pi radius^2`).
+    - `holddown`: s from ignition to release (a liquid engine on a hold-down).
+    - `elevation`: m above sea level of the pad.
+    - `rail_length`: m; `inclination`: deg from horizontal; `heading`: deg from north.
+    - `surface_temperature`: K at the pad, or `None` (then the standard atmosphere's
+      at the pad's pressure).
+    - `team_drag_off`, `team_drag_on`: the team's `(mach, cd)` tables or `None`.
+    - `airbrakes`: `(time s, deployment 0-1)` schedule or `None`.
+    - `recorded_apogee`, `preflight_apogee`: m AGL from the team, or `None`.
+    - `folder`: where the file was.
+    """
+
+    name: str = eqx.field(static=True)
+    dry_mass: float = eqx.field(static=True)
+    motor: Motor
+    radius: float = eqx.field(static=True)
+    holddown: float = eqx.field(static=True)
+    elevation: float = eqx.field(static=True)
+    rail_length: float = eqx.field(static=True)
+    inclination: float = eqx.field(static=True)
+    heading: float = eqx.field(static=True)
+    surface_temperature: float | None = eqx.field(static=True)
+    team_drag_off: tuple | None
+    team_drag_on: tuple | None
+    airbrakes: tuple | None
+    recorded_apogee: float | None = eqx.field(static=True)
+    preflight_apogee: float | None = eqx.field(static=True)
+    folder: str = eqx.field(static=True, default=".")
+
+    @property
+    def loaded_mass(self) -> float:
+        """kg at ignition."""
+        return self.dry_mass + self.motor.propellant_mass
+
+    @property
+    def area(self) -> float:
+        """m^2, the reference area."""
+        return float(np.pi * self.radius**2)
+
+
+def _number(table, key, path, section, default=None, positive=True):
+    if key not in table:
+        if default is not None:
+            return default
+        raise LogError(f"{path}: [{section}] needs {key}")
+    v = table[key]
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        if default is not None:
+            return default
+        raise LogError(f"{path}: [{section}] {key} = {v!r} is not a number")
+    v = float(v)
+    if not np.isfinite(v) or (positive and v <= 0):
+        raise LogError(f"{path}: [{section}] {key} = {v!r} must be positive")
+    return v
+
+
+def _optional(table, key):
+    v = table.get(key)
+    return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
+
+
+def read_rocket(path) -> Rocket:
+    """Read a `rocket.toml` (see the module docstring for its keys).
+
+    **Returns:** a [`Rocket`][]. A missing or implausible value raises a `LogError`
+    naming the file, section and key.
+    """
+    path = pathlib.Path(path)
+    try:
+        doc = tomllib.loads(path.read_text())
+    except OSError as e:
+        raise LogError(f"{path}: cannot read ({e.strerror})") from None
+    except tomllib.TOMLDecodeError as e:
+        raise LogError(f"{path}: not valid TOML ({e})") from None
+    folder = path.parent
+    rk, mo = doc.get("rocket", {}), doc.get("motor", {})
+    ae, la = doc.get("aero", {}), doc.get("launch", {})
+    at, rs = doc.get("atmosphere", {}), doc.get("results", {})
+    if "thrust_file" not in mo:
+        raise LogError(f"{path}: [motor] needs thrust_file")
+    prop = _number(mo, "propellant_initial_mass_kg", path, "motor")
+    motor_dry = _number(mo, "dry_mass_kg", path, "motor", default=0.0, positive=False)
+    motor = read_motor(
+        folder / mo["thrust_file"], propellant_mass=prop, dry_mass=motor_dry
+    )
+    rocket_mass = _number(rk, "mass_without_motor_kg", path, "rocket")
+    inclination = _number(la, "inclination_deg", path, "launch")
+    if not 0 < inclination <= 90:
+        raise LogError(
+            f"{path}: [launch] inclination_deg = {inclination:g} must be "
+            "in (0, 90] degrees from horizontal"
+        )
+    temperature = _optional(at, "surface_temperature_K")
+    if temperature is None:
+        text = str(at.get("notebook_surface_conditions", ""))
+        m = re.search(r"\bT\s*([0-9.]+)\s*K", text)
+        temperature = (
+            float(m.group(1)) if m else _optional(at, "era5_near_surface_temperature_K")
+        )
+    if temperature is not None and not 180 < temperature < 340:
+        raise LogError(
+            f"{path}: [atmosphere] surface temperature {temperature:g} K "
+            "is not plausible (give kelvin)"
+        )
+
+    def drag(key):
+        return read_drag_curve(folder / ae[key]) if key in ae else None
+
+    brakes = None
+    if "air_brakes_actuation_file" in ae:
+        a = np.loadtxt(folder / ae["air_brakes_actuation_file"], delimiter=",", ndmin=2)
+        brakes = (a[:, 0], np.clip(a[:, 1], 0, 1))
+    return Rocket(
+        name=str(doc.get("name", path.parent.name)),
+        dry_mass=rocket_mass + motor_dry,
+        motor=motor,
+        radius=_number(rk, "radius_m", path, "rocket"),
+        holddown=_number(
+            mo, "holddown_time_s", path, "motor", default=0.0, positive=False
+        ),
+        elevation=_number(
+            la, "elevation_m", path, "launch", default=0.0, positive=False
+        ),
+        rail_length=_number(la, "rail_length_m", path, "launch"),
+        inclination=inclination,
+        heading=_number(la, "heading_deg", path, "launch", default=0.0, positive=False),
+        surface_temperature=temperature,
+        team_drag_off=drag("power_off_drag_file"),
+        team_drag_on=drag("power_on_drag_file"),
+        airbrakes=brakes,
+        recorded_apogee=_optional(rs, "recorded_apogee_agl_m"),
+        preflight_apogee=_optional(rs, "preflight_simulated_apogee_agl_m"),
+        folder=str(folder),
+    )

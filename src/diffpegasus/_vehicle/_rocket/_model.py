@@ -1,0 +1,198 @@
+"""The rocket as a [`Model`][]: a point mass flying along its air-relative velocity.
+
+States (east-north-up, pad origin): position `e, n, u` (m) and velocity
+`ve, vn, vu` (m/s). On the rail the rocket moves along it (held until the hold-down
+releases and thrust exceeds weight along the rail); off the rail it points into the
+relative wind (zero angle of attack: the attitude motion is fast compared with the
+trajectory for a statically stable rocket), so thrust acts along the air-relative
+velocity and drag against it.
+
+Parameters (name: unit, meaning):
+
+- `cd_0`...: drag coefficient at each knot Mach number, power off.
+- `cd_scale`: factor on the whole curve (1 when the knots are estimated).
+- `power_on_ratio`: CD power on / power off.
+- `thrust_scale`: delivered / catalogue thrust.
+- `motor_time`: s, log time of the thrust curve's zero.
+- `temperature`: K at the pad (sets density, speed of sound and the baro scale).
+- `wind_east`, `wind_north`: m/s, a constant wind.
+- `baro_lag`: s; `static_error`: static-pressure error per dynamic pressure;
+  `transonic_error`: its extra part at Mach 1.
+- `mass_offset`: kg added to the dry mass.
+- `rail_friction`: coefficient of friction on the rail.
+- `airbrake_cd`: CD added at full air-brake deployment (input `airbrake`).
+- `altitude_bias` (m), `accel_bias` (m/s^2): sensor offsets.
+"""
+
+import functools
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from ..._model import Model
+from .._atmosphere import GAMMA_AIR, isa, R_AIR
+from .._gravity import gravity
+from ._config import Rocket
+from ._drag import DragKnots
+from ._motor import motor_at
+from ._sensors import (
+    axial_specific_force,
+    baro_altitude,
+    baro_scale,
+    pressure_altitude,
+)
+
+
+STATES = ("e", "n", "u", "ve", "vn", "vu")
+OUTPUTS = ("altitude", "accel")  # the channels a log may give, in this order
+EFFECTS = (
+    "cd_scale",
+    "power_on_ratio",
+    "thrust_scale",
+    "motor_time",
+    "temperature",
+    "wind_east",
+    "wind_north",
+    "baro_lag",
+    "static_error",
+    "transonic_error",
+    "mass_offset",
+    "rail_friction",
+    "airbrake_cd",
+    "altitude_bias",
+    "accel_bias",
+)
+
+
+class Flight(eqx.Module):
+    """What the dynamics need besides the parameters: the rocket and the day.
+
+    **Fields:** `rocket`, `knots` ([`DragKnots`][]), `pad_pressure` (Pa).
+    """
+
+    rocket: Rocket
+    knots: DragKnots
+    pad_pressure: float = eqx.field(static=True)
+
+    def rail_axis(self):
+        r = self.rocket
+        inc, head = np.radians(r.inclination), np.radians(r.heading)
+        return np.array(
+            [np.cos(inc) * np.sin(head), np.cos(inc) * np.cos(head), np.sin(inc)]
+        )
+
+    def air(self, height, p):
+        """Density (kg/m^3), speed of sound (m/s), baro scale at `height` m AGL."""
+        s = baro_scale(self.pad_pressure, p["temperature"])
+        h_std = pressure_altitude(self.pad_pressure) + s * height
+        atm = isa(h_std)
+        temperature = atm.temperature / s
+        return (
+            atm.pressure / (R_AIR * temperature),
+            jnp.sqrt(GAMMA_AIR * R_AIR * temperature),
+            s,
+        )
+
+    def forces(self, t, x, u, p):
+        """Acceleration `(3,)` m/s^2, body axis `(3,)`, and the air data."""
+        r = self.rocket
+        pos, vel = x[:3], x[3:]
+        tables = tuple(jnp.asarray(a) for a in r.motor.tables())
+        tm = t - p["motor_time"]
+        thrust, burned = motor_at(tables, tm)
+        thrust = p["thrust_scale"] * thrust
+        mass = r.dry_mass + p["mass_offset"] + r.motor.propellant_mass * (1 - burned)
+        rho, sound, s = self.air(pos[2], p)
+        wind = jnp.stack([p["wind_east"], p["wind_north"], 0.0])
+        air = vel - wind
+        speed = jnp.sqrt(jnp.sum(air**2) + 1e-6)
+        rail = jnp.asarray(self.rail_axis())
+        along = jnp.dot(pos, rail)
+        on_rail = along < r.rail_length
+        axis = jnp.where(on_rail, rail, air / speed)
+        mach = speed / sound
+        q = 0.5 * rho * speed**2
+        cd = self.knots(mach, jnp.stack([p[k] for k in self.knots.names]))
+        cd = p["cd_scale"] * cd * jnp.where(thrust > 0, p["power_on_ratio"], 1.0)
+        cd = cd + p["airbrake_cd"] * u[0]
+        drag = q * r.area * cd
+        g = gravity(r.elevation + pos[2])
+        gvec = jnp.stack([0.0, 0.0, -g])
+        free = (thrust - drag) / mass * axis + gvec
+        # on the rail: the component along it, less friction, never backwards from rest
+        v_along = jnp.dot(vel, rail)
+        normal = g * jnp.sqrt(jnp.clip(1 - rail[2] ** 2, 0.0, None))
+        a_along = (thrust - drag * jnp.sign(v_along + 1e-9)) / mass - g * rail[2]
+        a_along = a_along - p["rail_friction"] * normal
+        held = (tm < r.holddown) | ((v_along <= 1e-6) & (a_along < 0))
+        a_along = jnp.where(held, 0.0, a_along)
+        accel = jnp.where(on_rail, a_along * rail, free)
+        return accel, axis, (q, rho, g, mach, s)
+
+
+def rates(flight: Flight, t, x, u, p):
+    """`dx/dt` `(6,)`: velocity and acceleration."""
+    accel, _, _ = flight.forces(t, x, u, p)
+    return jnp.concatenate([x[3:], accel])
+
+
+def observe(flight: Flight, t, x, u, p):
+    """The measured channels: barometric altitude (m AGL) and axial specific force
+    (m/s^2), each multiplied by its `has_` input (0 where the log has no sample)."""
+    accel, axis, (q, rho, g, mach, s) = flight.forces(t, x, u, p)
+    h = baro_altitude(
+        x[2],
+        x[5],
+        s,
+        p["baro_lag"],
+        p["static_error"],
+        p["transonic_error"],
+        q,
+        rho,
+        g,
+        mach,
+    )
+    f = axial_specific_force(accel, g, axis)
+    y = jnp.stack([h + p["altitude_bias"], f + p["accel_bias"]])
+    return y[: u.shape[0] - 1] * u[1:]
+
+
+def rocket_model(flight: Flight, outputs, start: dict, free) -> Model:
+    """The [`Model`][] of `flight` with the measured `outputs` (a prefix-ordered
+    subset of `("altitude", "accel")`), start values `start` (name -> value) and the
+    estimated parameter names `free`."""
+    outputs = tuple(outputs)
+    if outputs != OUTPUTS[: len(outputs)]:
+        raise ValueError(f"outputs must be a prefix of {OUTPUTS}, got {outputs}")
+    names = flight.knots.names + EFFECTS
+    missing = [n for n in names if n not in start]
+    if missing:
+        raise ValueError(f"no start value for {missing}")
+    rates_fn, observe_fn = _functions(flight)
+    return Model(
+        states=STATES,
+        inputs=("airbrake",) + tuple(f"has_{o}" for o in outputs),
+        outputs=outputs,
+        parameters={n: float(start[n]) for n in names},
+        rates=rates_fn,
+        observe=observe_fn,
+        fixed=tuple(n for n in names if n not in free),
+        state_scale=(100.0, 100.0, 100.0, 10.0, 10.0, 10.0),
+    )
+
+
+_FUNCTIONS: dict = {}
+
+
+def _functions(flight: Flight):
+    """One `(rates, observe)` pair per flight, so that every model of one flight
+    (other starts, other estimated sets) has one structure and one compilation."""
+    key = id(flight)
+    if key not in _FUNCTIONS or _FUNCTIONS[key][0] is not flight:
+        _FUNCTIONS[key] = (
+            flight,
+            functools.partial(rates, flight),
+            functools.partial(observe, flight),
+        )
+    return _FUNCTIONS[key][1:]

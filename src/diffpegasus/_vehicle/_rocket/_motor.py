@@ -1,0 +1,133 @@
+"""A rocket motor: thrust against time and the propellant it has burned.
+
+The thrust curve comes from a RASP `.eng` file (the format of thrustcurve.org and
+OpenRocket) or a two-column CSV (time s, thrust N; an optional header row). The
+propellant mass falls in proportion to the impulse delivered so far, the usual
+assumption when only the thrust curve is known (constant effective exhaust velocity).
+"""
+
+import pathlib
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from ..._errors import LogError
+
+
+class Motor(eqx.Module):
+    """A motor's thrust curve and masses.
+
+    **Fields:**
+
+    - `time` `(points,)`: s from ignition, increasing.
+    - `thrust` `(points,)`: N at `time`; zero before the first and after the last point.
+    - `propellant_mass`: kg at ignition.
+    - `dry_mass`: kg of the casing (0 when the rocket's dry mass includes it).
+    - `name`: what reports call it.
+    """
+
+    time: np.ndarray
+    thrust: np.ndarray
+    propellant_mass: float = eqx.field(static=True)
+    dry_mass: float = eqx.field(static=True, default=0.0)
+    name: str = eqx.field(static=True, default="motor")
+
+    def __check_init__(self):
+        if len(self.time) < 2 or np.any(np.diff(self.time) <= 0):
+            raise ValueError(f"{self.name}: thrust-curve times must increase")
+        if np.any(self.thrust < 0):
+            raise ValueError(f"{self.name}: negative thrust in the curve")
+
+    @property
+    def total_impulse(self) -> float:
+        """N s, the trapezoidal integral of the curve (with the zero ends)."""
+        t, f = self._closed()
+        return float(np.trapezoid(f, t))
+
+    @property
+    def burn_time(self) -> float:
+        """s from ignition to the last point of the curve."""
+        return float(self.time[-1])
+
+    def _closed(self):
+        """The curve with zero thrust added at ignition and after the end."""
+        t, f = np.asarray(self.time, float), np.asarray(self.thrust, float)
+        if t[0] > 0:
+            t, f = np.r_[0.0, t], np.r_[0.0 if f[0] > 0 else f[0], f]
+            t, f = t, f
+        if f[-1] != 0:
+            t, f = np.r_[t, t[-1] + 1e-3], np.r_[f, 0.0]
+        return t, f
+
+    def tables(self):
+        """`(time, thrust, burned)` arrays of the closed curve: `burned` the fraction
+        of the total impulse delivered by `time` (0 to 1)."""
+        t, f = self._closed()
+        impulse = np.r_[0.0, np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(t))]
+        return t, f, impulse / impulse[-1]
+
+
+def motor_at(tables, t):
+    """Thrust (N) and burned impulse fraction at `t` s from ignition (jax, scalar)."""
+    time, thrust, burned = tables
+    f = jnp.interp(t, time, thrust, left=0.0, right=0.0)
+    b = jnp.interp(t, time, burned, left=0.0, right=1.0)
+    return f, b
+
+
+def read_motor(path, *, propellant_mass=None, dry_mass=0.0) -> Motor:
+    """Read a thrust curve from a RASP `.eng` file or a two-column CSV.
+
+    **Arguments:**
+
+    - `path`: the file.
+    - `propellant_mass`: kg; by default the `.eng` header's (a CSV needs it given).
+    - `dry_mass`: kg of the empty casing.
+
+    **Returns:** a [`Motor`][]. A malformed file raises a `LogError` naming the file,
+    row and value.
+    """
+    path = pathlib.Path(path)
+    try:
+        text = path.read_text(errors="replace")
+    except OSError as e:
+        raise LogError(f"{path}: cannot read the thrust curve ({e.strerror})") from None
+    rows, header = [], None
+    for i, line in enumerate(text.splitlines(), 1):
+        s = line.strip()
+        if not s or s.startswith(";") or s.startswith("#"):
+            continue
+        parts = s.replace(",", " ").split()
+        if path.suffix.lower() == ".eng" and header is None:
+            header = parts
+            continue
+        try:
+            vals = [float(v) for v in parts[:2]]
+        except ValueError:
+            if not rows and header is None:  # a CSV header row
+                header = parts
+                continue
+            raise LogError(f"{path}: row {i}: {s!r} is not 'time thrust'") from None
+        if len(vals) < 2 or not all(np.isfinite(vals)):
+            raise LogError(f"{path}: row {i}: {s!r} is not 'time thrust'")
+        rows.append(vals)
+    if len(rows) < 2:
+        raise LogError(f"{path}: fewer than two thrust points")
+    a = np.asarray(rows)
+    t, f = a[:, 0], a[:, 1]
+    if np.any(np.diff(t) <= 0):
+        i = int(np.argmax(np.diff(t) <= 0)) + 1
+        raise LogError(
+            f"{path}: thrust-curve time does not increase at point {i + 1} "
+            f"(t = {t[i]:g} s)"
+        )
+    if np.any(f < 0):
+        i = int(np.argmax(f < 0))
+        raise LogError(f"{path}: negative thrust {f[i]:g} N at t = {t[i]:g} s")
+    if propellant_mass is None:
+        if path.suffix.lower() == ".eng" and header is not None and len(header) >= 6:
+            propellant_mass = float(header[4])
+        else:
+            raise LogError(f"{path}: give the propellant mass (the file has none)")
+    return Motor(t, f, float(propellant_mass), float(dry_mass), path.name)

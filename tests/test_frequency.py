@@ -1,0 +1,165 @@
+"""Frequency-domain estimation against independent references: scipy's chirp-z
+transform for the finite Fourier transform, the time-domain output-error optimum
+(the package's engine, itself tested against an independent optimiser in
+test_identify.py) on the HFB-320 record, the unstable aircraft and simulated
+ATTAS-like lateral manoeuvres (simulated here in NumPy by the matrix exponential)."""
+
+import pathlib
+import sys
+
+import numpy as np
+import pytest
+import scipy.linalg
+import scipy.signal
+
+import diffpegasus as dp
+from diffpegasus._estimate._fourier import frequency_grid
+
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "experiments"))
+from _shared import shared_data  # noqa: E402
+
+
+def _require(path):
+    if not path.exists():
+        pytest.skip(f"validation data not found at {path} (set DIFFPEGASUS_SHARED)")
+
+
+def test_finite_fourier_is_the_chirp_z_transform_with_trapezoidal_ends():
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(257, 2))
+    dt, f0, df, m = 0.02, 0.3, 0.05, 23
+    freqs = f0 + df * np.arange(m)
+    ours = np.asarray(dp.finite_fourier(x, dt, freqs))
+    a = np.exp(2j * np.pi * f0 * dt)
+    w = np.exp(-2j * np.pi * df * dt)
+    ref = np.stack([scipy.signal.czt(x[:, j], m, w, a) for j in range(2)], axis=1)
+    ends = np.exp(-2j * np.pi * freqs * dt * (len(x) - 1))
+    ref = dt * (ref - 0.5 * (x[0][None, :] + ends[:, None] * x[-1][None, :]))
+    # both are sums of 257 products; rounding at 1e-13 of the largest term
+    np.testing.assert_allclose(ours, ref, rtol=0, atol=1e-12)
+
+
+def test_biases_vanish_on_the_frequency_grid():
+    n, dt = 301, 0.05
+    freqs = frequency_grid(n, dt, (0.0, 2.0))
+    assert freqs[0] == pytest.approx(1.0 / ((n - 1) * dt))
+    x = np.full(n, 3.7)
+    assert np.max(np.abs(np.asarray(dp.finite_fourier(x, dt, freqs)))) < 1e-12
+    with pytest.raises(ValueError, match="Nyquist"):
+        frequency_grid(n, dt, (0.0, 11.0))
+
+
+def test_a_model_not_linear_in_its_states_is_refused_in_one_line():
+    model = dp.hfb320_model()
+    t = np.arange(0.0, 5.0, 0.1)
+    rec = dp.Record(
+        t,
+        np.column_stack([np.full_like(t, -0.01), np.full_like(t, 11600.0)]),
+        np.tile([106.0, 0.11, 0.10, 0.0, 0.0, 0.9, -9.8], (len(t), 1)),
+    )
+    with pytest.raises(ValueError, match="not linear in the states and inputs") as e:
+        dp.estimate(model, rec, dp.FrequencyOutputError())
+    assert "\n" not in str(e.value)
+
+
+@pytest.fixture(scope="module")
+def hfb320():
+    path = shared_data("hfb320/hfb320_1_10.asc")
+    _require(path)
+    spec = dp.load_model_file(ROOT / "examples" / "hfb320_linear.py")
+    rec = dp.load_record(spec.model, path, spec.columns)
+    return spec.model, rec
+
+
+@pytest.mark.slow  # one time-domain and one frequency-domain compile
+def test_hfb320_output_error_in_frequency_and_time_domains_agree(hfb320):
+    model, rec = hfb320
+    td = dp.fit(model, rec)
+    fd = dp.estimate(model, rec, dp.FrequencyOutputError(band=(0.0, 1.5)))
+    assert fd.converged
+    est = fd.free
+    # the trim constants have no transform on the grid: not estimated
+    assert not est[[model.parameters.index(n) for n in ("Z0", "M0", "az0")]].any()
+    z = (fd.params - td.params)[est] / td.stderr_corrected[est]
+    # measured on the record: |z| <= 0.35 for all six (Ma -0.35, Za -0.13)
+    assert np.all(np.abs(z) < 1.0), dict(
+        zip(np.array(model.parameters)[est], z, strict=False)
+    )
+    # the corrected bounds widen the plain ones (the record's residuals are
+    # coloured) and the two domains' bounds are of one size (ratio 1.2-2.0)
+    assert np.all(fd.stderr_corrected[est] >= fd.stderr[est])
+    ratio = fd.stderr_corrected[est] / td.stderr_corrected[est]
+    assert np.all((ratio > 0.5) & (ratio < 3.0)), ratio
+
+
+@pytest.mark.slow  # one time-domain and one frequency-domain compile
+def test_unstable_aircraft_without_integration(tmp_path):
+    """The frequency domain solves (z I - Phi) X = ..., no integration: an unstable
+    model needs no multiple shooting."""
+    path = shared_data("unstable_aircraft/unStabAC_sim.asc")
+    _require(path)
+    spec = dp.load_model_file(ROOT / "examples" / "unstable_aircraft.py")
+    rec = dp.load_record(spec.model, path, spec.columns, x0=spec.x0)
+    td = dp.fit(spec.model, rec, shooting=spec.shooting)
+    fd = dp.estimate(spec.model, rec, dp.FrequencyOutputError(band=(0.0, 2.0)))
+    est = fd.free
+    z = (fd.params - td.params)[est] / td.stderr_corrected[est]
+    # a nearly noise-free simulation: both optima agree to 0.8 standard errors
+    assert np.all(np.abs(z) < 1.0), z
+    paths = dp.plot_bode(fd, tmp_path, units={"az": "m/s^2", "w": "m/s", "q": "rad/s"})
+    assert all(p.stat().st_size > 10_000 for p in paths)
+
+
+# ATTAS-like lateral manoeuvres: the book's derivatives, simulated independently
+TRUTH = dict(
+    Lp=-2.5, Lr=0.6, Lda=-8.0, Ldr=0.6, Lbeta=-6.0,
+    Np=-0.1, Nr=-0.4, Nda=-0.3, Ndr=-2.0, Nbeta=2.2,
+    Yp=0.4, Yr=1.5, Yda=-0.5, Ydr=4.0, Ybeta=-20.0,
+)  # fmt: skip
+SIGMA = np.array([0.02, 0.01, 0.05, 0.002, 0.002])  # pdot, rdot, ay, p, r
+
+
+def _lateral_flight(seed, duration=25.0, rate=25.0):
+    dt = 1.0 / rate
+    t = np.arange(0.0, duration + 0.5 * dt, dt)
+
+    def doublet(start, width, amp):
+        return amp * (((t >= start) & (t < start + width)) * 1.0
+                      - ((t >= start + width) & (t < start + 2 * width)))  # fmt: skip
+
+    da = doublet(1.0, 1.0, 0.03) + doublet(12.0, 0.6, -0.02)
+    dr = doublet(5.0, 1.5, 0.03) + doublet(17.0, 0.8, 0.02)
+    # a sideslip history driven by the rudder (first-order, 1.2 s)
+    beta = scipy.signal.lfilter([dt / 1.2], [1, dt / 1.2 - 1], -0.5 * dr)
+    u = np.column_stack([da, dr, beta])
+    p = TRUTH
+    a = np.array([[p["Lp"], p["Lr"]], [p["Np"], p["Nr"]]])
+    b = np.array([[p["Lda"], p["Ldr"], p["Lbeta"]], [p["Nda"], p["Ndr"], p["Nbeta"]]])
+    f = np.zeros((8, 8))
+    f[:2, :2], f[:2, 2:5], f[2:5, 5:8] = a, b, np.eye(3)
+    e = scipy.linalg.expm(f * dt)
+    phi, g1, g2 = e[:2, :2], e[:2, 2:5], e[:2, 5:8] / dt
+    x = np.zeros((len(t), 2))
+    for k in range(len(t) - 1):
+        x[k + 1] = phi @ x[k] + (g1 - g2) @ u[k] + g2 @ u[k + 1]
+    c = np.array([[p["Yp"], p["Yr"]]])
+    dy = np.array([[p["Yda"], p["Ydr"], p["Ybeta"]]])
+    y = np.column_stack([x @ a.T + u @ b.T, x @ c.T + u @ dy.T, x])
+    y = y + np.random.default_rng(seed).normal(size=y.shape) * SIGMA
+    return t, u, y
+
+
+@pytest.mark.slow  # one time-domain and one frequency-domain compile
+def test_attas_like_lateral_manoeuvres_agree_with_the_time_domain():
+    model = dp.lateral.lateral_model(state_biases=False, output_biases=False)
+    t, u, y = _lateral_flight(seed=3)
+    rec = dp.Record(t, u, y, x0=np.zeros(2))
+    td = dp.fit(model, rec)
+    fd = dp.estimate(model, rec, dp.FrequencyOutputError(band=(0.0, 3.0)))
+    z = (fd.params - td.params) / td.stderr_corrected
+    # same model, same data: within one standard error of the time-domain optimum
+    assert np.all(np.abs(z) < 1.0), dict(zip(model.parameters, z, strict=False))
+    truth = np.array([TRUTH[n] for n in model.parameters])
+    assert np.all(np.abs(fd.params - truth) < 4 * fd.stderr_corrected)
