@@ -110,7 +110,9 @@ def simulate(
 
     _check_out(out, "file")
     try:
-        log = vehicle_entry(vehicle).simulate(
+        entry = vehicle_entry(vehicle)
+        typer.echo(f"simulating {vehicle} (compiles on first use)...", err=True)
+        log = entry.simulate(
             seed=seed,
             hidden=tuple(hidden or ()),
             duration=duration,
