@@ -110,9 +110,7 @@ def simulate(
 
     _check_out(out, "file")
     try:
-        entry = vehicle_entry(vehicle)
-        typer.echo(f"simulating {vehicle} (compiles on first use)...", err=True)
-        log = entry.simulate(
+        log = vehicle_entry(vehicle).simulate(
             seed=seed,
             hidden=tuple(hidden or ()),
             duration=duration,
