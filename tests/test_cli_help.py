@@ -9,8 +9,8 @@ from typer.testing import CliRunner
 
 import diffpegasus as dp
 from diffpegasus._cli import app
-from diffpegasus._report._runs import unexplained_channels
 from diffpegasus._report._markdown import planted_versus_found, write_index
+from diffpegasus._report._runs import unexplained_channels
 
 
 runner = CliRunner()
@@ -53,7 +53,8 @@ def test_version():
 
 
 @pytest.mark.parametrize(
-    "command", [("fit",), ("compare",), ("diagnose",), ("estimate", "oem"), ("montecarlo",)]
+    "command",
+    [("fit",), ("compare",), ("diagnose",), ("estimate", "oem"), ("montecarlo",)],
 )
 def test_max_iter_wherever_a_fit_runs(command):
     assert "--max-iter" in _help(*command)
@@ -63,7 +64,9 @@ def test_estimate_nn_names_its_network_network():
     text = _help("estimate", "nn")
     assert "--network" in text and "--save-network" in text
     # --model is a model file in fit/compare/diagnose; the old spelling is hidden
-    options = [line.strip("│ ").split()[0] for line in text.splitlines() if "│ --" in line]
+    options = [
+        line.strip("│ ").split()[0] for line in text.splitlines() if "│ --" in line
+    ]
     assert "--network" in options
     assert "--model" not in options and "--save-model" not in options
 
@@ -77,7 +80,7 @@ def test_no_outside_paths_or_spec_sections_in_help():
     group_text = [_help()]
     import typer.main
 
-    for name, command in typer.main.get_command(app).commands.items():
+    for name in typer.main.get_command(app).commands:
         group_text.append(_help(name))
     text = "\n".join(group_text)
     for bad in ("SPEC", "README", "../shared", "/work/"):
@@ -150,7 +153,10 @@ def test_planted_versus_found_line():
         "(0.1 standard errors apart)"
     )
     (missed,) = planted_versus_found({"pitch_damping": -800.0}, effects)
-    assert missed == "hidden pitch_damping -800; not found (the refit added actuator_delay)"
+    assert (
+        missed
+        == "hidden pitch_damping -800; not found (the refit added actuator_delay)"
+    )
 
 
 def test_channels_left_above_their_noise_are_named():

@@ -17,6 +17,7 @@ from ._common import (
     positive,
 )
 
+
 THESIS_PANEL = "Pegasus thesis reproduction"
 RUN = "Processes and hosts"
 SIM = "Simulation"
@@ -27,7 +28,9 @@ def montecarlo(
     samples: Annotated[
         int,
         typer.Option(
-            help="Number of perturbed flights", callback=at_least_one, rich_help_panel=SIM
+            help="Number of perturbed flights",
+            callback=at_least_one,
+            rich_help_panel=SIM,
         ),
     ] = 100,
     methods: Annotated[
@@ -39,7 +42,9 @@ def montecarlo(
     ] = 0,
     out: Annotated[
         pathlib.Path,
-        typer.Option(help="Results folder (a rerun resumes it)", rich_help_panel=OUTPUT),
+        typer.Option(
+            help="Results folder (a rerun resumes it)", rich_help_panel=OUTPUT
+        ),
     ] = pathlib.Path("montecarlo"),
     batch: Annotated[
         int,
@@ -217,7 +222,9 @@ def design_input(
     ] = 5.0,
     steps: Annotated[
         int,
-        typer.Option(help="Optimiser steps", callback=at_least_one, rich_help_panel=FIT),
+        typer.Option(
+            help="Optimiser steps", callback=at_least_one, rich_help_panel=FIT
+        ),
     ] = 150,
     out: Annotated[
         pathlib.Path,

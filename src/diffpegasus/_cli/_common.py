@@ -199,7 +199,10 @@ OUTPUT = "Output"
 
 # Options shared by the `estimate` commands.
 UnitsOption = Annotated[
-    str, typer.Option(help="Units of the printed derivatives: deg or rad", rich_help_panel=OUTPUT)
+    str,
+    typer.Option(
+        help="Units of the printed derivatives: deg or rad", rich_help_panel=OUTPUT
+    ),
 ]
 OutOption = Annotated[
     pathlib.Path | None,

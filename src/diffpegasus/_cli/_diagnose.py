@@ -20,6 +20,7 @@ from ._common import (
     AlphaOrderOption,
     app,
     ColumnsOption,
+    FIT,
     FIT_FAILED,
     FixOption,
     JsonOption,
@@ -28,7 +29,6 @@ from ._common import (
     MethodOption,
     ModelOption,
     NodeOption,
-    FIT,
     ProcessNoiseOption,
     RateOption,
     ReportOption,
@@ -40,9 +40,7 @@ from ._fit import _fit_model, FIT_PANEL
 
 @app.command(rich_help_panel=FIT_PANEL)
 def compare(
-    log: Annotated[
-        pathlib.Path, typer.Argument(help="Flight log file")
-    ],
+    log: Annotated[pathlib.Path, typer.Argument(help="Flight log file")],
     vehicle: VehicleOption = "pegasus",
     model: ModelOption = None,
     columns: ColumnsOption = None,
@@ -177,9 +175,7 @@ def _write_diagnosis(report: dict, out: pathlib.Path, name: str) -> None:
 
 @app.command(rich_help_panel=FIT_PANEL)
 def diagnose(
-    log: Annotated[
-        pathlib.Path, typer.Argument(help="Flight log file")
-    ],
+    log: Annotated[pathlib.Path, typer.Argument(help="Flight log file")],
     vehicle: VehicleOption = "pegasus",
     model: ModelOption = None,
     columns: ColumnsOption = None,

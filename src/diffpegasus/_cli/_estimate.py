@@ -13,16 +13,16 @@ from ._common import (
     _json_out,
     _os_error,
     at_least_one,
+    DATA,
     estimate_app,
     EstimateVehicleOption,
-    DATA,
     finite,
     FIT,
     FIT_FAILED,
     JsonOption,
     MODEL,
-    OUTPUT,
     OutOption,
+    OUTPUT,
     positive,
     ResampleOption,
     UnitsOption,
@@ -124,7 +124,8 @@ def _print_estimates(est, d: dict, units: str, failed: bool) -> None:
 @estimate_app.command("lse")
 def estimate_lse_command(
     log: Annotated[
-        pathlib.Path, typer.Argument(help="Pegasus flight log CSV (as `simulate` writes)")
+        pathlib.Path,
+        typer.Argument(help="Pegasus flight log CSV (as `simulate` writes)"),
     ],
     vehicle: EstimateVehicleOption = "pegasus",
     window: Annotated[
@@ -140,7 +141,9 @@ def estimate_lse_command(
     tol: Annotated[
         float,
         typer.Option(
-            help="Rank tolerance for A and A^T A", callback=positive, rich_help_panel=FIT
+            help="Rank tolerance for A and A^T A",
+            callback=positive,
+            rich_help_panel=FIT,
         ),
     ] = 1e-2,
     units: UnitsOption = "deg",
@@ -169,7 +172,8 @@ def estimate_lse_command(
 @estimate_app.command("oem")
 def estimate_oem_command(
     log: Annotated[
-        pathlib.Path, typer.Argument(help="Pegasus flight log CSV (as `simulate` writes)")
+        pathlib.Path,
+        typer.Argument(help="Pegasus flight log CSV (as `simulate` writes)"),
     ],
     vehicle: EstimateVehicleOption = "pegasus",
     shooting: Annotated[
@@ -177,7 +181,9 @@ def estimate_oem_command(
     ] = "multiple",
     window: Annotated[
         float,
-        typer.Option(help="Parameter window, s", callback=positive, rich_help_panel=FIT),
+        typer.Option(
+            help="Parameter window, s", callback=positive, rich_help_panel=FIT
+        ),
     ] = 0.5,
     node_interval: Annotated[
         float,
@@ -303,7 +309,8 @@ def _default_training_logs():
 @estimate_app.command("nn")
 def estimate_nn_command(
     log: Annotated[
-        pathlib.Path, typer.Argument(help="Pegasus flight log CSV (as `simulate` writes)")
+        pathlib.Path,
+        typer.Argument(help="Pegasus flight log CSV (as `simulate` writes)"),
     ],
     vehicle: EstimateVehicleOption = "pegasus",
     network: Annotated[

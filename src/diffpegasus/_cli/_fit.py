@@ -20,24 +20,25 @@ from ._common import (
     app,
     assignments,
     ColumnsOption,
-    parse_assignment_text,
+    FIT,
     FIT_FAILED,
     FixOption,
-    FIT,
     JsonOption,
     KnotsOption,
     MaxIterOption,
     MethodOption,
     ModelOption,
     NodeOption,
-    positive,
     OUTPUT,
+    parse_assignment_text,
+    positive,
     ProcessNoiseOption,
     RateOption,
     ReportOption,
     ResampleOption,
     VehicleOption,
 )
+
 
 FIT_PANEL = "Fit and diagnose"
 

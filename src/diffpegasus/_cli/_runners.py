@@ -195,9 +195,9 @@ def format_table(report: dict) -> str:
 def plot_fit(result: Fit, out: pathlib.Path, columns=None) -> list[pathlib.Path]:
     """One PNG per record: each output measured and modelled against time, in the
     units of the column map `columns` where it gives them ([`channel_units`][])."""
-    from .._report._units import channel_units
-
     import matplotlib
+
+    from .._report._units import channel_units
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -21,6 +21,7 @@ from ._common import (
     ResampleOption,
 )
 
+
 LOGS_PANEL = "Logs and simulation"
 SIM = "Simulation"
 
@@ -230,7 +231,9 @@ def _check_mapped(log, columns, resample, as_json) -> None:
         _json_out({"file": str(log), "ok": True, "summary": summary, "channels": rows})
         return
     typer.echo(f"{log}: ok; {summary}")
-    typer.echo(f"  {'channel':>10s} {'column':>14s} {'unit':>8s} {'min (SI)':>12s} {'max (SI)':>12s}")
+    typer.echo(
+        f"  {'channel':>10s} {'column':>14s} {'unit':>8s} {'min (SI)':>12s} {'max (SI)':>12s}"
+    )
     for ch, r in rows.items():
         typer.echo(
             f"  {ch:>10s} {str(r['column']):>14s} {r['unit'] or 'SI':>8s} "

@@ -113,7 +113,9 @@ def write_report(
     write_text(path, "\n".join(text))
 
 
-def planted_versus_found(hidden: dict[str, float], effects: dict[str, dict]) -> list[str]:
+def planted_versus_found(
+    hidden: dict[str, float], effects: dict[str, dict]
+) -> list[str]:
     """One line per planted effect: its value beside the one the refit found, with
     the standard error and how many standard errors apart they are, e.g. `hidden
     actuator_delay 0.02 s, found 0.02003 s ± 0.00031 s (0.1 standard errors

@@ -56,9 +56,7 @@ def channel_units(names, columns=None) -> dict[str, tuple[str, float]]:
                     mapped[ch] = (unit, 1.0 / UNITS[unit.lower()])
         except Exception:  # a report never fails on its units: fall back to SI
             mapped = {}
-    return {
-        n: mapped.get(n) or _USUAL.get(n) or ("SI", 1.0) for n in names
-    }
+    return {n: mapped.get(n) or _USUAL.get(n) or ("SI", 1.0) for n in names}
 
 
 def effect_unit(effect: str) -> str:
