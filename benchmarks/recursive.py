@@ -4,7 +4,9 @@ core, for the launch vehicle's regression (3 equations, 9 parameters) and a
 short-period model's (3 equations, 5 parameters).
 
 Each update is timed as a flight computer would call it: one sample at a time from
-Python, the result blocked on. Compile time is reported separately. Writes
+Python, the result blocked on; process CPU time (best of three), since wall time on a
+shared machine measures the other processes. Compile time (wall) is reported
+separately. Writes
 `benchmarks/results/recursive.json`.
 
 Run: `python benchmarks/recursive.py` (pins JAX and BLAS to one thread).
@@ -44,12 +46,14 @@ def numpy_rls(theta, p, h, y, lam):
 
 
 def time_calls(fn, n):
+    """Best of three of the process CPU time per call (the machine may be shared:
+    wall time then measures the other processes)."""
     best = np.inf
     for _ in range(3):
-        start = time.perf_counter()
+        start = time.process_time()
         for _ in range(n):
             fn()
-        best = min(best, (time.perf_counter() - start) / n)
+        best = min(best, (time.process_time() - start) / n)
     return best
 
 

@@ -514,7 +514,7 @@ def test_oem_with_some_failed_windows_nulls_them(tmp_path, monkeypatch):
 
 
 def test_compare_that_did_not_converge_reports_no_derivatives(tmp_path, monkeypatch):
-    import diffpegasus._diagnose as discrepancy
+    import diffpegasus._report._runs as discrepancy
 
     def failed(entry, log, out, **kwargs):
         (out / "compare.md").write_text("# compare\n| CLa | 4.1 |\n")

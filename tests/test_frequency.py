@@ -106,7 +106,8 @@ def test_unstable_aircraft_without_integration(tmp_path):
     fd = dp.estimate(spec.model, rec, dp.FrequencyOutputError(band=(0.0, 2.0)))
     est = fd.free
     z = (fd.params - td.params)[est] / td.stderr_corrected[est]
-    # a nearly noise-free simulation: both optima agree to 0.8 standard errors
+    # a nearly noise-free simulation: both optima agree within 0.93 standard errors
+    # (Mq; deterministic data, so the margin does not move with noise)
     assert np.all(np.abs(z) < 1.0), z
     paths = dp.plot_bode(fd, tmp_path, units={"az": "m/s^2", "w": "m/s", "q": "rad/s"})
     assert all(p.stat().st_size > 10_000 for p in paths)

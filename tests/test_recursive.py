@@ -225,7 +225,7 @@ def test_replay_command_writes_the_figure_and_the_estimates(tmp_path):
         text=True,
     )
     assert res.returncode == 0, res.stderr
-    summary = json.loads(res.stdout.strip().splitlines()[-1])
+    summary = json.loads((out / "summary.json").read_text())
     assert set(summary["final"]) >= {"Ma", "Mq", "Mde"}
     assert (out / "estimates.png").stat().st_size > 10_000
     rows = np.loadtxt(out / "estimates.csv", delimiter=",", skiprows=1)

@@ -114,7 +114,7 @@ class Table:
         try:
             if self.delimiter == ",":
                 data = read_numeric_csv(
-                    self.path, self.skip_bytes, len(self.names), index
+                    self.path, self.skip_bytes, len(self.names), index, self.skip_lines
                 )
             if data is None:
                 return self._read_carefully(wanted, index, drop_text=columns is None)
