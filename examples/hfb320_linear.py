@@ -1,8 +1,10 @@
 """Model file: the HFB-320's short-period motion as a linear model (dimensional
 derivatives about the record's trim), for the frequency-domain estimators and for
-output error in the time domain alike:
+output error in the time domain alike. With the textbook's flight record
+`hfb320_1_10.asc` in the current folder (it comes with the book's software FVSysID;
+the documentation's data page says where to get it):
 
-    diffpegasus fit ../shared/data/hfb320/hfb320_1_10.asc \
+    diffpegasus fit hfb320_1_10.asc \
         --model examples/hfb320_linear.py --method fdoe --json
 
 States `alpha` (rad), `q` (rad/s); inputs elevator `de` (rad), and the measured

@@ -1,8 +1,11 @@
 """A user's vehicle in one short file, built from the library's parts: here the
-HFB-320 of SPEC section 7 again, but written as a user would for their own aircraft.
+HFB-320 (the textbook's test case 4) again, but written as a user would for their own
+aircraft. The flight record `hfb320_1_10.asc` comes with the book's software FVSysID
+(the documentation's data page, "The textbook's aircraft records", says where to get
+it); with it in the current folder:
 
-    diffpegasus fit ../shared/data/hfb320/hfb320_1_10.asc --vehicle examples/my_jet.py
-    diffpegasus diagnose ../shared/data/hfb320/hfb320_1_10.asc \
+    diffpegasus fit hfb320_1_10.asc --vehicle examples/my_jet.py
+    diffpegasus diagnose hfb320_1_10.asc \
         --vehicle examples/my_jet.py --fix CMq=0
 
 Because it is a `FlightVehicle`, the library's effects compose with it (`--add

@@ -1,7 +1,8 @@
-"""Model file: short-period motion of an unstable aircraft (SPEC section 7; FVSysID's
-`unStabAC_sim.asc`). Fit it with
+"""Model file: short-period motion of an unstable aircraft (FVSysID's
+`unStabAC_sim.asc`, which comes with the textbook's software: the documentation's data
+page says where to get it). With it in the current folder, fit it with
 
-    diffpegasus fit ../shared/data/unstable_aircraft/unStabAC_sim.asc \
+    diffpegasus fit unStabAC_sim.asc \
         --model examples/unstable_aircraft.py --json
 
 Single shooting cannot integrate an unstable model over 12.5 s from wrong start

@@ -1,5 +1,5 @@
-"""Gradient-optimal input design through the differentiable output-error model (see
-the README, "Optimal input design")."""
+"""Gradient-optimal input design through the differentiable output-error model (see the
+thesis-reproduction tutorial in the documentation)."""
 
 from ._design._optimal import (
     criterion as criterion,

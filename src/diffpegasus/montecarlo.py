@@ -1,5 +1,5 @@
-"""Monte Carlo comparison of LSE, NN+LSE and OEM (see the README, "Monte Carlo
-comparison")."""
+"""Monte Carlo comparison of LSE, NN+LSE and OEM (see the
+thesis-reproduction tutorial in the documentation)."""
 
 from ._campaign._montecarlo import (
     Campaign as Campaign,

@@ -132,9 +132,9 @@ def _nn_chunk(net, channels, layout):
     return jax.vmap(one)(channels)
 
 
-def _oem_chunk(setups):
+def _oem_chunk(setups, max_iter: int = 30):
     def one(s):
-        fit = s.fit()
+        fit = s.fit(max_iter=max_iter)
         values, sd, ok, flags = windowed_lift_drag(fit, s.alpha, "body")
         return values, sd, ok, flags["converged"][0], flags["iterations"][0]
 
@@ -305,7 +305,9 @@ def run_campaign(
                 setups.append(setup)
             stacked = jax.tree_util.tree_map(lambda *x: jnp.stack(x), *setups)
             v, sd, ok, conv, its = jax.block_until_ready(
-                map_over_devices(_oem_chunk, stacked)
+                map_over_devices(
+                    functools.partial(_oem_chunk, max_iter=campaign.max_iter), stacked
+                )
             )
             finish("oem", c, t0, v, sd, ok, converged=conv, iterations=its, **common)
         if group.count > 1:

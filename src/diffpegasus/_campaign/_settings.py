@@ -32,7 +32,7 @@ THESIS_STD = {
     "nn": (3.74e-6, 6.93e-7, 5.06e-6, 1.49e-6, 2.23e-5, 3.75e-6),
     "oem": (1.55e-6, 7.28e-7, 6.10e-7, 3.07e-7, 1.45e-6, 2.36e-7),
 }
-# Thesis run times per 100 flights, s (section 6.3 / SPEC section 4).
+# Thesis run times per 100 flights, s (the thesis's section 6.3).
 THESIS_SECONDS = {"lse": 360.0, "nn": 720.0, "nn_training": 3600.0, "oem": 131_400.0}
 
 
@@ -43,7 +43,8 @@ class Campaign:
     **Fields:** `samples` flights; `methods`; `seed`; `batch` flights per chunk (a
     multiple of the device count to shard); flight `t_final` (s) and `sample_rate`
     (Hz); OEM `decimate`, `window` and `node_interval` (s); `ignition` (s, windows
-    before it do not count); `nn_epochs` for training the network.
+    before it do not count); `nn_epochs` for training the network; `max_iter`,
+    the iteration bound of each OEM fit.
     """
 
     samples: int = 100
@@ -58,6 +59,7 @@ class Campaign:
     ignition: float = 5.0
     min_qbar: float = 2000.0
     nn_epochs: int = 1000
+    max_iter: int = 30
 
     def __post_init__(self):
         unknown = [m for m in self.methods if m not in METHODS]

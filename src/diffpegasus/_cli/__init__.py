@@ -17,6 +17,41 @@ from . import (  # noqa: F401 (registers)
 from ._common import _os_error, app
 
 
+# `diffpegasus --help` lists the panels in the order their first command comes,
+# and the commands in this order inside each; commands not named here (and their
+# panels) follow in the order they were registered.
+_ORDER = (
+    "demo",
+    "fit",
+    "compare",
+    "diagnose",
+    "replay",
+    "rocket",
+    "check",
+    "simulate",
+    "estimate",
+    "montecarlo",
+    "design-input",
+    "vehicles",
+    "effects",
+)
+
+
+def _rank(info) -> int:
+    name = info.name or info.callback.__name__.replace("_", "-")
+    return _ORDER.index(name) if name in _ORDER else len(_ORDER)
+
+
+# commands whose module names no panel: the panel they belong in
+_PANELS = {"replay": "Fit and diagnose", "rocket": "Fit and diagnose"}
+
+app.registered_commands.sort(key=_rank)
+for _info in [*app.registered_commands, *app.registered_groups]:
+    _name = _info.name or (_info.callback and _info.callback.__name__)
+    if not isinstance(_info.rich_help_panel, str) and _name in _PANELS:
+        _info.rich_help_panel = _PANELS[_name]
+
+
 def main() -> None:
     """Entry point of the `diffpegasus` script."""
     import os

@@ -12,45 +12,78 @@ from ._common import (
     app,
     at_least_one,
     finite,
+    FIT,
+    OUTPUT,
     positive,
 )
 
 
-@app.command()
+THESIS_PANEL = "Pegasus thesis reproduction"
+RUN = "Processes and hosts"
+SIM = "Simulation"
+
+
+@app.command(rich_help_panel=THESIS_PANEL)
 def montecarlo(
     samples: Annotated[
-        int, typer.Option(help="Number of perturbed flights", callback=at_least_one)
+        int,
+        typer.Option(
+            help="Number of perturbed flights",
+            callback=at_least_one,
+            rich_help_panel=SIM,
+        ),
     ] = 100,
     methods: Annotated[
-        str, typer.Option(help="Comma-separated subset of lse,nn,oem")
+        str,
+        typer.Option(help="Comma-separated subset of lse,nn,oem", rich_help_panel=FIT),
     ] = "lse,nn,oem",
-    seed: Annotated[int, typer.Option(help="Seed of the draws")] = 0,
+    seed: Annotated[
+        int, typer.Option(help="Seed of the draws", rich_help_panel=SIM)
+    ] = 0,
     out: Annotated[
-        pathlib.Path, typer.Option(help="Results folder (a rerun resumes it)")
+        pathlib.Path,
+        typer.Option(
+            help="Results folder (a rerun resumes it)", rich_help_panel=OUTPUT
+        ),
     ] = pathlib.Path("montecarlo"),
     batch: Annotated[
         int,
         typer.Option(
-            help="Flights per chunk (sharded over the cores)", callback=at_least_one
+            help="Flights per chunk (sharded over the cores)",
+            callback=at_least_one,
+            rich_help_panel=RUN,
         ),
     ] = 10,
     duration: Annotated[
-        float, typer.Option(help="Flight length, s", callback=positive)
+        float,
+        typer.Option(help="Flight length, s", callback=positive, rich_help_panel=SIM),
     ] = 80.3,
     sample_rate: Annotated[
-        float, typer.Option(help="Log rate, Hz", callback=positive)
+        float, typer.Option(help="Log rate, Hz", callback=positive, rich_help_panel=SIM)
     ] = 1000.0,
     nn_epochs: Annotated[
         int,
         typer.Option(
-            help="Maximum training epochs of the network", callback=at_least_one
+            help="Maximum training epochs of the network",
+            callback=at_least_one,
+            rich_help_panel=FIT,
         ),
     ] = 1000,
+    max_iter: Annotated[
+        int,
+        typer.Option(
+            help="Iteration bound of each flight's OEM fit (windows of a fit that "
+            "stops short count as not converged)",
+            callback=at_least_one,
+            rich_help_panel=FIT,
+        ),
+    ] = 30,
     processes: Annotated[
         int,
         typer.Option(
             help="Run the campaign in N processes on this machine (the cores "
-            "shared out among them), coordinated by jax.distributed on 127.0.0.1"
+            "shared out among them), coordinated by jax.distributed on 127.0.0.1",
+            rich_help_panel=RUN,
         ),
     ] = 1,
     coordinator: Annotated[
@@ -58,22 +91,31 @@ def montecarlo(
         typer.Option(
             help="Several hosts: HOST:PORT of process 0's coordination service (the "
             "same on every host), with --num-processes and --process-id; `auto` to "
-            "take all three from SLURM, Open MPI, ... (jax.distributed.initialize)"
+            "take all three from SLURM, Open MPI, ... (jax.distributed.initialize)",
+            rich_help_panel=RUN,
         ),
     ] = None,
     num_processes: Annotated[
-        int | None, typer.Option(help="Several hosts: how many processes in all")
+        int | None,
+        typer.Option(
+            help="Several hosts: how many processes in all", rich_help_panel=RUN
+        ),
     ] = None,
     process_id: Annotated[
-        int | None, typer.Option(help="Several hosts: this process's index, 0..N-1")
+        int | None,
+        typer.Option(
+            help="Several hosts: this process's index, 0..N-1", rich_help_panel=RUN
+        ),
     ] = None,
 ):
-    """Monte Carlo comparison of LSE, NN+LSE and OEM on perturbed flights (thesis
-    chapter 6): per-flight MSE, tables beside the thesis, box plots, coverage and
-    wall times in --out. Interrupted runs resume without recomputing; damaged chunk
-    files are reported and computed again. With --processes, or --coordinator on
-    several hosts, the processes share the chunks out and process 0 writes the
-    summary."""
+    """Monte Carlo comparison of LSE, NN+LSE and OEM on perturbed Pegasus flights.
+
+    The thesis's chapter 6: per-flight MSE, tables beside the thesis, box plots,
+    coverage and wall times in `--out`. Interrupted runs resume without
+    recomputing; damaged chunk files are reported and computed again. With
+    `--processes`, or `--coordinator` on several hosts, the processes share the
+    chunks out and process 0 writes the summary.
+    """
     import os
 
     from .._campaign._distributed import launch_local, start_distributed
@@ -92,6 +134,7 @@ def montecarlo(
             f"--duration={duration!r}",
             f"--sample-rate={sample_rate!r}",
             f"--nn-epochs={nn_epochs}",
+            f"--max-iter={max_iter}",
         ]
         try:
             launch_local(["montecarlo", *args], processes)
@@ -133,6 +176,7 @@ def montecarlo(
                 sample_rate=sample_rate,
                 decimate=max(1, int(round(sample_rate / 200.0))),
                 nn_epochs=nn_epochs,
+                max_iter=max_iter,
             )
             summary = run_campaign(campaign, out)
         except (ValueError, OSError) as e:
@@ -149,10 +193,13 @@ def montecarlo(
     )
 
 
-@app.command("design-input")
+@app.command("design-input", rich_help_panel=THESIS_PANEL)
 def design_input(
     criterion: Annotated[
-        str, typer.Option(help="D (log det) or A (trace) of the relative CRB")
+        str,
+        typer.Option(
+            help="D (log det) or A (trace) of the relative CRB", rich_help_panel=FIT
+        ),
     ] = "D",
     max_deflection: Annotated[
         float, typer.Option(help="Peak excitation, deg", callback=positive)
@@ -174,15 +221,22 @@ def design_input(
         float, typer.Option(help="Segment length, s", callback=positive)
     ] = 5.0,
     steps: Annotated[
-        int, typer.Option(help="Optimiser steps", callback=at_least_one)
+        int,
+        typer.Option(
+            help="Optimiser steps", callback=at_least_one, rich_help_panel=FIT
+        ),
     ] = 150,
-    out: Annotated[pathlib.Path, typer.Option(help="Folder for the results")] = (
-        pathlib.Path("design")
-    ),
+    out: Annotated[
+        pathlib.Path,
+        typer.Option(help="Folder for the results", rich_help_panel=OUTPUT),
+    ] = pathlib.Path("design"),
 ):
-    """Optimise the elevator excitation for the OEM (Cramér-Rao criterion through
-    the differentiable model) and compare it with hand-picked inputs under the same
-    limits: design.json, design_inputs.png, design_stderr.png."""
+    """Design the Pegasus elevator excitation that identifies the derivatives best.
+
+    Optimises the excitation for the OEM (Cramér-Rao criterion through the
+    differentiable model) and compares it with hand-picked inputs under the same
+    limits: design.json, design_inputs.png, design_stderr.png.
+    """
     import numpy as np
 
     from .._design._optimal import Limits, pegasus_design, run_design
@@ -205,6 +259,9 @@ def design_input(
     plot_design(design, result, out)
     report = _design_report(result, criterion, limits, (start, start + length))
     write_text(out / "design.json", json.dumps(report, indent=2))
+    from .._report._markdown import write_index
+
+    write_index(out, "input design")
     typer.echo(
         f"predicted standard errors, 1/deg (criterion {criterion}, lower is better):"
     )
@@ -214,7 +271,9 @@ def design_input(
             f"  {name:10s}  "
             + "".join(f"{row['stderr_per_deg'][n]:10.2e}" for n in DERIVATIVE_NAMES)
         )
-    typer.echo(f"wrote design.json, design_inputs.png, design_stderr.png in {out}")
+    typer.echo(
+        f"wrote design.json, design_inputs.png, design_stderr.png, index.md in {out}"
+    )
 
 
 def _design_report(result, criterion, limits, segment) -> dict:

@@ -47,10 +47,13 @@ def _main(
 
 
 estimate_app = typer.Typer(
-    help="Estimate the six derivatives per window from a flight log.",
+    help="Per-window derivatives of a Pegasus log (lse, oem, nn).",
     no_args_is_help=True,
+    rich_markup_mode="markdown",
 )
-app.add_typer(estimate_app, name="estimate")
+app.add_typer(
+    estimate_app, name="estimate", rich_help_panel="Pegasus thesis reproduction"
+)
 
 
 def _fail(message: str) -> None:
@@ -186,9 +189,25 @@ def _check_units(units: str) -> None:
         _fail(f"--units must be deg or rad, got {units!r}")
 
 
+# Panels of `--help`: options grouped by what they say (the same panel names in
+# every command).
+MODEL = "Model"
+TUNING = "Model tuning (vehicles that take them)"
+DATA = "Data"
+FIT = "Fit"
+OUTPUT = "Output"
+
 # Options shared by the `estimate` commands.
-UnitsOption = Annotated[str, typer.Option(help="deg or rad")]
-OutOption = Annotated[pathlib.Path | None, typer.Option(help="Folder for CSV and PNG")]
+UnitsOption = Annotated[
+    str,
+    typer.Option(
+        help="Units of the printed derivatives: deg or rad", rich_help_panel=OUTPUT
+    ),
+]
+OutOption = Annotated[
+    pathlib.Path | None,
+    typer.Option(help="Folder for the CSV, PNG and index.md", rich_help_panel=OUTPUT),
+]
 
 
 def json_mode(ctx: typer.Context, param: typer.CallbackParam, value: bool):
@@ -210,14 +229,31 @@ def json_mode(ctx: typer.Context, param: typer.CallbackParam, value: bool):
 _JSON_STDOUT: list = []
 JsonOption = Annotated[
     bool,
-    typer.Option("--json", help="Print one JSON object", callback=json_mode),
+    typer.Option(
+        "--json",
+        help="Print one JSON object on stdout (progress goes to stderr)",
+        callback=json_mode,
+        rich_help_panel=OUTPUT,
+    ),
 ]
-ResampleOption = Annotated[bool, typer.Option(help="Resample a non-uniform log")]
+ResampleOption = Annotated[
+    bool,
+    typer.Option(
+        help="Resample a log whose time steps are not uniform", rich_help_panel=DATA
+    ),
+]
+ReportOption = Annotated[
+    pathlib.Path | None,
+    typer.Option(
+        help="Folder for the report (markdown, PNGs, index.md)", rich_help_panel=OUTPUT
+    ),
+]
 VehicleOption = Annotated[
     str,
     typer.Option(
         help="Built-in vehicle (see `diffpegasus vehicles`) or a FILE.py",
         callback=model_or_vehicle,
+        rich_help_panel=MODEL,
     ),
 ]
 EstimateVehicleOption = Annotated[
@@ -226,24 +262,31 @@ EstimateVehicleOption = Annotated[
         "--vehicle",
         help="Vehicle whose reference area and length scale the coefficients "
         "(built-in name or a FILE.py defining `vehicle`)",
+        rich_help_panel=MODEL,
     ),
 ]
 ModelOption = Annotated[
     pathlib.Path | None,
     typer.Option(
-        help="Model-definition file (Python; see the README)",
+        help="Model file (Python defining `model`, and optionally `columns`, "
+        "`read`, `candidates`; see the model-file tutorial)",
         callback=model_or_vehicle,
+        rich_help_panel=MODEL,
     ),
 ]
 ColumnsOption = Annotated[
     pathlib.Path | None,
-    typer.Option(help="Column map (JSON or TOML): channel -> column, unit, scale"),
+    typer.Option(
+        help="Column map (JSON or TOML): channel -> column, unit, scale",
+        rich_help_panel=DATA,
+    ),
 ]
 FixOption = Annotated[
     list[str] | None,
     typer.Option(
         help="Hold a parameter: NAME=VALUE, or NAME at its start value",
         callback=holds,
+        rich_help_panel=FIT,
     ),
 ]
 
@@ -255,6 +298,7 @@ KnotsOption = Annotated[
     typer.Option(
         help="Mach spline functions per coefficient term (pegasus: 6)",
         callback=at_least_one,
+        rich_help_panel=TUNING,
     ),
 ]
 AlphaOrderOption = Annotated[
@@ -262,15 +306,24 @@ AlphaOrderOption = Annotated[
     typer.Option(
         help="Highest power of alpha in the baseline coefficients (pegasus: 3)",
         callback=at_least_one,
+        rich_help_panel=TUNING,
     ),
 ]
 RateOption = Annotated[
     float | None,
-    typer.Option(help="Model sample rate, Hz (pegasus: 50)", callback=positive),
+    typer.Option(
+        help="Model sample rate, Hz (pegasus: 50)",
+        callback=positive,
+        rich_help_panel=TUNING,
+    ),
 ]
 NodeOption = Annotated[
     float | None,
-    typer.Option(help="Shooting nodes every S s (pegasus: 1)", callback=positive),
+    typer.Option(
+        help="Shooting nodes every S s (pegasus: 1)",
+        callback=positive,
+        rich_help_panel=TUNING,
+    ),
 ]
 MaxIterOption = Annotated[
     int | None,
@@ -278,18 +331,25 @@ MaxIterOption = Annotated[
         help="Iteration bound of the fit (default: iterate until the cost settles, "
         "up to 500; a fit that stops short says why)",
         callback=at_least_one,
+        rich_help_panel=FIT,
     ),
 ]
 AddOption = Annotated[
     list[str] | None,
-    typer.Option("--add", help="Effect to estimate (repeatable), e.g. pitch_damping"),
+    typer.Option(
+        "--add",
+        help="Library effect to estimate with the model (repeatable), e.g. "
+        "pitch_damping; see `diffpegasus effects`",
+        rich_help_panel=MODEL,
+    ),
 ]
 MethodOption = Annotated[
     str,
     typer.Option(
         help="oem (output error), fem (filter error: process noise such as "
         "turbulence, estimated with the parameters; --vehicle/--model only), eqe "
-        "(equation error, `fit` only) or another registered estimator"
+        "(equation error, `fit` only) or another registered estimator",
+        rich_help_panel=FIT,
     ),
 ]
 ProcessNoiseOption = Annotated[
@@ -300,6 +360,7 @@ ProcessNoiseOption = Annotated[
         "file's process_noise (hfb320: V, alpha, theta, q from FVSysID's starts), "
         "else every state",
         callback=holds,
+        rich_help_panel=FIT,
     ),
 ]
 

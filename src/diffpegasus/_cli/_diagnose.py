@@ -20,6 +20,7 @@ from ._common import (
     AlphaOrderOption,
     app,
     ColumnsOption,
+    FIT,
     FIT_FAILED,
     FixOption,
     JsonOption,
@@ -30,15 +31,16 @@ from ._common import (
     NodeOption,
     ProcessNoiseOption,
     RateOption,
+    ReportOption,
     ResampleOption,
     VehicleOption,
 )
-from ._fit import _fit_model
+from ._fit import _fit_model, FIT_PANEL
 
 
-@app.command()
+@app.command(rich_help_panel=FIT_PANEL)
 def compare(
-    log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    log: Annotated[pathlib.Path, typer.Argument(help="Flight log file")],
     vehicle: VehicleOption = "pegasus",
     model: ModelOption = None,
     columns: ColumnsOption = None,
@@ -47,19 +49,20 @@ def compare(
     alpha_order: AlphaOrderOption = None,
     rate: RateOption = None,
     node_interval: NodeOption = None,
-    out: Annotated[
-        pathlib.Path | None, typer.Option(help="Folder for the report")
-    ] = None,
+    out: ReportOption = None,
     as_json: JsonOption = False,
     resample: ResampleOption = False,
     method: MethodOption = "oem",
     process_noise: ProcessNoiseOption = None,
     max_iter: MaxIterOption = None,
 ):
-    """Fit the vehicle's model by output error and show where it fails:
-    per-channel metrics, whiteness, misfit by flight regime, fitted derivatives
-    with standard errors (or, with --method fem, by filter error: process noise
-    such as turbulence, with per-channel metrics of the filter's innovations)."""
+    """Fit the model to one log and show where it fails.
+
+    Output error by default: per-channel metrics, whiteness of the residuals,
+    misfit by flight regime, fitted derivatives with standard errors. With
+    `--method fem` (filter error: process noise such as turbulence), per-channel
+    metrics of the filter's innovations.
+    """
     entry = _entry(
         vehicle,
         model,
@@ -116,18 +119,20 @@ def _print_compare(result):
         "iterations)"
     )
     typer.echo(
-        f"{'channel':>8s} {'rms':>10s} {'TIC':>7s} {'R^2':>8s} {'rms/noise':>9s} {'white p':>8s}"
+        f"{'channel':>8s} {'unit':>8s} {'rms':>10s} {'TIC':>7s} {'R^2':>8s} "
+        f"{'rms/noise':>9s} {'white p':>8s}"
     )
+    units = result.get("display_units", {})
     for name, m in result["channels"].items():
+        unit, k = units.get(name, ("SI", 1.0))
         typer.echo(
-            f"{name:>8s} {m['rms']:10.3g} {m['tic']:7.3f} {m['r2']:8.4f} "
-            f"{m['misfit_ratio']:9.2f} {m['ljung_box_p']:8.2g}"
+            f"{name:>8s} {unit:>8s} {k * m['rms']:10.3g} {m['tic']:7.3f} "
+            f"{m['r2']:8.4f} {m['misfit_ratio']:9.2f} {m['ljung_box_p']:8.2g}"
         )
+    from .._report._runs import worst_place
+
     for w in result["localise"]["worst"][:3]:
-        typer.echo(
-            f"worst: {w['channel']} {w['misfit_ratio']:.1f} x noise for {w['variable']} "
-            f"in [{w['low']:.3g}, {w['high']:.3g}]"
-        )
+        typer.echo(f"worst: {worst_place(w)}")
 
 
 def _print_ranking(report):
@@ -152,7 +157,7 @@ def _print_ranking(report):
 
 def _write_diagnosis(report: dict, out: pathlib.Path, name: str) -> None:
     from .._report._discrepancy_plots import plot_ranking
-    from .._report._markdown import ranking_table, write_report
+    from .._report._markdown import ranking_table, write_index, write_report
 
     out.mkdir(parents=True, exist_ok=True)
     plot_ranking(report, out / "diagnose.png")
@@ -164,12 +169,13 @@ def _write_diagnosis(report: dict, out: pathlib.Path, name: str) -> None:
             ("Ranking", ranking_table(report) + "\n\n![ranking](diagnose.png)"),
         ],
     )
-    typer.echo(f"wrote {out / 'diagnose.md'} and diagnose.png", err=True)
+    write_index(out)
+    typer.echo(f"wrote {out / 'diagnose.md'}, diagnose.png and index.md", err=True)
 
 
-@app.command()
+@app.command(rich_help_panel=FIT_PANEL)
 def diagnose(
-    log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    log: Annotated[pathlib.Path, typer.Argument(help="Flight log file")],
     vehicle: VehicleOption = "pegasus",
     model: ModelOption = None,
     columns: ColumnsOption = None,
@@ -179,9 +185,7 @@ def diagnose(
     alpha_order: AlphaOrderOption = None,
     rate: RateOption = None,
     node_interval: NodeOption = None,
-    out: Annotated[
-        pathlib.Path | None, typer.Option(help="Folder for the report")
-    ] = None,
+    out: ReportOption = None,
     as_json: JsonOption = False,
     resample: ResampleOption = False,
     process_noise: Annotated[
@@ -189,16 +193,20 @@ def diagnose(
         typer.Option(
             help="Score process noise (turbulence) on this state too (repeatable; "
             "default the vehicle's or model file's process_noise, hfb320: V, "
-            "alpha, theta, q; `none` skips it)"
+            "alpha, theta, q; `none` skips it)",
+            rich_help_panel=FIT,
         ),
     ] = None,
     max_iter: MaxIterOption = None,
 ):
-    """Rank the vehicle's candidate effects by how much of the misfit each would
-    explain (score test with exact Jacobians); say when none is significant.
-    With process noise declared, process noise (turbulence) is a candidate too:
-    the filter-error fit's likelihood ratio, and every effect tested again at
-    that fit (a term missing even under process noise ranks first)."""
+    """Rank the effects the model may be missing, or say that none is.
+
+    Each candidate effect of the vehicle (or model file) is scored by how much of
+    the misfit it would explain (score test with exact Jacobians). With process
+    noise declared, process noise (turbulence) is a candidate too: the
+    filter-error fit's likelihood ratio, and every effect tested again at that fit
+    (a term missing even under process noise ranks first).
+    """
     from ._fem import diagnosis_states, process_noise_diagnosis
     from ._runners import run_model_diagnose
 

@@ -13,12 +13,16 @@ from ._common import (
     _json_out,
     _os_error,
     at_least_one,
+    DATA,
     estimate_app,
     EstimateVehicleOption,
     finite,
+    FIT,
     FIT_FAILED,
     JsonOption,
+    MODEL,
     OutOption,
+    OUTPUT,
     positive,
     ResampleOption,
     UnitsOption,
@@ -83,9 +87,14 @@ def _emit_estimates(est, out: pathlib.Path | None, as_json: bool, units: str) ->
             out.mkdir(parents=True, exist_ok=True)
             est.write_csv(out / f"{est.method}_estimates.csv", units)
             plot_estimates(est, out / f"{est.method}_estimates.png", units)
+            from .._report._markdown import write_index
+
+            write_index(out)
         except OSError as e:
             _fail(_os_error(e))
-        typer.echo(f"wrote {out / f'{est.method}_estimates.csv'} and .png", err=True)
+        typer.echo(
+            f"wrote {out / f'{est.method}_estimates.csv'}, .png and index.md", err=True
+        )
     if as_json:
         _json_out(d)
     else:
@@ -114,23 +123,39 @@ def _print_estimates(est, d: dict, units: str, failed: bool) -> None:
 
 @estimate_app.command("lse")
 def estimate_lse_command(
-    log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    log: Annotated[
+        pathlib.Path,
+        typer.Argument(help="Pegasus flight log CSV (as `simulate` writes)"),
+    ],
     vehicle: EstimateVehicleOption = "pegasus",
     window: Annotated[
-        float, typer.Option(help="Window length, s", callback=positive)
+        float,
+        typer.Option(help="Window length, s", callback=positive, rich_help_panel=FIT),
     ] = 0.5,
     intercept: Annotated[
-        bool, typer.Option(help="Also estimate CL0, CD0, CM0 per window")
+        bool,
+        typer.Option(
+            help="Also estimate CL0, CD0, CM0 per window", rich_help_panel=FIT
+        ),
     ] = False,
     tol: Annotated[
-        float, typer.Option(help="Rank tolerance for A and A^T A", callback=positive)
+        float,
+        typer.Option(
+            help="Rank tolerance for A and A^T A",
+            callback=positive,
+            rich_help_panel=FIT,
+        ),
     ] = 1e-2,
     units: UnitsOption = "deg",
     out: OutOption = None,
     as_json: JsonOption = False,
     resample: ResampleOption = False,
 ):
-    """Windowed equation-error least squares (thesis chapter 3)."""
+    """Per-window least squares on a Pegasus log (thesis chapter 3).
+
+    Equation error: each window's coefficients regressed on alpha and the
+    elevator, the reference geometry from `--vehicle`.
+    """
     from .._estimate import estimate_lse
     from .._log._format import read_log
 
@@ -146,27 +171,43 @@ def estimate_lse_command(
 
 @estimate_app.command("oem")
 def estimate_oem_command(
-    log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    log: Annotated[
+        pathlib.Path,
+        typer.Argument(help="Pegasus flight log CSV (as `simulate` writes)"),
+    ],
     vehicle: EstimateVehicleOption = "pegasus",
-    shooting: Annotated[str, typer.Option(help="single or multiple")] = "multiple",
+    shooting: Annotated[
+        str, typer.Option(help="single or multiple", rich_help_panel=FIT)
+    ] = "multiple",
     window: Annotated[
-        float, typer.Option(help="Parameter window, s", callback=positive)
+        float,
+        typer.Option(
+            help="Parameter window, s", callback=positive, rich_help_panel=FIT
+        ),
     ] = 0.5,
     node_interval: Annotated[
-        float, typer.Option(help="Shooting nodes every S s", callback=positive)
+        float,
+        typer.Option(
+            help="Shooting nodes every S s", callback=positive, rich_help_panel=FIT
+        ),
     ] = 2.0,
     decimate: Annotated[
         int,
         typer.Option(
             help="Fit at 1/n of the log rate (means of n samples)",
             callback=at_least_one,
+            rich_help_panel=DATA,
         ),
     ] = 5,
     start: Annotated[
-        str, typer.Option(help="Starting values: lse, database or truth10")
+        str,
+        typer.Option(
+            help="Starting values: lse, database or truth10", rich_help_panel=FIT
+        ),
     ] = "lse",
     axes: Annotated[
-        str, typer.Option(help="Estimate body or wind derivatives")
+        str,
+        typer.Option(help="Estimate body or wind derivatives", rich_help_panel=MODEL),
     ] = "body",
     parameters: Annotated[
         str,
@@ -176,7 +217,8 @@ def estimate_oem_command(
             "derivatives change inside it (with time and alpha); hybrid: "
             "those terms for the force derivatives in alpha only (CXa, CZa per "
             "window), the others linear; constant per window (the thesis's "
-            "model); multiple shooting only"
+            "model); multiple shooting only",
+            rich_help_panel=MODEL,
         ),
     ] = "hybrid",
     min_qbar: Annotated[
@@ -184,18 +226,31 @@ def estimate_oem_command(
         typer.Option(
             help="Windows below this mean dynamic pressure (Pa) are not fitted",
             callback=finite,
+            rich_help_panel=DATA,
         ),
     ] = 2000.0,
+    max_iter: Annotated[
+        int,
+        typer.Option(
+            help="Iteration bound of each fit (a window that stops short is flagged "
+            "as not converged and gets no estimate)",
+            callback=at_least_one,
+            rich_help_panel=FIT,
+        ),
+    ] = 30,
     units: UnitsOption = "deg",
     out: OutOption = None,
     as_json: JsonOption = False,
     resample: ResampleOption = False,
 ):
-    """Output-error maximum likelihood, single or multiple shooting (thesis ch. 5).
-    Output error only: per-window derivatives on multiple-shooting segments have no
-    filter-error counterpart here (the filter runs through a whole record from a
-    held initial state); for logs flown through turbulence use `fit --method fem
-    --vehicle NAME` or `--model FILE`."""
+    """Per-window output-error fit of a Pegasus log (thesis chapter 5).
+
+    Maximum likelihood by single or multiple shooting. Output error only:
+    per-window derivatives on multiple-shooting segments have no filter-error
+    counterpart here (the filter runs through a whole record from a held initial
+    state); for logs flown through turbulence use `fit --method fem --vehicle NAME`
+    or `--model FILE`.
+    """
     from .._estimate import estimate_oem
     from .._estimate._pegasus_oem import PARAMETERS
     from .._log._format import read_log
@@ -223,6 +278,7 @@ def estimate_oem_command(
             axes=axes,
             parameters=parameters,
             min_qbar=min_qbar,
+            max_iter=max_iter,
         )
     except (LogError, ValueError) as e:
         _fail(str(e))
@@ -252,48 +308,84 @@ def _default_training_logs():
 
 @estimate_app.command("nn")
 def estimate_nn_command(
-    log: Annotated[pathlib.Path, typer.Argument(help="Flight log CSV")],
+    log: Annotated[
+        pathlib.Path,
+        typer.Argument(help="Pegasus flight log CSV (as `simulate` writes)"),
+    ],
     vehicle: EstimateVehicleOption = "pegasus",
-    model: Annotated[
+    network: Annotated[
         pathlib.Path | None,
         typer.Option(
-            help="Trained network (.eqx); trained on three simulated flights if omitted"
+            help="Trained network (.eqx); trained on three simulated flights if omitted",
+            rich_help_panel=MODEL,
         ),
     ] = None,
-    save_model: Annotated[
-        pathlib.Path | None, typer.Option(help="Where to save a newly trained network")
+    save_network: Annotated[
+        pathlib.Path | None,
+        typer.Option(
+            help="Where to save a newly trained network (.eqx)", rich_help_panel=OUTPUT
+        ),
     ] = None,
-    derivatives: Annotated[str, typer.Option(help="lse or central")] = "lse",
+    old_model: Annotated[
+        pathlib.Path | None, typer.Option("--model", hidden=True)
+    ] = None,
+    old_save_model: Annotated[
+        pathlib.Path | None, typer.Option("--save-model", hidden=True)
+    ] = None,
+    derivatives: Annotated[
+        str, typer.Option(help="lse or central", rich_help_panel=FIT)
+    ] = "lse",
     window: Annotated[
-        float, typer.Option(help="Window length, s", callback=positive)
+        float,
+        typer.Option(help="Window length, s", callback=positive, rich_help_panel=FIT),
     ] = 0.5,
     units: UnitsOption = "deg",
     out: OutOption = None,
     as_json: JsonOption = False,
     resample: ResampleOption = False,
 ):
-    """Neural model plus least squares (thesis chapter 4)."""
+    """Neural model plus least squares on a Pegasus log (thesis chapter 4).
+
+    A network learns the coefficients from the flight condition; each window's
+    derivatives are then fitted to it. `--model`/`--save-model` are the former
+    names of `--network`/`--save-network` (kept for one release).
+    """
     import jax
 
-    from .._estimate import estimate_nn, load_network, save_network, train_network
+    from .._estimate import (
+        estimate_nn,
+        load_network,
+        save_network as save_network_file,
+        train_network,
+    )
     from .._log._format import read_log
 
+    if old_model is not None:
+        if network is not None:
+            _fail("--model is the former name of --network: give one")
+        typer.echo("note: --model is now --network", err=True)
+        network = old_model
+    if old_save_model is not None:
+        if save_network is not None:
+            _fail("--save-model is the former name of --save-network: give one")
+        typer.echo("note: --save-model is now --save-network", err=True)
+        save_network = old_save_model
     _check_units(units)
     _check_out(out, "folder")
     try:
         flight = with_vehicle(read_log(log, resample=resample), vehicle)
-        if model is None:
+        if network is None:
             typer.echo(
-                "no --model given: training a network on three simulated flights "
+                "no --network given: training a network on three simulated flights "
                 "(pulse, 3-2-1-1, multisine); this takes a few minutes",
                 err=True,
             )
             net, _ = train_network(_default_training_logs(), jax.random.key(0))
-            if save_model is not None:
-                save_network(save_model, net)
-                typer.echo(f"saved the network to {save_model}", err=True)
+            if save_network is not None:
+                save_network_file(save_network, net)
+                typer.echo(f"saved the network to {save_network}", err=True)
         else:
-            net = load_network(model)
+            net = load_network(network)
         est = estimate_nn(flight, net, window=window, derivatives=derivatives)
     except (LogError, ValueError, OSError) as e:
         _fail(str(e))

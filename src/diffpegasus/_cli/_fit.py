@@ -20,6 +20,7 @@ from ._common import (
     app,
     assignments,
     ColumnsOption,
+    FIT,
     FIT_FAILED,
     FixOption,
     JsonOption,
@@ -28,12 +29,18 @@ from ._common import (
     MethodOption,
     ModelOption,
     NodeOption,
+    OUTPUT,
+    parse_assignment_text,
     positive,
     ProcessNoiseOption,
     RateOption,
+    ReportOption,
     ResampleOption,
     VehicleOption,
 )
+
+
+FIT_PANEL = "Fit and diagnose"
 
 
 def _fit_model(
@@ -212,7 +219,7 @@ def _format_registered(report: dict) -> str:
     return "\n".join(lines)
 
 
-@app.command()
+@app.command(rich_help_panel="Reference")
 def vehicles(as_json: JsonOption = False):
     """List the built-in vehicles (use with --vehicle)."""
     from .._registry import vehicle_descriptions
@@ -225,7 +232,7 @@ def vehicles(as_json: JsonOption = False):
         typer.echo(f"{name:15s} {text}")
 
 
-@app.command()
+@app.command(rich_help_panel=FIT_PANEL)
 def fit(
     logs: Annotated[
         list[pathlib.Path],
@@ -237,15 +244,21 @@ def fit(
     fix: FixOption = None,
     bias: Annotated[
         list[str] | None,
-        typer.Option(help="Estimate a per-record bias on this output (repeatable)"),
+        typer.Option(
+            help="Estimate a per-record bias on this output (repeatable)",
+            rich_help_panel=FIT,
+        ),
     ] = None,
     initial_state: Annotated[
-        str | None, typer.Option(help="fixed or estimated (per record)")
+        str | None,
+        typer.Option(help="fixed or estimated (per record)", rich_help_panel=FIT),
     ] = None,
     shooting_interval: Annotated[
         float | None,
         typer.Option(
-            help="Multiple shooting with a node every this many s", callback=positive
+            help="Multiple shooting with a node every this many s",
+            callback=positive,
+            rich_help_panel=FIT,
         ),
     ] = None,
     add: AddOption = None,
@@ -253,21 +266,22 @@ def fit(
     alpha_order: AlphaOrderOption = None,
     rate: RateOption = None,
     node_interval: NodeOption = None,
-    out: Annotated[
-        pathlib.Path | None, typer.Option(help="Folder for the report")
-    ] = None,
+    out: ReportOption = None,
     as_json: JsonOption = False,
     resample: ResampleOption = False,
     method: MethodOption = "oem",
     process_noise: ProcessNoiseOption = None,
     max_iter: MaxIterOption = None,
 ):
-    """Fit a vehicle's or model file's parameters to one or several logs (output
-    error: estimates, standard errors, correlations, cost; --method fem: filter
-    error, for logs flown through turbulence, with the process-noise intensities
-    and whether the filter's gain constraint binds). With --add on one log: refit
-    with the named effects added, before/after metrics and the effects' fitted
-    values with standard errors."""
+    """Fit a vehicle's or model file's parameters to flight logs.
+
+    Output error by default: estimates, standard errors, correlations, cost.
+    `--method fem` (filter error) is for logs flown through turbulence: it adds the
+    process-noise intensities and whether the filter's gain constraint binds.
+
+    With `--add` on one log: refit with the named effects added, before/after
+    metrics per channel and the effects' fitted values with standard errors.
+    """
     entry = _entry(
         vehicle,
         model,
@@ -347,26 +361,37 @@ def _print_before_after(result):
         f"({1 / result['cost_ratio']:.3g}x lower)"
     )
     typer.echo(
-        f"{'channel':>8s} {'rms before':>11s} {'rms after':>11s} {'TIC before':>11s} "
-        f"{'TIC after':>10s} {'rms/noise before':>17s} {'rms/noise after':>16s}"
+        f"{'channel':>8s} {'unit':>8s} {'rms before':>11s} {'rms after':>11s} "
+        f"{'TIC before':>11s} {'TIC after':>10s} {'rms/noise before':>17s} "
+        f"{'rms/noise after':>16s}"
     )
+    units = result.get("display_units", {})
     for name in b["channels"]:
         mb, ma = b["channels"][name], a["channels"][name]
+        unit, k = units.get(name, ("SI", 1.0))
         typer.echo(
-            f"{name:>8s} {mb['rms']:11.4g} {ma['rms']:11.4g} {mb['tic']:11.4f} "
-            f"{ma['tic']:10.4f} {mb['misfit_ratio']:17.2f} {ma['misfit_ratio']:16.2f}"
+            f"{name:>8s} {unit:>8s} {k * mb['rms']:11.4g} {k * ma['rms']:11.4g} "
+            f"{mb['tic']:11.4f} {ma['tic']:10.4f} {mb['misfit_ratio']:17.2f} "
+            f"{ma['misfit_ratio']:16.2f}"
         )
+    from .._report._units import effect_unit, with_unit
+
     for name, e in result["effects"].items():
+        unit = effect_unit(name)
         typer.echo(
-            f"{name}: {e['parameter']} = {e['estimate']:.5g} +/- {e['stderr']:.2g}"
+            f"{name}: {e['parameter']} = {with_unit(e['estimate'], unit, '.5g')} +/- "
+            f"{with_unit(e['stderr'], unit, '.2g')}"
         )
+    for u in result.get("unexplained", ()):
+        typer.echo(f"note: {u['message']}")
 
 
-@app.command()
+@app.command(rich_help_panel=FIT_PANEL)
 def demo(
-    out: Annotated[pathlib.Path, typer.Option(help="Folder for the results")] = (
-        pathlib.Path("demo")
-    ),
+    out: Annotated[
+        pathlib.Path,
+        typer.Option(help="Folder for the results", rich_help_panel=OUTPUT),
+    ] = pathlib.Path("demo"),
     hidden: Annotated[
         str,
         typer.Option(
@@ -380,9 +405,14 @@ def demo(
         typer.Option(help="Flight length, s (default: to burnout)", callback=positive),
     ] = None,
 ):
-    """The discrepancy workflow end to end: simulate a flight with a hidden effect,
-    show the model failing, diagnose, add the top effect, refit, report."""
+    """Plant an effect in a simulated Pegasus flight and find it again.
+
+    The discrepancy workflow end to end: simulate a flight with a hidden effect,
+    show the model failing, diagnose, add the top effect, refit, report the planted
+    value beside the one found. Takes a few minutes (most of it compiling).
+    """
     from .._log._format import write_log
+    from .._report._markdown import planted_versus_found
     from .._report._plotting import plot_trajectory
     from .._report._runs import run_compare, run_diagnose, run_fit
 
@@ -421,7 +451,38 @@ def demo(
     typer.echo(f"4. fit --add {top}: refitting...")
     result, _ = run_fit(entry, log, (top,), out, base)
     _print_before_after(result)
+    name, value = parse_assignment_text("--hidden", hidden, need_value=True)
+    found = planted_versus_found({name: value}, result["effects"])
+    for line in found:
+        typer.echo(line)
+    _write_summary(out, found, result)
     typer.echo(
         f"wrote {path}, trajectory.png and the reports compare.md, diagnose.md, "
-        f"fit.md (with their PNGs) in {out}"
+        f"fit.md, summary.md (with their PNGs; index.md lists them) in {out}"
     )
+
+
+def _write_summary(out: pathlib.Path, found: list[str], result: dict) -> None:
+    """The demo's outcome in one page: planted against found, what stays
+    unexplained, and the folder's index."""
+    from .._report._markdown import write_index, write_report
+
+    left = "\n".join(f"- {u['message']}" for u in result.get("unexplained", ()))
+    write_report(
+        out / "summary.md",
+        "demo: the planted effect and the one found",
+        [
+            ("Planted and found", "\n".join(f"- {line}" for line in found)),
+            (
+                "What the refit leaves unexplained",
+                left or "Every channel's residual is within twice its noise.",
+            ),
+            (
+                "Reports",
+                "[compare.md](compare.md) (the model without the effect), "
+                "[diagnose.md](diagnose.md) (which effect explains the misfit), "
+                "[fit.md](fit.md) (the refit with it).",
+            ),
+        ],
+    )
+    write_index(out, "demo: a planted effect found again")

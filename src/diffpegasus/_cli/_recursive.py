@@ -41,8 +41,10 @@ def replay_command(
     out: OutOption = None,
     as_json: JsonOption = False,
 ):
-    """Replay a log through a recursive estimator (one update per sample, as in
-    flight) and plot every estimate with its 95% band against time."""
+    """Replay a log through a recursive estimator, one update per sample.
+
+    As in flight: every estimate is plotted with its 95% band against time.
+    """
     import numpy as np
 
     _check_out(out, "folder")

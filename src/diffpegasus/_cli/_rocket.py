@@ -11,8 +11,7 @@ from ._common import _fail, app
 
 
 rocket_app = typer.Typer(
-    help="Rocket flights: identify CD(Mach) and thrust from the flight computer's "
-    "log, predict the apogee, name missing effects.",
+    help="Rocket flights: CD(Mach), thrust and apogee from a flight computer's log.",
     no_args_is_help=True,
 )
 app.add_typer(rocket_app, name="rocket")

@@ -192,9 +192,12 @@ def format_table(report: dict) -> str:
     return "\n".join(lines)
 
 
-def plot_fit(result: Fit, out: pathlib.Path) -> list[pathlib.Path]:
-    """One PNG per record: each output measured and modelled against time."""
+def plot_fit(result: Fit, out: pathlib.Path, columns=None) -> list[pathlib.Path]:
+    """One PNG per record: each output measured and modelled against time, in the
+    units of the column map `columns` where it gives them ([`channel_units`][])."""
     import matplotlib
+
+    from .._report._units import channel_units
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -202,14 +205,16 @@ def plot_fit(result: Fit, out: pathlib.Path) -> list[pathlib.Path]:
     out.mkdir(parents=True, exist_ok=True)
     paths = []
     names = result.model.outputs
+    units = channel_units(names, columns)
     for i, rec in enumerate(result.records):
         fig, axes = plt.subplots(
             len(names), 1, figsize=(9, 1.6 * len(names) + 1), sharex=True, squeeze=False
         )
         for j, (ax, name) in enumerate(zip(axes[:, 0], names, strict=True)):
-            ax.plot(rec.t, rec.measured[:, j], "k-", lw=1, label="measured")
-            ax.plot(rec.t, result.outputs[i][:, j], "r--", lw=1, label="model")
-            ax.set_ylabel(name)
+            unit, k = units[name]
+            ax.plot(rec.t, rec.measured[:, j] * k, "k-", lw=1, label="measured")
+            ax.plot(rec.t, result.outputs[i][:, j] * k, "r--", lw=1, label="model")
+            ax.set_ylabel(f"{name}, {unit}")
             ax.grid(alpha=0.3)
         axes[0, 0].legend(loc="upper right")
         axes[-1, 0].set_xlabel("time, s")
@@ -378,5 +383,8 @@ def run_model_fit(
     if result.converged:
         report["channels"] = channel_report(result)
     if out is not None:
-        report["figures"] = [str(p) for p in plot_fit(result, out)]
+        from .._report._markdown import write_index
+
+        report["figures"] = [str(p) for p in plot_fit(result, out, spec.columns)]
+        write_index(out)
     return report

@@ -22,7 +22,7 @@ linearises the whole residual function, i.e. `S nx + P + R nb` tangents through 
 segment instead of the `nx + P + nb` each segment depends on, and solves the dense
 least squares by QR of the stacked Jacobian; with the relaxation of R between steps
 it also needs an outer loop. The block form is `S` times less Jacobian work for
-multiple shooting; see the README for the measurement. The same structured step is
+multiple shooting; the documentation's speed page has the measurement. The same structured step is
 also an optimistix solver (`_solver.py`, [`BlockLevenbergMarquardt`][]): the same
 iterates through `optx.least_squares`, measured against this loop in
 `benchmarks/engine_vs_optimistix.py`.

@@ -617,7 +617,7 @@ def estimate_oem(
         values, sd, ok, flags = windowed_lift_drag(fit, setup.alpha, axes)
     else:
         body, body_sd, ok, its = _sequential_single(
-            setup.problem, setup.theta0, states[0], rtol
+            setup.problem, setup.theta0, states[0], rtol, max_iter
         )
         flags = {"converged": ok, "iterations": its}
         cov = jax.vmap(jnp.diag)(body_sd**2)  # the sequential fits give no correlation
@@ -639,7 +639,7 @@ def estimate_oem(
     )
 
 
-def _sequential_single(problem, theta0, x0, rtol):
+def _sequential_single(problem, theta0, x0, rtol, max_iter=30):
     """The thesis's single shooting: window by window (the engine, one segment), each
     window starting from the previous window's simulated end state."""
     n, length = problem.n_windows, problem.window_samples
@@ -665,7 +665,7 @@ def _sequential_single(problem, theta0, x0, rtol):
                 problem.t0 + w * length * problem.dt,
             ),
         )
-        res = fit_global_oem(sub, theta0[w], x_start[None], rtol=rtol, max_iter=30)
+        res = fit_global_oem(sub, theta0[w], x_start[None], rtol=rtol, max_iter=max_iter)
         xs, _ = _window_solve(problem, x_start, res.params, sub.t0)
         ok = res.converged & jnp.all(jnp.isfinite(xs[-1]))
         x_next = jnp.where(ok, xs[-1], x_start)

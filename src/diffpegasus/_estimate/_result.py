@@ -40,7 +40,7 @@ class Estimates(eqx.Module):
     truth: Float[Array, "windows 6"] | None = None
 
     def to_dict(self, units: str = "deg") -> dict[str, Any]:
-        """The SPEC section 3 JSON object (`None` for windows without an estimate)."""
+        """The JSON object of the estimates (`None` for windows without an estimate)."""
         scale = _scale(units)
 
         def column(a, j):

@@ -473,3 +473,42 @@ def _check_record(path, channels, model, resolved, time) -> None:
                 "its residual variance, which a constant makes zero (remove the "
                 "output from the model, or map the right column)"
             )
+
+
+def read_channels(path, columns, time: str = "t") -> dict[str, np.ndarray]:
+    """Every channel a column map names (and `time`), in SI units, with the checks
+    [`load_record`][] makes on them (cells, outliers, ranges, unit mistakes found
+    by the physics of the channels present): what `diffpegasus check --columns`
+    reads.
+
+    **Raises:** [`LogError`][] naming the file and, where they apply, the column,
+    row and value.
+    """
+    from ._checks import check_physics
+    from ._format import check_ranges
+
+    path = pathlib.Path(path)
+    columns = load_columns(columns)
+    table = open_table(path)
+    wanted = (time, *(ch for ch in columns if ch != time))
+    resolved = _resolve(table, columns, wanted)
+    data = table.read([c.column for c in resolved.values() if c.step is None])
+    n = len(next(iter(data.values()))) if data else 0
+    channels = {ch: _channel(table, data, col, n) for ch, col in resolved.items()}
+    check_ranges(
+        channels,
+        str(path),
+        {ch: c.column for ch, c in resolved.items()},
+        hint='give it "unit": "deg" in the column map',
+    )
+    try:
+        check_physics(channels, {"skip_checks": ["geometry"]}, str(path), str(path))
+    except ValueError as e:
+        message = re.sub(
+            r" \(if the data are right, add \"skip_checks\": \[\"\w+\"\] to the "
+            r"sidecar\)",
+            " (check that channel's unit and scale in the column map)",
+            str(e),
+        )
+        raise LogError(message) from None
+    return channels

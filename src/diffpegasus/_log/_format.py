@@ -476,8 +476,8 @@ def read_log(
     **Arguments:**
 
     - `path`: the CSV file.
-    - `required`: channels that must be present (default: all of SPEC section 5
-      except the `true_*` truth columns).
+    - `required`: channels that must be present (default: every channel of the
+      flight-log format except the `true_*` truth columns).
     - `min_samples`: fewest samples accepted (e.g. one estimation window).
     - `resample`: interpolate a non-uniformly sampled log onto a uniform grid (with a
       warning) instead of rejecting it.
@@ -486,7 +486,7 @@ def read_log(
       single checks off.
 
     **Returns:** a [`FlightLog`][]. Without a sidecar the Pegasus defaults apply.
-    Columns that are not channels of SPEC section 5 are kept when numeric and
+    Columns that are not channels of the format are kept when numeric and
     dropped when they hold text.
 
     **Raises:** [`LogError`][] with one line naming the file, column, row and value.

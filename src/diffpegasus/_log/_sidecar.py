@@ -1,4 +1,4 @@
-"""The sidecar's metadata: each key SPEC section 5 lists, of the right type and range,
+"""The sidecar's metadata: each key the flight-log format lists, of the right type and range,
 and numbers written as a user reads them."""
 
 import math
@@ -54,7 +54,7 @@ _SIDECAR_KEYS = {
 def check_sidecar(meta: dict[str, Any], where: str) -> None:
     """Raise `ValueError` naming the first sidecar key of the wrong type or range.
 
-    Keys not listed in SPEC section 5 are kept as they are (the writer's business).
+    Keys the format does not list are kept as they are (the writer's business).
     """
     for key, (ok, what) in _SIDECAR_KEYS.items():
         if key in meta and not ok(meta[key]):

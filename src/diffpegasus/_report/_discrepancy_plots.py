@@ -13,44 +13,73 @@ from .._diagnose._workflow import channel_noise, FlightFit  # noqa: E402
 from .._files import save_figure  # noqa: E402
 
 
-# display unit of every output channel: (label, factor from SI)
-_DISPLAY = {
-    "ax": ("ax, m/s^2", 1.0),
-    "az": ("az, m/s^2", 1.0),
-    "q": ("q, deg/s", np.rad2deg(1.0)),
-    "qdot": ("qdot, deg/s^2", np.rad2deg(1.0)),
-    "alpha": ("alpha, deg", np.rad2deg(1.0)),
-    "V": ("V, m/s", 1.0),
-    "theta": ("theta, deg", np.rad2deg(1.0)),
-    "h": ("h, km", 1e-3),
-}
+def worst_window(fit: FlightFit, length: float | None = None) -> tuple[float, float]:
+    """The stretch of the record, `(start, end)` in s, where the residuals over each
+    channel's noise are largest (mean square over the channels and the stretch);
+    `length` defaults to a tenth of the record, at least 20 samples."""
+    t = np.asarray(fit.t)
+    n = len(t)
+    dt = float(np.median(np.diff(t))) if n > 1 else 1.0
+    width = n // 10 if length is None else int(round(length / dt))
+    width = int(min(n, max(20, width)))
+    noise = np.asarray(channel_noise(fit), float)
+    noise = np.where(np.isfinite(noise) & (noise > 0), noise, 1.0)
+    z = np.mean((np.asarray(fit.residuals) / noise) ** 2, axis=1)
+    sums = np.convolve(z, np.ones(width), mode="valid")
+    i = int(np.argmax(sums)) if sums.size else 0
+    return float(t[i]), float(t[min(n - 1, i + width - 1)])
 
 
 def plot_fits(
     fits: list[tuple[str, FlightFit]], path: str | os.PathLike, title: str = ""
 ) -> None:
-    """Measured and model outputs against time (left) and the residuals (right) for
-    every channel; several fits (e.g. before and after adding an effect) overlaid."""
+    """Measured and model outputs against time over the whole record (left), the
+    residuals (middle) and a zoom on the stretch where the first fit fails most
+    (right, shaded on the others) for every channel, in the log's own units
+    ([`channel_units`][]); several fits (e.g. before and after adding an effect)
+    overlaid."""
+    from ._units import channel_units
+
     first = fits[0][1]
     t = first.t
-    OUTPUTS = first.outputs
+    outputs = first.outputs
+    units = channel_units(outputs, first.spec.columns)
+    t0, t1 = worst_window(first)
+    zoom = (t >= t0) & (t <= t1)
     fig, axes = plt.subplots(
-        len(OUTPUTS), 2, figsize=(13, 2.0 * len(OUTPUTS)), sharex=True
+        len(outputs),
+        3,
+        figsize=(15, 2.0 * len(outputs) + 0.6),
+        sharex="col",
+        squeeze=False,
+        gridspec_kw={"width_ratios": [3, 3, 2]},
     )
-    for i, name in enumerate(OUTPUTS):
-        label, f = _DISPLAY.get(name, (f"{name}, SI", 1.0))
-        ax, axr = axes[i]
+    for i, name in enumerate(outputs):
+        unit, f = units[name]
+        ax, axr, axz = axes[i]
         ax.plot(t, first.measured[:, i] * f, color="0.6", lw=0.6, label="measured")
+        axz.plot(
+            t[zoom], first.measured[zoom, i] * f, color="0.4", lw=0.9, label="measured"
+        )
         for tag, fit in fits:
             ax.plot(t, fit.model[:, i] * f, lw=0.9, label=f"model ({tag})")
+            axz.plot(t[zoom], fit.model[zoom, i] * f, lw=1.1, label=f"model ({tag})")
             rms = np.sqrt(np.mean(fit.residuals[:, i] ** 2)) * f
-            axr.plot(t, fit.residuals[:, i] * f, lw=0.5, label=f"{tag}: rms {rms:.3g}")
-        ax.set_ylabel(label)
-        axr.set_ylabel("residual")
+            axr.plot(
+                t, fit.residuals[:, i] * f, lw=0.5, label=f"{tag}: rms {rms:.3g} {unit}"
+            )
+        for a in (ax, axr):
+            a.axvspan(t0, t1, color="tab:orange", alpha=0.15, lw=0)
+        ax.set_ylabel(f"{name}, {unit}")
+        axr.set_ylabel(f"residual, {unit}")
+        axz.set_ylabel(f"{name}, {unit}")
         axr.legend(loc="upper right", fontsize=7)
-        ax.grid(alpha=0.3)
-        axr.grid(alpha=0.3)
+        for a in (ax, axr, axz):
+            a.grid(alpha=0.3)
     axes[0, 0].legend(loc="best", fontsize=7)
+    axes[0, 0].set_title("whole record")
+    axes[0, 1].set_title("residual: measured minus model")
+    axes[0, 2].set_title(f"zoom on the worst fit: {t0:.4g}-{t1:.4g} s")
     for ax in axes[-1]:
         ax.set_xlabel("time, s")
     fig.suptitle(title or "measured vs model")

@@ -20,8 +20,10 @@ from ._markdown import (
     derivative_markdown,
     metrics_table,
     ranking_table,
+    write_index,
     write_report,
 )
+from ._units import channel_units, effect_unit, with_unit
 
 
 def _say(message: str) -> None:
@@ -41,10 +43,7 @@ def _localise_markdown(loc: dict) -> str:
         "",
     ]
     for w in loc["worst"]:
-        lines.append(
-            f"- {w['channel']}: {w['misfit_ratio']:.1f} x noise for "
-            f"{w['variable']} in [{w['low']:.3g}, {w['high']:.3g}]"
-        )
+        lines.append(f"- {worst_place(w)}")
     for row in loc["thrust"]:
         cells = ", ".join(
             f"{c} {v:.1f}"
@@ -52,6 +51,25 @@ def _localise_markdown(loc: dict) -> str:
         )
         lines.append(f"- thrust {row['regime']}: {cells}")
     return "\n".join(lines)
+
+
+# the variables `localise` bins the misfit by: (words, unit)
+_REGIME_WORDS = {
+    "time": ("time", "s"),
+    "alpha_deg": ("alpha", "deg"),
+    "V": ("airspeed", "m/s"),
+    "h_km": ("altitude", "km"),
+}
+
+
+def worst_place(w: dict) -> str:
+    """One of `localise`'s worst places in words with units, e.g. `q: 4.2 x noise
+    for time in [10, 15] s`."""
+    words, unit = _REGIME_WORDS.get(w["variable"], (w["variable"], ""))
+    return (
+        f"{w['channel']}: {w['misfit_ratio']:.1f} x noise for {words} in "
+        f"[{w['low']:.3g}, {w['high']:.3g}]{' ' + unit if unit else ''}"
+    )
 
 
 def _fitting(log, which: str = ""):
@@ -79,10 +97,15 @@ def run_compare(
             max_iter=max_iter,
             say=_fitting(log, ""),
         )
+    _say("measuring the fit per channel and by flight regime...")
     metrics = fit_metrics(base)
     loc = localise(base)
     derivs = derivative_table(base)
     result = {**metrics, "localise": loc, "derivatives": derivs}
+    # the unit each channel is shown in (the log's own where its column map gave
+    # one) and the factor from the SI values of the report
+    units = channel_units(base.outputs, base.spec.columns)
+    result["display_units"] = {n: list(u) for n, u in units.items()}
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         from ._discrepancy_plots import plot_fits, plot_regimes
@@ -101,7 +124,9 @@ def run_compare(
                     "Fit per channel",
                     f"Output-error cost det(R) = {base.cost:.4g}; "
                     f"converged: {metrics['converged']} after {metrics['iterations']} "
-                    "iterations.\n\n" + metrics_table(metrics, names=base.outputs),
+                    "iterations. The rms and bias are in each channel's unit; "
+                    "the other columns are ratios.\n\n"
+                    + metrics_table(metrics, names=base.outputs, units=units),
                 ),
                 (
                     "Where it fails",
@@ -114,7 +139,8 @@ def run_compare(
                 ("Measured vs model", "![fit](compare.png)"),
             ],
         )
-        _say(f"wrote {out / 'compare.md'} with compare.png and regimes.png")
+        write_index(out)
+        _say(f"wrote {out / 'compare.md'} with compare.png, regimes.png and index.md")
     return result, base
 
 
@@ -173,7 +199,8 @@ def run_diagnose(
                 ("Ranking", ranking_table(result) + "\n\n![ranking](diagnose.png)"),
             ],
         )
-        _say(f"wrote {out / 'diagnose.md'} and diagnose.png")
+        write_index(out)
+        _say(f"wrote {out / 'diagnose.md'}, diagnose.png and index.md")
     return result, base
 
 
@@ -204,6 +231,11 @@ def run_fit(
         "after": m_after,
         "cost_ratio": m_after["cost"] / m_before["cost"],
         "effects": effects,
+        "unexplained": unexplained_channels(m_after, add),
+        "display_units": {
+            n: list(u)
+            for n, u in channel_units(after.outputs, after.spec.columns).items()
+        },
     }
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
@@ -215,9 +247,14 @@ def run_fit(
             f"{_name(log)}: before and after adding {', '.join(add)}",
         )
         eff = "\n".join(
-            f"- {name}: {e['parameter']} = {e['estimate']:.5g} +/- {e['stderr']:.2g} "
-            f"(Cramér-Rao {e['stderr_crb']:.2g})"
+            f"- {name}: {e['parameter']} = "
+            f"{with_unit(e['estimate'], effect_unit(name), '.5g')} +/- "
+            f"{with_unit(e['stderr'], effect_unit(name), '.2g')} "
+            f"(Cramér-Rao {with_unit(e['stderr_crb'], effect_unit(name), '.2g')})"
             for name, e in effects.items()
+        )
+        left = "\n".join(f"- {u['message']}" for u in result["unexplained"]) or (
+            "Every channel's residual is within twice its noise after the refit."
         )
         write_report(
             out / "fit.md",
@@ -229,9 +266,49 @@ def run_fit(
                     f"(ratio {result['cost_ratio']:.3g})",
                 ),
                 ("Added effects", eff),
-                ("Per channel", metrics_table(m_after, m_before, names=after.outputs)),
+                (
+                    "Per channel",
+                    metrics_table(
+                        m_after,
+                        m_before,
+                        names=after.outputs,
+                        units=channel_units(after.outputs, after.spec.columns),
+                    ),
+                ),
+                ("What the refit leaves unexplained", left),
                 ("Before and after", "![fit](fit.png)"),
             ],
         )
-        _say(f"wrote {out / 'fit.md'} and fit.png")
+        write_index(out)
+        _say(f"wrote {out / 'fit.md'}, fit.png and index.md")
     return result, after
+
+
+def unexplained_channels(metrics: dict, added=()) -> list[dict]:
+    """The channels whose residual stays well above their noise after a fit: rms
+    over the log's own noise estimate above 2 (the noise then explains under a
+    quarter of the residual's variance) and the residual not white (Ljung-Box p
+    below 0.01), each with words on what it may mean."""
+    out = []
+    for name, m in metrics["channels"].items():
+        ratio, p = m.get("misfit_ratio"), m.get("ljung_box_p")
+        if ratio is None or p is None or not (ratio > 2.0 and p < 0.01):
+            continue
+        added_text = f" with {', '.join(added)}" if added else ""
+        out.append(
+            {
+                "channel": name,
+                "misfit_ratio": ratio,
+                "ljung_box_p": p,
+                "message": (
+                    f"{name} stays {ratio:.1f}x its noise after the fit{added_text} "
+                    f"(residual not white, Ljung-Box p {p:.2g}): something the model "
+                    f"still lacks acts on {name} (another effect: run `diagnose` again "
+                    f"with --add for what was added; or a sensor error on {name}: "
+                    "bias, scale factor, misalignment or position), or the log's "
+                    "noise on it is not white (structural vibration, quantisation), "
+                    "which makes the noise estimate low"
+                ),
+            }
+        )
+    return out

@@ -1,5 +1,5 @@
 """The HFB-320 business jet, longitudinal motion (Jategaonkar, *Flight Vehicle System
-Identification*, 2nd ed., test case 4; SPEC section 7).
+Identification*, 2nd ed., test case 4).
 
 States `V, alpha, theta, q`; inputs elevator `de` (rad) and `thrust` (N, from the
 log); outputs `V, alpha, theta, q, qdot, ax, az`. Aerodynamics, with `V0` the
@@ -11,9 +11,9 @@ reference speed:
 
 Constant mass, air density and the book's constants. The vehicle is the one flight
 model (`pitch_plane`) with these parts, so every library effect composes with it.
-The record shipped in
-`shared/data/hfb320/hfb320_1_10.asc` (FVSysID ASCII columns) loads through
-[`COLUMNS`][].
+The book's flight
+record `hfb320_1_10.asc` (FVSysID ASCII columns; where to get it: the documentation's
+data page) loads through [`COLUMNS`][].
 """
 
 from .._model import Model

@@ -32,7 +32,7 @@ parameter times a per-record constant input. (Per-manoeuvre output biases instea
 `output_biases=False` and `fit(..., biases=LATERAL_OUTPUTS)`.)
 
 *Sideslip as a state* (`sideslip="state"`): output error takes inputs as exact, so
-a noisy sideslip vane biases the derivatives (measured in the README: 6 standard
+a noisy sideslip vane biases the derivatives (measured: 6 standard
 errors on `Ndr` with 1e-3 rad of noise). The variant makes `beta` and the bank angle
 `phi` states driven by the modelled side force, linearised about a reference flight
 `(V, alpha, theta)`, and outputs: same 15 derivatives, two more output biases.
