@@ -325,6 +325,19 @@ def test_verdict_says_which_number_is_which():
     # the terminal says which effects cannot be told apart, not only the JSON
     lines = ranking_lines([row, delay])
     assert lines[1].startswith("*") and "cannot be told from sensor_bias:ax" in lines[1]
+    # a row above the first threshold, judged again once the significant effect
+    # was fitted, says so on the terminal and in the report (else "no" beside a
+    # statistic above the threshold reads as a contradiction)
+    from diffpegasus._report._markdown import ranking_table
+
+    after = dict(
+        row, effect="moment_offset", significant=False, hard_to_tell_from=[],
+        given=["sensor_bias:az"], statistic_given=5.2, threshold_given=16.3,
+    )
+    assert "given sensor_bias:az: 5.2 < 16.3" in ranking_lines([row, after])[2]
+    assert "no (5.2 < 16.3 given sensor_bias:az)" in ranking_table(
+        {"ranking": [row, after]}
+    )
     none = verdict([dict(row, significant=False, statistic=30.0)], 0.01)
     assert none.startswith("no candidate effect is significant")
     assert "below the threshold 40" in none

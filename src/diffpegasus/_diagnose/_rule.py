@@ -325,6 +325,12 @@ def ranking_lines(ranking: list[dict], top: int = 8) -> list[str]:
             f"{100 * r['cost_reduction']:8.1f}% {r['estimate']:12.4g} "
             f"{r['stderr']:9.2g}"
         )
+        if not r["significant"] and r.get("given"):
+            line += (
+                f"  given {', '.join(r['given'])}: {r['statistic_given']:.1f} "
+                f"{'<' if r['statistic_given'] <= r['threshold_given'] else '>'} "
+                f"{r['threshold_given']:.3g}"
+            )
         close = _names(r)
         if close:
             line += f"  cannot be told from {', '.join(close)}"

@@ -56,7 +56,18 @@ def metrics_table(
 def _verdict(r: dict) -> str:
     if r.get("resolution_limit"):
         return "no (resolution limit)"
-    return "yes" if r["significant"] else "no"
+    if r["significant"]:
+        return "yes"
+    if r.get("given"):
+        # above the first threshold but judged again once the significant effects
+        # were fitted: say so, or a row above the threshold reads as a contradiction
+        return (
+            f"no ({r['statistic_given']:.1f} "
+            f"{'<' if r['statistic_given'] <= r['threshold_given'] else '>'} "
+            f"{r['threshold_given']:.3g} given "
+            f"{', '.join(r['given'])})"
+        )
+    return "no"
 
 
 def ranking_table(diagnosis: dict, top: int = 10) -> str:
