@@ -37,6 +37,47 @@ def test_baro_reads_height_times_temperature_ratio():
     assert 0.92 < s < 0.94  # 279.6 K standard at 86.4 kPa over 300 K
 
 
+def test_lapse_atmosphere_against_hydrostatic_integration():
+    """An atmosphere whose temperature falls at 9.8 K/km from 305 K at a 1.4 km pad:
+    pressure from integrating dp/dz = -p g0 / (R T(z)) numerically (scipy), read
+    through the standard atmosphere, and the reading's rate T_std(reading) / T
+    against a finite difference of it. With the standard lapse the reading is the
+    height times T_std(pad) / T (the closed form above)."""
+    from scipy.integrate import solve_ivp
+
+    from diffpegasus._vehicle._atmosphere import R_AIR
+
+    t_pad, lapse, p_pad = 305.0, -9.8, 86_000.0
+    z = np.linspace(0.0, 5000.0, 11)
+    sol = solve_ivp(
+        lambda zz, p: -p * G0 / (R_AIR * (t_pad + lapse * 1e-3 * zz)),
+        (0.0, z[-1]),
+        [p_pad],
+        t_eval=z,
+        rtol=1e-11,
+        atol=1e-6,
+    )
+    p, temp, reading, rate = (np.asarray(a) for a in dr.linear_lapse_air(
+        p_pad, t_pad, lapse, z
+    ))
+    np.testing.assert_allclose(p, sol.y[0], rtol=1e-8)  # integration tolerance
+    np.testing.assert_allclose(temp, t_pad + lapse * 1e-3 * z, rtol=1e-12)
+    np.testing.assert_allclose(
+        reading, dr.pressure_altitude(sol.y[0]) - dr.pressure_altitude(p_pad), atol=1e-4
+    )
+    # the rate against a central difference of the reading; geometric against
+    # geopotential height (pad + z) / R_earth: 1e-3 at 5 km over a 1.4 km pad
+    h = 1.0
+    up = np.asarray(dr.linear_lapse_air(p_pad, t_pad, lapse, z + h)[2])
+    down = np.asarray(dr.linear_lapse_air(p_pad, t_pad, lapse, z - h)[2])
+    np.testing.assert_allclose(rate, (up - down) / (2 * h), rtol=1.5e-3)
+    # a faster fall than standard reads higher and higher above the standard lapse's
+    std = np.asarray(dr.linear_lapse_air(p_pad, t_pad, -6.5, z)[2])
+    s = float(dr.baro_scale(p_pad, t_pad))
+    np.testing.assert_allclose(std, s * z, rtol=1.5e-3, atol=1e-6)
+    assert np.all(np.diff(reading - std) > 0)
+
+
 def test_baro_lag_of_a_steady_climb_is_lag_times_rate():
     """A first-order lag tau on a ramp h = v t: y = v (t - tau (1 - exp(-t/tau))),
     which settles tau v behind; the model's reading is that settled value."""

@@ -36,7 +36,7 @@ def equation_error_drag(result: RocketFit, min_q: float = 2e3):
         [np.interp(x, np.arange(len(result.t)), result.states[:, j]) for j in range(6)]
     ).T
     mach = np.interp(rec.t[idx], result.t, result.mach)
-    f = rec.measured[idx, 1] - float(p["accel_bias"])
+    f = (rec.measured[idx, 1] - float(p["accel_bias"])) / float(p["accel_scale"])
     mass = rocket.dry_mass + float(p["mass_offset"])
     rho = np.array(
         [float(flight.air(s[2], p)[0]) for s in states[:: max(1, len(states) // 200)]]

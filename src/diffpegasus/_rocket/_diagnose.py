@@ -118,7 +118,12 @@ def diagnose(problem: Problem, *, level: float = 0.05, rounds: int = 3):
         for c in pool:
             if c.name in named:
                 continue
-            trial = fit_rocket(problem, free=free + c.parameters, throw=False)
+            # from the current fit, the candidate at its absent value
+            warm = dict(zip(current.fit.model.parameters, current.fit.params))
+            warm.update({n: problem.start[n] for n in c.parameters})
+            trial = fit_rocket(
+                problem, free=free + c.parameters, start=warm, throw=False
+            )
             centre = [problem.start[n] for n in c.parameters]
             s = _wald(trial, c.parameters, centre)
             ratio = trial.fit.cost / current.fit.cost

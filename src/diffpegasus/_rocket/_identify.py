@@ -21,7 +21,9 @@ from ._data import ascent_record, pad_pressure
 
 BASE_FREE = ("thrust_scale", "motor_time")
 SENSOR_FREE = ("baro_lag", "static_error")
-ACCEL_FREE = ("temperature",)  # the accelerometer fixes the length scale
+# the accelerometer fixes the length scale the barometer reads in, at every height
+ACCEL_FREE = ("temperature", "lapse_rate")
+STANDARD_LAPSE = -6.5  # K/km
 # Mach between drag knots: an accelerometer reads drag directly, as finely as a
 # team's tables; an altitude alone carries it twice integrated, so half as finely
 KNOT_SPACING = {True: 0.1, False: 0.2}
@@ -105,8 +107,10 @@ def default_start(rocket: Rocket, knots: DragKnots, temperature: float) -> dict:
         cd_scale=1.0,
         motor_time=-max(float(lift), rocket.holddown),
         temperature=temperature,
+        lapse_rate=STANDARD_LAPSE,
         altitude_bias=0.0,
         accel_bias=0.0,
+        accel_scale=1.0,
     )
     return start
 
@@ -167,6 +171,19 @@ def measured_thrust_scale(record, rocket) -> float:
     impulse = float(np.sum(((mass * f + drag) * dt)[burning]))
     total = float(np.sum((catalogue * dt)[burning]))
     return float(np.clip(impulse / max(total, 1e-9), 0.5, 1.5))
+
+
+def accel_covers_ascent(record, share: float = 0.9) -> bool:
+    """Whether the accelerometer was read over the ascent (its samples spanning
+    `share` of the time from liftoff to the record's end). One of two length scales
+    must be trusted: the accelerometer's over a whole ascent fixes the day's
+    temperature and lapse rate the barometer reads through; an accelerometer that
+    stops after the boost is instead calibrated (its scale) against the barometer
+    read through the day's atmosphere."""
+    if record.inputs.shape[1] < 3:
+        return False
+    t = record.t[(record.inputs[:, 2] > 0) & (record.t >= 0)]
+    return t.size > 1 and (t[-1] - max(t[0], 0.0)) >= share * record.t[-1]
 
 
 def knots_for(record, rocket, temperature) -> DragKnots:
@@ -245,7 +262,8 @@ def fit_rocket(
       one scale factor estimated: what a short log supports).
     - `start`: start values by name, over the problem's.
     - `shooting_interval`: s between multiple-shooting nodes.
-    - `hold_temperature`: hold the pad temperature even with an accelerometer.
+    - `hold_temperature`: hold the pad temperature and lapse rate even with an
+      accelerometer over the whole ascent (see [`accel_covers_ascent`][]).
     - `throw`: raise on a failed fit (else the fit carries its result code).
 
     **Returns:** a [`RocketFit`][].
@@ -256,18 +274,18 @@ def fit_rocket(
     if unknown:
         raise LogError(f"unknown effect(s) {unknown}; effects are {', '.join(EFFECTS)}")
     knots = problem.flight.knots
-    if drag == "knots":
-        estimated = knots.names + BASE_FREE
-    elif drag == "scale":
-        estimated = ("cd_scale",) + BASE_FREE
-    else:
+    if drag not in ("knots", "scale"):
         raise ValueError(f"drag must be 'knots' or 'scale', got {drag!r}")
+    extras = ()
     if "accel" in problem.outputs:
-        estimated += ("accel_bias",)
-        if not hold_temperature:
-            estimated += tuple(a for a in ACCEL_FREE if a not in free)
+        extras += ("accel_bias",)
+        if not accel_covers_ascent(problem.record):
+            extras += ("accel_scale",) if "accel_scale" not in free else ()
+        elif not hold_temperature:
+            extras += tuple(a for a in ACCEL_FREE if a not in free)
+    scaled = ("cd_scale",) + BASE_FREE + extras
+    estimated = (knots.names + BASE_FREE + extras if drag == "knots" else scaled)
     estimated += tuple(free)
-    model = rocket_model(problem.flight, problem.outputs, values, estimated)
     record = problem.record
     if until is not None:
         inputs = record.inputs.copy()
@@ -275,13 +293,41 @@ def fit_rocket(
         record = type(record)(
             record.t, inputs, record.measured, x0=record.x0, name=record.name
         )
-    result = fit(
-        model,
-        record,
-        shooting=MultipleShooting(interval=shooting_interval),
-        initial_state="fixed",
-        throw=throw,
-    )
+
+    def run(start_values, names):
+        model = rocket_model(problem.flight, problem.outputs, start_values, names)
+        return fit(
+            model,
+            record,
+            shooting=MultipleShooting(interval=shooting_interval),
+            initial_state="fixed",
+            throw=False,
+        )
+
+    # continuation: the start curve's shape scaled by one factor first (few
+    # parameters, a basin as wide as the start is poor), then everything asked for
+    # from there; the direct fit from the start too when that one fails or ends
+    # above the first stage's cost (its parameters are a subset, so it cannot be
+    # the better optimum), and the fit of lower det(R) kept
+    tried = []
+    first = run(values, scaled)
+    tried.append(first)
+    if estimated != scaled:
+        if first.converged:
+            named = dict(zip(first.model.parameters, first.params, strict=True))
+            for k in knots.names:
+                named[k] = named[k] * named["cd_scale"]
+            named["cd_scale"] = 1.0
+            # sensors and effects that the first stage held start where asked
+            named.update({k: values[k] for k in free})
+            tried.append(run(named, estimated))
+        if not tried[-1].converged or tried[-1].cost > first.cost:
+            tried.append(run(values, estimated))
+        tried = tried[1:]
+    good = [f for f in tried if f.converged] or tried
+    result = min(good, key=lambda f: f.cost)
+    if throw and not result.converged:
+        raise RuntimeError(result.reason)
     return trajectory(problem.rocket, problem.flight, result, record, problem.outputs)
 
 

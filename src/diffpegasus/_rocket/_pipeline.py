@@ -70,9 +70,11 @@ def run_flight(rocket, log, out=None, *, free=None) -> dict:
         {"mach": float(m), "cd": float(c), "stderr": float(s), "team_cd": float(tc)}
         for m, c, s, tc in zip(mach, cd, sd, team_cd, strict=True)
     ]
+    model = result.fit.model
     row["estimates"] = {
         k: list(result.estimate(k))
-        for k in ("thrust_scale", "motor_time", "temperature") + free
+        for k, est in zip(model.parameters, model.free, strict=True)
+        if est and k not in problem.flight.knots.names and k != "cd_scale"
     }
     if out is not None:
         ee = equation_error_drag(result)

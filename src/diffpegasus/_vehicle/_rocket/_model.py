@@ -14,14 +14,17 @@ Parameters (name: unit, meaning):
 - `power_on_ratio`: CD power on / power off.
 - `thrust_scale`: delivered / catalogue thrust.
 - `motor_time`: s, log time of the thrust curve's zero.
-- `temperature`: K at the pad (sets density, speed of sound and the baro scale).
+- `temperature`: K at the pad; `lapse_rate`: K/km, its fall with height (-6.5 the
+  standard atmosphere's). Together they set density, speed of sound and what the
+  barometer reads (it converts pressure with the standard atmosphere).
 - `wind_east`, `wind_north`: m/s, a constant wind.
 - `baro_lag`: s; `static_error`: static-pressure error per dynamic pressure;
   `transonic_error`: its extra part at Mach 1.
 - `mass_offset`: kg added to the dry mass.
 - `rail_friction`: coefficient of friction on the rail.
 - `airbrake_cd`: CD added at full air-brake deployment (input `airbrake`).
-- `altitude_bias` (m), `accel_bias` (m/s^2): sensor offsets.
+- `altitude_bias` (m), `accel_bias` (m/s^2): sensor offsets; `accel_scale`: the
+  accelerometer's reading per m/s^2 of specific force (1 when calibrated).
 """
 
 import functools
@@ -31,17 +34,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..._model import Model
-from .._atmosphere import GAMMA_AIR, isa, R_AIR
+from .._atmosphere import GAMMA_AIR, R_AIR
 from .._gravity import gravity
 from ._config import Rocket
 from ._drag import DragKnots
 from ._motor import motor_at
-from ._sensors import (
-    axial_specific_force,
-    baro_altitude,
-    baro_scale,
-    pressure_altitude,
-)
+from ._sensors import axial_specific_force, baro_altitude, linear_lapse_air
 
 
 STATES = ("e", "n", "u", "ve", "vn", "vu")
@@ -52,6 +50,7 @@ EFFECTS = (
     "thrust_scale",
     "motor_time",
     "temperature",
+    "lapse_rate",
     "wind_east",
     "wind_north",
     "baro_lag",
@@ -62,6 +61,7 @@ EFFECTS = (
     "airbrake_cd",
     "altitude_bias",
     "accel_bias",
+    "accel_scale",
 )
 
 
@@ -83,15 +83,16 @@ class Flight(eqx.Module):
         )
 
     def air(self, height, p):
-        """Density (kg/m^3), speed of sound (m/s), baro scale at `height` m AGL."""
-        s = baro_scale(self.pad_pressure, p["temperature"])
-        h_std = pressure_altitude(self.pad_pressure) + s * height
-        atm = isa(h_std)
-        temperature = atm.temperature / s
+        """Density (kg/m^3), speed of sound (m/s), the barometer's reading (m above
+        the pad) and its rate per metre of height, at `height` m above the pad."""
+        pressure, temperature, reading, rate = linear_lapse_air(
+            self.pad_pressure, p["temperature"], p["lapse_rate"], height
+        )
         return (
-            atm.pressure / (R_AIR * temperature),
+            pressure / (R_AIR * temperature),
             jnp.sqrt(GAMMA_AIR * R_AIR * temperature),
-            s,
+            reading,
+            rate,
         )
 
     def forces(self, t, x, u, p):
@@ -103,7 +104,7 @@ class Flight(eqx.Module):
         thrust, burned = motor_at(tables, tm)
         thrust = p["thrust_scale"] * thrust
         mass = r.dry_mass + p["mass_offset"] + r.motor.propellant_mass * (1 - burned)
-        rho, sound, s = self.air(pos[2], p)
+        rho, sound, reading, rate = self.air(pos[2], p)
         wind = jnp.stack([p["wind_east"], p["wind_north"], 0.0])
         air = vel - wind
         speed = jnp.sqrt(jnp.sum(air**2) + 1e-6)
@@ -128,7 +129,7 @@ class Flight(eqx.Module):
         held = (tm < r.holddown) | ((v_along <= 1e-6) & (a_along < 0))
         a_along = jnp.where(held, 0.0, a_along)
         accel = jnp.where(on_rail, a_along * rail, free)
-        return accel, axis, (q, rho, g, mach, s)
+        return accel, axis, (q, rho, g, mach, reading, rate)
 
 
 def rates(flight: Flight, t, x, u, p):
@@ -140,11 +141,11 @@ def rates(flight: Flight, t, x, u, p):
 def observe(flight: Flight, t, x, u, p):
     """The measured channels: barometric altitude (m AGL) and axial specific force
     (m/s^2), each multiplied by its `has_` input (0 where the log has no sample)."""
-    accel, axis, (q, rho, g, mach, s) = flight.forces(t, x, u, p)
+    accel, axis, (q, rho, g, mach, reading, rate) = flight.forces(t, x, u, p)
     h = baro_altitude(
-        x[2],
+        reading,
         x[5],
-        s,
+        rate,
         p["baro_lag"],
         p["static_error"],
         p["transonic_error"],
@@ -154,7 +155,7 @@ def observe(flight: Flight, t, x, u, p):
         mach,
     )
     f = axial_specific_force(accel, g, axis)
-    y = jnp.stack([h + p["altitude_bias"], f + p["accel_bias"]])
+    y = jnp.stack([h + p["altitude_bias"], p["accel_scale"] * f + p["accel_bias"]])
     return y[: u.shape[0] - 1] * u[1:]
 
 
