@@ -76,6 +76,12 @@ def main():
             row["named"] = named
             row["tests"] = tests
         row["planted_effects"] = {k: v for k, v in truth.items()}
+        # the part of the planted wind a zero-angle-of-attack flight shows to first
+        # order: along the rail's heading (see the model's wind_along)
+        head = np.radians(rocket.heading)
+        row["planted_effects"]["wind_along_m_s"] = truth.get(
+            "wind_east_m_s", 0.0
+        ) * np.sin(head) + truth.get("wind_north_m_s", 0.0) * np.cos(head)
         out[folder.name] = row
         print(
             folder.name,

@@ -40,13 +40,14 @@ def main():
         lines += [
             f"## {name}: diagnose",
             "",
-            "| round | candidate | Wald | threshold | det(R) ratio |",
-            "|---|---|---|---|---|",
+            "| round | candidate | statistic | threshold | det(R) ratio | named |",
+            "|---|---|---|---|---|---|",
         ]
         for t in d[name].get("tests", []):
             lines.append(
                 f"| {t['round']} | {t['candidate']} | {t['statistic']:.1f} | "
-                f"{t['threshold']:.1f} | {t['cost_ratio']:.3f} |"
+                f"{t['threshold']:.1f} | {t['cost_ratio']:.3f} | "
+                f"{'yes' if t.get('significant') else ''} |"
             )
         lines.append("")
     (ROOT / "docs/rockets/simulated.md").write_text("\n".join(lines))

@@ -216,3 +216,20 @@ def test_thrust_scale_start_from_the_accelerometer(name, planted):
     rocket = dr.read_rocket(SIM / name / "rocket.toml")
     record, _ = ascent_record(sim_log(name))
     assert abs(measured_thrust_scale(record, rocket) - planted) < 0.01
+
+
+def test_accelerometer_coverage_decides_which_length_scale_is_trusted():
+    """The RocketPy flight's accelerometer spans the ascent (temperature and lapse
+    rate estimated); the same log with the accelerometer stopping after the boost,
+    as NDRT's does, does not (its scale is estimated instead)."""
+    from diffpegasus._model import Record
+    from diffpegasus._rocket._data import ascent_record
+    from diffpegasus._rocket._identify import accel_covers_ascent
+
+    record, outputs = ascent_record(sim_log("clean"))
+    assert outputs == ("altitude", "accel") and accel_covers_ascent(record)
+    inputs = record.inputs.copy()
+    inputs[record.t > 4.5, 2] = 0.0
+    cut = Record(record.t, inputs, record.measured, x0=record.x0)
+    assert not accel_covers_ascent(cut)
+    assert not accel_covers_ascent(Record(record.t, inputs[:, :2], record.measured[:, :1]))

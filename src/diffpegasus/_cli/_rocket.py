@@ -178,8 +178,9 @@ def diagnose_command(
         return
     typer.echo(f"{rocket.name}: " + (", ".join(named) if named else "nothing named"))
     for r in rows:
-        mark = "*" if r["statistic"] > r["threshold"] else " "
+        mark = "*" if r["significant"] else " "
+        kind = "Wald" if r["round"] == 0 else "score"
         typer.echo(
             f" {mark} round {r['round']}: {r['candidate']:<34} "
-            f"Wald {r['statistic']:9.1f} (threshold {r['threshold']:.1f})"
+            f"{kind} {r['statistic']:9.1f} (threshold {r['threshold']:.1f})"
         )

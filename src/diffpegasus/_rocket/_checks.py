@@ -43,7 +43,15 @@ def equation_error_drag(result: RocketFit, min_q: float = 2e3):
     )
     hs = states[:: max(1, len(states) // 200), 2]
     rho = np.interp(states[:, 2], hs[np.argsort(hs)], rho[np.argsort(hs)])
-    wind = np.array([float(p["wind_east"]), float(p["wind_north"]), 0.0])
+    head = np.radians(rocket.heading)
+    along = float(p["wind_along"])
+    wind = np.array(
+        [
+            float(p["wind_east"]) + along * np.sin(head),
+            float(p["wind_north"]) + along * np.cos(head),
+            0.0,
+        ]
+    )
     speed = np.linalg.norm(states[:, 3:] - wind, axis=1)
     q = 0.5 * rho * speed**2
     keep = q > min_q

@@ -1,14 +1,17 @@
 """Which physical effects a rocket flight's fit is missing.
 
-Each candidate is a set of the model's parameters held at "absent" in the base fit
-(drag knots, thrust scale, motor time, accelerometer offset). Forward selection: every
-candidate not yet in the model is added in turn and refitted; its Wald statistic
-`theta' C^-1 theta` (the estimates of its parameters, `C` their covariance from the
-coloured-residual standard errors) is compared with the chi-square quantile at a
-5% family-wise level over the candidates tried (Bonferroni); the one that lowers
-det(R) most among the significant joins the model, and the search repeats. The base
-fit's thrust scale is tested against 1 and its knots against a constant `CD` the same
-way. Nothing is named when no statistic passes.
+Each candidate is one of the model's parameters held at "absent" in the base fit
+(drag knots, thrust scale, motor time and the sensors' scale and offset estimated).
+At the fit, every candidate held is scored at once on the one path
+([`score_candidates`][]: the score test with the free unknowns re-adjusted, its
+statistic's variance from the residuals' colour), against a threshold taken from this
+log (the largest statistic over all candidates in block-bootstrap replicates of the
+fit's own residuals, at a family-wise false-alarm level), no constant. The first
+finding joins the model, the flight is refitted from there, and the rest are scored
+again (at most `rounds` findings). The base fit's thrust scale is tested against 1 and
+its knots against a constant `CD` by their Wald statistics (estimates over their
+coloured-residual covariance) at the Bonferroni chi-square quantile of the same level.
+Nothing is named when no statistic passes.
 """
 
 import dataclasses
@@ -35,7 +38,8 @@ def candidates(problem: Problem, top_mach: float) -> list[Candidate]:
     from .._vehicle._rocket._sensors import TRANSONIC_WIDTH
 
     out = [
-        Candidate("wind", ("wind_east", "wind_north")),
+        # the wind along the rail's heading: a cross wind has no first-order effect
+        Candidate("wind", ("wind_along",)),
         Candidate("rail friction", ("rail_friction",)),
         Candidate("barometer lag", ("baro_lag",)),
         Candidate("static-pressure error", ("static_error",)),
@@ -46,7 +50,10 @@ def candidates(problem: Problem, top_mach: float) -> list[Candidate]:
     if problem.record.inputs[:, 0].any():
         out.append(Candidate("air-brake drag", ("airbrake_cd",)))
     if "accel" in problem.outputs:
+        # each scored only where the base fit holds it (see accel_covers_ascent)
         out.append(Candidate("pad temperature (atmosphere)", ("temperature",)))
+        out.append(Candidate("lapse rate (atmosphere)", ("lapse_rate",)))
+        out.append(Candidate("accelerometer scale", ("accel_scale",)))
     return out
 
 
@@ -62,21 +69,22 @@ def _wald(result, names, centre):
         return 0.0
 
 
-def diagnose(problem: Problem, *, level: float = 0.05, rounds: int = 3):
-    """Forward selection of missing effects (see the module docstring).
+def diagnose(problem: Problem, *, level: float = 0.01, rounds: int = 3):
+    """Missing effects, one finding at a time (see the module docstring).
 
     **Returns:** `(named, rows, final)`: the names found in order, one row per test
-    (`round`, `candidate`, `statistic`, `threshold`, `cost_ratio`, `estimates`), and
-    the fit with the named effects added.
+    (`round`, `candidate`, `statistic`, `threshold`, `cost_ratio` (predicted det(R)
+    after freeing it over det(R) now), `estimates`, `significant`), and the fit with
+    the named effects added.
     """
+    from .._diagnose._candidates import score_candidates
+
     base = fit_rocket(problem, free=(), throw=False)
     top = float(np.max(base.mach))
     pool = candidates(problem, top)
     rows, named, free = [], [], ()
     knots = problem.flight.knots.names
-    # tests on the base fit: thrust scale against 1, knots against a constant CD
-    n_tests = len(pool) + 2
-    chi = lambda k: float(stats.chi2.ppf(1 - level / n_tests, k))  # noqa: E731
+    chi = lambda k: float(stats.chi2.ppf(1 - level / 2, k))  # noqa: E731
     s = _wald(base, ("thrust_scale",), (1.0,))
     rows.append(
         {
@@ -86,6 +94,7 @@ def diagnose(problem: Problem, *, level: float = 0.05, rounds: int = 3):
             "threshold": chi(1),
             "cost_ratio": 1.0,
             "estimates": {"thrust_scale": base.estimate("thrust_scale")[0]},
+            "significant": s > chi(1),
         }
     )
     if s > chi(1):
@@ -108,41 +117,45 @@ def diagnose(problem: Problem, *, level: float = 0.05, rounds: int = 3):
             "threshold": chi(len(idx) - 1),
             "cost_ratio": 1.0,
             "estimates": {},
+            "significant": s > chi(len(idx) - 1),
         }
     )
     if s > chi(len(idx) - 1):
         named.append("Mach dependence of CD")
     current = base
     for r in range(1, rounds + 1):
-        best = None
-        for c in pool:
-            if c.name in named:
-                continue
-            # from the current fit, the candidate at its absent value
-            warm = dict(zip(current.fit.model.parameters, current.fit.params))
-            warm.update({n: problem.start[n] for n in c.parameters})
-            trial = fit_rocket(
-                problem, free=free + c.parameters, start=warm, throw=False
-            )
-            centre = [problem.start[n] for n in c.parameters]
-            s = _wald(trial, c.parameters, centre)
-            ratio = trial.fit.cost / current.fit.cost
-            ok = trial.fit.converged and s > chi(len(c.parameters)) and ratio < 1
+        model = current.fit.model
+        held = {
+            c.parameters[0]: c
+            for c in pool
+            if c.name not in named
+            and not model.free[model.parameters.index(c.parameters[0])]
+        }
+        if not held:
+            break
+        ranking = score_candidates(current.fit, list(held), level)
+        found = None
+        for row in ranking:
+            c = held[row["parameter"]]
             rows.append(
                 {
                     "round": r,
                     "candidate": c.name,
-                    "statistic": s,
-                    "threshold": chi(len(c.parameters)),
-                    "cost_ratio": ratio,
-                    "estimates": {n: trial.estimate(n)[0] for n in c.parameters},
+                    "statistic": float(row["statistic"]),
+                    "threshold": float(row["threshold"]),
+                    "cost_ratio": 1.0 - float(row["cost_reduction"]),
+                    "estimates": {row["parameter"]: float(row["estimate"])},
+                    "significant": bool(row["significant"]),
                 }
             )
-            if ok and (best is None or ratio < best[1]):
-                best = (c, ratio, trial)
-        if best is None:
+            if row["significant"] and found is None:
+                found = c
+        if found is None:
             break
-        named.append(best[0].name)
-        free += best[0].parameters
-        current = best[2]
+        named.append(found.name)
+        free += found.parameters
+        # from the current fit, the effect at its absent value
+        warm = dict(zip(current.fit.model.parameters, current.fit.params))
+        warm.update({n: problem.start[n] for n in found.parameters})
+        current = fit_rocket(problem, free=free, start=warm, throw=False)
     return named, rows, current

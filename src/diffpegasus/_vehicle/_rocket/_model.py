@@ -17,7 +17,10 @@ Parameters (name: unit, meaning):
 - `temperature`: K at the pad; `lapse_rate`: K/km, its fall with height (-6.5 the
   standard atmosphere's). Together they set density, speed of sound and what the
   barometer reads (it converts pressure with the standard atmosphere).
-- `wind_east`, `wind_north`: m/s, a constant wind.
+- `wind_east`, `wind_north`: m/s, a constant wind; `wind_along`: m/s, blowing
+  towards the rail's heading (a tail wind; the part a flight at zero angle of attack
+  shows to first order: a cross wind moves altitude and axial acceleration only to
+  second order, so its derivative at zero wind is zero).
 - `baro_lag`: s; `static_error`: static-pressure error per dynamic pressure;
   `transonic_error`: its extra part at Mach 1.
 - `mass_offset`: kg added to the dry mass.
@@ -53,6 +56,7 @@ EFFECTS = (
     "lapse_rate",
     "wind_east",
     "wind_north",
+    "wind_along",
     "baro_lag",
     "static_error",
     "transonic_error",
@@ -105,7 +109,14 @@ class Flight(eqx.Module):
         thrust = p["thrust_scale"] * thrust
         mass = r.dry_mass + p["mass_offset"] + r.motor.propellant_mass * (1 - burned)
         rho, sound, reading, rate = self.air(pos[2], p)
-        wind = jnp.stack([p["wind_east"], p["wind_north"], 0.0])
+        head = np.radians(r.heading)
+        wind = jnp.stack(
+            [
+                p["wind_east"] + p["wind_along"] * np.sin(head),
+                p["wind_north"] + p["wind_along"] * np.cos(head),
+                0.0,
+            ]
+        )
         air = vel - wind
         speed = jnp.sqrt(jnp.sum(air**2) + 1e-6)
         rail = jnp.asarray(self.rail_axis())
