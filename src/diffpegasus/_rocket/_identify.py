@@ -237,6 +237,16 @@ def prepare(rocket: Rocket, log, *, knots: DragKnots | None = None) -> Problem:
     return Problem(rocket, flight, record, outputs, start)
 
 
+def altitude_only(problem: Problem) -> Problem:
+    """The same flight with the barometric altitude alone (the accelerometer's
+    channel dropped)."""
+    rec = problem.record
+    record = type(rec)(
+        rec.t, rec.inputs[:, :2], rec.measured[:, :1], x0=rec.x0, name=rec.name
+    )
+    return dataclasses.replace(problem, record=record, outputs=problem.outputs[:1])
+
+
 def fit_rocket(
     problem: Problem,
     *,

@@ -8,7 +8,7 @@ import numpy as np
 
 from ._checks import equation_error_drag, resimulate
 from ._data import baro_channel
-from ._identify import fit_rocket, prepare
+from ._identify import accel_covers_ascent, altitude_only, fit_rocket, prepare
 
 
 PREDICTION_HORIZON = 2.0  # s after burnout: what an air-brake controller has
@@ -50,9 +50,15 @@ def run_flight(rocket, log, out=None, *, free=None) -> dict:
     seconds = time.perf_counter() - t0
     cut = burnout_time(log, problem, result) + PREDICTION_HORIZON
     # a few seconds of log cannot tell the barometer's errors or the day's
-    # temperature from the drag: the prediction holds them at their start values
+    # temperature from the drag: the prediction holds them at their start values.
+    # An accelerometer that stops after the boost is calibrated against the
+    # barometer over the whole ascent; a few seconds cannot tell its scale from the
+    # drag, so the prediction reads the barometer alone there
+    short = problem
+    if "accel" in problem.outputs and not accel_covers_ascent(problem.record):
+        short = altitude_only(problem)
     prediction = fit_rocket(
-        problem, free=(), until=cut, drag="scale", hold_temperature=True, throw=False
+        short, free=(), until=cut, drag="scale", hold_temperature=True, throw=False
     )
     team = resimulate(problem, result) if rocket.team_drag_off is not None else result
     _, h = baro_channel(log)

@@ -22,6 +22,7 @@ def summary(problem, result, prediction, team, log_apogee, seconds) -> dict:
         "apogee_reconstructed_m": result.apogee,
         "reconstructed_error_pct": pct(result.apogee),
         "apogee_predicted_m": prediction.apogee,
+        "prediction_outputs": list(prediction.outputs),
         "predicted_error_pct": pct(prediction.apogee),
         "prediction_uses_log_to_s": float(
             prediction.record.t[np.flatnonzero(prediction.record.inputs[:, 1])[-1]]
