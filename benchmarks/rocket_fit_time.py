@@ -1,7 +1,7 @@
 """One rocket flight's fit, cold (tracing and compilation included) and warm (the
 same fit again in the same process: what a second command costs once the
-persistent compilation cache holds the program), against the same fit with single
-shooting. Writes benchmarks/results/rocket_fit_time.json.
+persistent compilation cache holds the program; the continuation's two or three
+fits included), with the machine's load average. Writes benchmarks/results/rocket_fit_time.json.
 
 Run: `python benchmarks/rocket_fit_time.py FOLDER [FOLDER ...]`.
 """
@@ -24,17 +24,22 @@ def main():
     for folder in map(pathlib.Path, sys.argv[1:]):
         rocket = read_rocket(folder / "rocket.toml")
         log = read_rocket_log(folder / "rocket.toml")
+        # the free set the command uses (see run_flight)
+        free = ("baro_lag", "static_error") if "accel_axial" in log.channels else (
+            "static_error",
+        )
         times = []
         for _ in range(2):
             t0 = time.perf_counter()
             problem = prepare(rocket, log) if not times else problem  # noqa: F821
-            result = fit_rocket(problem, throw=False)
+            result = fit_rocket(problem, free=free, throw=False)
             times.append(time.perf_counter() - t0)
         out[folder.name] = {
             "cold_s": times[0],
             "warm_s": times[1],
             "iterations": int(result.fit.iterations),
             "samples": len(result.record.t),
+            "load_average_after": os.getloadavg()[0],
         }
         print(folder.name, out[folder.name], flush=True)
     path = ROOT / "benchmarks" / "results" / "rocket_fit_time.json"

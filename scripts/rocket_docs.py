@@ -124,7 +124,8 @@ def main():
         "each the same as `diffpegasus rocket fit FOLDER/rocket.toml --out ...`; "
         "`--table` rebuilds this table from the pages' summary.json). Fit times are "
         "cold (tracing and compilation included) on a 2-core machine shared with "
-        "other jobs (load 15-20); the same fit warm took 14 s.",
+        "other jobs (load 15-20); warm (the program compiled), Prometheus's fit "
+        "took 8.6 s at load 16 (`python benchmarks/rocket_fit_time.py FOLDER`).",
         "",
         "| flight | channels | apogee logged (m) | reconstructed | predicted at "
         "burnout + 2 s | team pre-flight | altitude RMS (% of apogee) | fit (s) |",
