@@ -30,7 +30,8 @@ def page(name, row):
         "",
         "Reproduce (the flight's folder from RocketPy's public flight data, MIT):",
         "",
-        "```bash",
+        '```bash title="Not run here: needs the flight\'s rocket.toml and logs, '
+        'and minutes per flight"',
         f"diffpegasus rocket fit {name}/rocket.toml --out docs/rockets/{name}",
         "```",
         "",
