@@ -124,9 +124,9 @@ def main():
         "Reproduce: `python scripts/rocket_docs.py FOLDER ...` (one folder per flight, "
         "each the same as `diffpegasus rocket fit FOLDER/rocket.toml --out ...`; "
         "`--table` rebuilds this table from the pages' summary.json). Fit times are "
-        "cold (tracing and compilation included) on a 2-core machine shared with "
-        "other jobs (load 15-20); warm (the program compiled), Prometheus's fit "
-        "took 8.6 s at load 16 (`python benchmarks/rocket_fit_time.py FOLDER`).",
+        "cold (tracing and compilation included) on a 2-core machine busy with "
+        "other jobs; warm (the program compiled), Prometheus's fit took 8.6 s on "
+        "the same busy machine (`python benchmarks/rocket_fit_time.py FOLDER`).",
         "",
         "| flight | channels | apogee logged (m) | reconstructed | predicted at "
         "burnout + 2 s | team pre-flight | altitude RMS (% of apogee) | fit (s) |",

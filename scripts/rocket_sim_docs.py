@@ -23,7 +23,7 @@ def main():
         "`python scripts/rocket_sim_docs.py`.",
         "",
         "| flight | planted CD inside the 95% band | thrust scale (planted) | "
-        "diagnose names | fit (s, cold) |",
+        "diagnose names | fit (s, cold, on a busy 2-core machine) |",
         "|---|---|---|---|---|",
     ]
     for name in ("clean", "planted"):
