@@ -2,7 +2,8 @@
 
 [`fit_rocket`][] fits `CD(Mach)` knots (power off; power on by the team's ratio), a
 thrust scale and the motor's start time, plus any effects asked for, to the ascent
-by output error with multiple shooting ([`fit`][]), and reports the trajectory, the
+by output error with multiple shooting ([`fit`][]) and continuation from a one-factor
+drag fit, and reports the trajectory, the
 reconstructed apogee and `CD(Mach)` with its band from the coloured-residual standard
 errors. [`equation_error_drag`][] turns measured coast acceleration into `CD` points
 with the fitted trajectory's air data, as a check beside it.
@@ -258,14 +259,20 @@ def fit_rocket(
     hold_temperature: bool = False,
     throw: bool = True,
 ) -> RocketFit:
-    """Fit the rocket's model to the ascent.
+    """Fit the rocket's model to the ascent, by continuation: the start curve's
+    shape scaled by one factor first (with the thrust scale, motor time and the
+    accelerometer's offset and scale or the day's atmosphere), then everything asked
+    for from there; the direct fit from the start too when that one fails or ends
+    above the first stage's det(R); the converged fit of lower det(R) is returned.
 
     **Arguments:**
 
     - `problem`: from [`prepare`][].
     - `free`: effects estimated besides the drag, the thrust scale, the motor's
-      start time and the accelerometer's offset (names in the model's parameter
-      list); by default the barometer's lag and static-pressure error.
+      start time and, with an accelerometer, its offset and either the day's
+      temperature and lapse rate or its scale (see [`accel_covers_ascent`][]) (names
+      in the model's parameter list); by default the barometer's lag and
+      static-pressure error.
     - `until`: s, use the log only up to this time (the model still runs to apogee;
       the record keeps its length, so the fit shares the compiled program).
     - `drag`: `"knots"` (the knots estimated) or `"scale"` (the start curve held,
