@@ -25,8 +25,10 @@ def main():
         rocket = read_rocket(folder / "rocket.toml")
         log = read_rocket_log(folder / "rocket.toml")
         # the free set the command uses (see run_flight)
-        free = ("baro_lag", "static_error") if "accel_axial" in log.channels else (
-            "static_error",
+        free = (
+            ("baro_lag", "static_error")
+            if "accel_axial" in log.channels
+            else ("static_error",)
         )
         times = []
         for _ in range(2):

@@ -30,7 +30,7 @@ def page(name, row):
         "",
         "Reproduce (the flight's folder from RocketPy's public flight data, MIT):",
         "",
-        '```bash title="Not run here: needs the flight\'s rocket.toml and logs, '
+        "```bash title=\"Not run here: needs the flight's rocket.toml and logs, "
         'and minutes per flight"',
         f"diffpegasus rocket fit {name}/rocket.toml --out docs/rockets/{name}",
         "```",
@@ -91,7 +91,6 @@ def main():
         name = folder.name
         t0 = time.perf_counter()
         from diffpegasus._log._rocketlogs import read_rocket_log
-
         from diffpegasus.rocket import read_rocket, run_flight
 
         rocket = read_rocket(folder / "rocket.toml")

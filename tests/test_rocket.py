@@ -57,9 +57,9 @@ def test_lapse_atmosphere_against_hydrostatic_integration():
         rtol=1e-11,
         atol=1e-6,
     )
-    p, temp, reading, rate = (np.asarray(a) for a in dr.linear_lapse_air(
-        p_pad, t_pad, lapse, z
-    ))
+    p, temp, reading, rate = (
+        np.asarray(a) for a in dr.linear_lapse_air(p_pad, t_pad, lapse, z)
+    )
     np.testing.assert_allclose(p, sol.y[0], rtol=1e-8)  # integration tolerance
     np.testing.assert_allclose(temp, t_pad + lapse * 1e-3 * z, rtol=1e-12)
     np.testing.assert_allclose(
@@ -232,4 +232,6 @@ def test_accelerometer_coverage_decides_which_length_scale_is_trusted():
     inputs[record.t > 4.5, 2] = 0.0
     cut = Record(record.t, inputs, record.measured, x0=record.x0)
     assert not accel_covers_ascent(cut)
-    assert not accel_covers_ascent(Record(record.t, inputs[:, :2], record.measured[:, :1]))
+    assert not accel_covers_ascent(
+        Record(record.t, inputs[:, :2], record.measured[:, :1])
+    )

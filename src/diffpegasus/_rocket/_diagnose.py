@@ -155,7 +155,7 @@ def diagnose(problem: Problem, *, level: float = 0.01, rounds: int = 3):
         named.append(found.name)
         free += found.parameters
         # from the current fit, the effect at its absent value
-        warm = dict(zip(current.fit.model.parameters, current.fit.params))
+        warm = dict(zip(current.fit.model.parameters, current.fit.params, strict=True))
         warm.update({n: problem.start[n] for n in found.parameters})
         current = fit_rocket(problem, free=free, start=warm, throw=False)
     return named, rows, current

@@ -301,7 +301,7 @@ def fit_rocket(
         elif not hold_temperature:
             extras += tuple(a for a in ACCEL_FREE if a not in free)
     scaled = ("cd_scale",) + BASE_FREE + extras
-    estimated = (knots.names + BASE_FREE + extras if drag == "knots" else scaled)
+    estimated = knots.names + BASE_FREE + extras if drag == "knots" else scaled
     estimated += tuple(free)
     record = problem.record
     if until is not None:
