@@ -298,7 +298,9 @@ def _check_step(table: Table, t: np.ndarray, col: Column) -> None:
 def _check_outliers(table: Table, raw: np.ndarray, col: Column) -> None:
     """Values the fit cannot use: one whose square, summed over the record, would
     overflow float64; one a million times beyond the column's own 90th-percentile
-    spread about its median (a corrupt cell, not a measurement)."""
+    spread about its median with ordinary samples on both sides (a corrupt cell,
+    not a measurement: a control moved for under a tenth of a record that is
+    otherwise still, to rounding, spans several samples)."""
     where = f"{table.path}: column {col.column!r} (channel {col.channel!r}) row"
     big = np.abs(raw * col.factor)
     i = int(np.argmax(big))
@@ -314,8 +316,13 @@ def _check_outliers(table: Table, raw: np.ndarray, col: Column) -> None:
     med = float(np.median(sample))
     spread = float(np.percentile(np.abs(sample - med), 90))
     dev = np.abs(raw - med)
-    i = int(np.argmax(dev))
-    if spread > 0 and dev[i] > 1e6 * spread:
+    far = dev > 1e6 * spread
+    beside = np.zeros_like(far)
+    beside[1:] |= far[:-1]
+    beside[:-1] |= far[1:]
+    lone = far & ~beside
+    i = int(np.argmax(np.where(lone, dev, -1.0)))
+    if spread > 0 and lone[i]:
         raise LogError(
             f"{where} {i + 1}: value {raw[i]:g} is {dev[i] / spread:.3g} times the "
             f"column's 90th-percentile spread about its median ({med:g}): a corrupt "
