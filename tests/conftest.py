@@ -60,12 +60,6 @@ KNOWN_FAILING: dict[str, str] = {
         "at 1 kHz the one-path diagnosis ranks the planted pitch damping's "
         "look-alike first; not yet diagnosed"
     ),
-    "tests/test_lateral.py::test_cli_fits_two_simulated_lateral_manoeuvres": (
-        "fails after the estimation entry and registry moves; not yet diagnosed"
-    ),
-    "tests/test_lateral.py::test_a_late_rudder_is_ranked_first_on_the_linear_model": (
-        "the log-calibrated rule on the lateral model; not yet diagnosed"
-    ),
 }
 
 

@@ -1078,6 +1078,30 @@ def test_fit_input_mistakes_are_one_error_line(tmp_path, files, argv, fragments)
     assert result.stdout.strip() == ""  # --json: nothing but the one JSON object
 
 
+def test_a_short_input_on_a_still_column_is_read_a_lone_spike_is_not(tmp_path):
+    """The corrupt-cell rule on a column that is still (to rounding) but for a
+    doublet shorter than a tenth of the record, as simulated inputs are: its
+    90th-percentile spread is the rounding, the doublet a million times that, and
+    it spans several samples, so it is read; one value alone is refused."""
+    from diffpegasus._cli._runners import load_records
+    from diffpegasus._estimate._modelfile import load_model_file
+
+    elev = np.zeros(60)
+    elev[[20, 30, 45]] = [1e-30, -5e-16, 2e-17]  # what the input sums leave
+    elev[10:12], elev[13:15] = 1.5, -1.5  # 4 of 60 samples, deg
+    (tmp_path / "data.csv").write_text(_sp_csv(ELEV=lambda x: elev))
+    (tmp_path / "m.py").write_text(SP_MODEL)
+    (tmp_path / "map.json").write_text(json.dumps(SP_MAP))
+    spec = load_model_file(tmp_path / "m.py")
+    (rec,) = load_records(spec, [tmp_path / "data.csv"], tmp_path / "map.json")
+    np.testing.assert_allclose(rec.inputs[:, 0], np.radians(elev), rtol=1e-15)
+    spike = elev.copy()
+    spike[40] = 1.5
+    (tmp_path / "data.csv").write_text(_sp_csv(ELEV=lambda x: spike))
+    with pytest.raises(dp.LogError, match="row 41: value 1.5 .* a corrupt cell"):
+        load_records(spec, [tmp_path / "data.csv"], tmp_path / "map.json")
+
+
 def test_the_clean_fit_input_reads(tmp_path):
     """The premise of the table: the files every case starts from are fine."""
     from diffpegasus._cli._runners import load_records

@@ -79,31 +79,32 @@ def _skip(ctx) -> bool:
     return ctx is not None and getattr(ctx, "resilient_parsing", False)
 
 
-def finite(ctx: typer.Context, param: typer.CallbackParam, value):
-    """A finite number (or `None`)."""
-    if _skip(ctx) or value is None:
+def _validator(ok, requirement: str, doc: str):
+    """A callback that passes `None` and every value `ok` accepts, and refuses the
+    others with "OPTION VALUE: `requirement`"."""
+
+    def check(ctx: typer.Context, param: typer.CallbackParam, value):
+        if _skip(ctx) or value is None:
+            return value
+        if not ok(value):
+            _fail(f"{_option(param)} {value}: {requirement}")
         return value
-    if not math.isfinite(value):
-        _fail(f"{_option(param)} {value}: not a finite number")
-    return value
+
+    check.__doc__ = doc
+    return check
 
 
-def positive(ctx: typer.Context, param: typer.CallbackParam, value):
-    """A finite number above zero (or `None`)."""
-    if _skip(ctx) or value is None:
-        return value
-    if not (math.isfinite(value) and value > 0):
-        _fail(f"{_option(param)} {value}: must be a positive finite number")
-    return value
-
-
-def at_least_one(ctx: typer.Context, param: typer.CallbackParam, value):
-    """An integer of at least 1 (or `None`)."""
-    if _skip(ctx) or value is None:
-        return value
-    if value < 1:
-        _fail(f"{_option(param)} {value}: must be at least 1")
-    return value
+finite = _validator(
+    math.isfinite, "not a finite number", "A finite number (or `None`)."
+)
+positive = _validator(
+    lambda v: math.isfinite(v) and v > 0,
+    "must be a positive finite number",
+    "A finite number above zero (or `None`).",
+)
+at_least_one = _validator(
+    lambda v: not v < 1, "must be at least 1", "An integer of at least 1 (or `None`)."
+)
 
 
 def parse_assignment_text(option: str, text: str, *, need_value: bool):
@@ -281,13 +282,16 @@ ColumnsOption = Annotated[
         rich_help_panel=DATA,
     ),
 ]
+
+
+def _checked(help: str, callback, panel: str):
+    """A `typer.Option` with `help`, validated by `callback`, in the help `panel`."""
+    return typer.Option(help=help, callback=callback, rich_help_panel=panel)
+
+
 FixOption = Annotated[
     list[str] | None,
-    typer.Option(
-        help="Hold a parameter: NAME=VALUE, or NAME at its start value",
-        callback=holds,
-        rich_help_panel=FIT,
-    ),
+    _checked("Hold a parameter: NAME=VALUE, or NAME at its start value", holds, FIT),
 ]
 
 
@@ -295,43 +299,31 @@ FixOption = Annotated[
 # without the field refuses the option).
 KnotsOption = Annotated[
     int | None,
-    typer.Option(
-        help="Mach spline functions per coefficient term (pegasus: 6)",
-        callback=at_least_one,
-        rich_help_panel=TUNING,
+    _checked(
+        "Mach spline functions per coefficient term (pegasus: 6)", at_least_one, TUNING
     ),
 ]
 AlphaOrderOption = Annotated[
     int | None,
-    typer.Option(
-        help="Highest power of alpha in the baseline coefficients (pegasus: 3)",
-        callback=at_least_one,
-        rich_help_panel=TUNING,
+    _checked(
+        "Highest power of alpha in the baseline coefficients (pegasus: 3)",
+        at_least_one,
+        TUNING,
     ),
 ]
 RateOption = Annotated[
-    float | None,
-    typer.Option(
-        help="Model sample rate, Hz (pegasus: 50)",
-        callback=positive,
-        rich_help_panel=TUNING,
-    ),
+    float | None, _checked("Model sample rate, Hz (pegasus: 50)", positive, TUNING)
 ]
 NodeOption = Annotated[
-    float | None,
-    typer.Option(
-        help="Shooting nodes every S s (pegasus: 1)",
-        callback=positive,
-        rich_help_panel=TUNING,
-    ),
+    float | None, _checked("Shooting nodes every S s (pegasus: 1)", positive, TUNING)
 ]
 MaxIterOption = Annotated[
     int | None,
-    typer.Option(
-        help="Iteration bound of the fit (default: iterate until the cost settles, "
+    _checked(
+        "Iteration bound of the fit (default: iterate until the cost settles, "
         "up to 500; a fit that stops short says why)",
-        callback=at_least_one,
-        rich_help_panel=FIT,
+        at_least_one,
+        FIT,
     ),
 ]
 AddOption = Annotated[

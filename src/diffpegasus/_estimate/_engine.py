@@ -371,6 +371,79 @@ def lm_step(h, g, free, damping):
     return step / scale * m
 
 
+def damped_step(h, g, free, z, damping, j0, cost_at, guess, active=None):
+    """The Levenberg-Marquardt damping search from `z`: an [`lm_step`][] at
+    `damping`, then the damping raised tenfold (from at least 1e-8) until the cost
+    falls below `j0` or the damping reaches 1e8; `active` (traced bool, optional)
+    False evaluates nothing.
+
+    **Arguments:** `cost_at(new) -> (cost, *extras)` the trial's cost and what the
+    caller keeps of it; `guess` the extras' values (shapes) before any trial.
+
+    **Returns:** `(damping, new, cost, extras, accepted)`: `new` is `z` where no
+    trial lowered the cost, `cost` and `extras` those of the last trial.
+    """
+
+    def trial(c):
+        lam = jnp.where(c[1], jnp.maximum(10.0 * c[0], 1e-8), c[0])
+        new = z + lm_step(h, g, free, lam)
+        return (lam, jnp.array(True), new, *cost_at(new))
+
+    def again(c):
+        lam, tried, _, j1 = c[:4]
+        go = ~tried | (~(j1 < j0) & (lam < 1e8))
+        return go if active is None else active & go
+
+    start = (damping, jnp.array(False), z, jnp.array(jnp.inf), *guess)
+    damping, _, new, j1, *extras = jax.lax.while_loop(again, trial, start)
+    accepted = j1 < j0
+    return damping, jnp.where(accepted, new, z), j1, extras, accepted
+
+
+class Iterate(eqx.Module):
+    """What an iteration of [`solve`][] (or of the optimistix solver's loop) leaves
+    for [`finish`][]: the unknowns `z`, R `(outputs,)` and its determinant `cost`,
+    `iterations`, whether it is `done` or `broken` (non-finite normal equations),
+    the last linearisation (`information` `(unknowns, unknowns)`, the whitened
+    output Jacobian `jacobian` and residuals `whitened`), the accepted point's
+    continuity `defects` `(segments - 1, states)` and model `outputs` `(S, length,
+    outputs)`, and the last relative `change` of the cost."""
+
+    z: Float[Array, " unknowns"]
+    r: Float[Array, " outputs"]
+    cost: Float[Array, ""]
+    iterations: Int[Array, ""]
+    done: Bool[Array, ""]
+    broken: Bool[Array, ""]
+    information: Float[Array, "unknowns unknowns"]
+    jacobian: Float[Array, "segments length outputs local"]
+    whitened: Float[Array, "segments length outputs"]
+    defects: Float[Array, "links states"]
+    outputs: Float[Array, "segments length outputs"]
+    change: Float[Array, ""]
+
+
+def first_iterate(layout, z0, r0, cost0, broken0, outputs0, nx, p) -> Iterate:
+    """The [`Iterate`][] before the first iteration: the linearisation and the
+    defects zero, `outputs0` `(S, length, outputs)`."""
+    n, shape = z0.shape[0], layout.measured.shape
+    k = layout.local_columns(nx, p).shape[1]
+    return Iterate(
+        z=z0,
+        r=r0,
+        cost=cost0,
+        iterations=jnp.array(0),
+        done=jnp.array(False),
+        broken=broken0,
+        information=jnp.zeros((n, n)),
+        jacobian=jnp.zeros((*shape, k)),
+        whitened=jnp.zeros(shape),
+        defects=jnp.zeros((layout.n_segments - 1, nx)),
+        outputs=outputs0,
+        change=jnp.array(jnp.inf),
+    )
+
+
 def channel_variance(layout, e):
     """Diagonal of R: mean square residual per output over the valid samples."""
     return jnp.sum(e**2, axis=(0, 1)) / jnp.sum(layout.valid)
@@ -449,7 +522,8 @@ def solve(
     n, n_out = z0.shape[0], layout.measured.shape[-1]
 
     def body(carry):
-        z, r, cost_prev, it, _, damping, _, _, _, first, _ = carry
+        state, damping, first = carry
+        z, r, cost_prev, it = state.z, state.r, state.cost, state.iterations
         ev = evaluate(model, layout, z, nx, p)
         r = jnp.where(first, channel_variance(layout, ev.e), r)
         cost_prev = jnp.where(first, jnp.prod(r), cost_prev)
@@ -457,25 +531,17 @@ def solve(
         j0 = _cost(ev.e, ev.d, r)
         # max_iter = 0: the start is evaluated (R, outputs, statistics), not moved
         active = it < max_iter
-
-        def trial(c):
-            lam = jnp.where(c[1], jnp.maximum(10.0 * c[0], 1e-8), c[0])
-            new = z + lm_step(h, g, free, lam)
-            return (
-                lam,
-                jnp.array(True),
-                new,
-                *weighted_cost(model, layout, new, nx, p, r),
-            )
-
-        def again(c):
-            lam, tried, _, j1 = c[:4]
-            return active & (~tried | (~(j1 < j0) & (lam < 1e8)))
-
-        start = (damping, jnp.array(False), z, jnp.array(jnp.inf), ev.e, ev.d, ev.ys)
-        damping, _, new, j1, e1, d1, ys1 = jax.lax.while_loop(again, trial, start)
-        accepted = j1 < j0
-        new = jnp.where(accepted, new, z)
+        damping, new, _, (e1, d1, ys1), accepted = damped_step(
+            h,
+            g,
+            free,
+            z,
+            damping,
+            j0,
+            lambda new: weighted_cost(model, layout, new, nx, p, r),
+            (ev.e, ev.d, ev.ys),
+            active,
+        )
         r_new = jnp.where(accepted, channel_variance(layout, e1), r)
         cost = jnp.prod(r_new)
         # det(R) = 0: a channel reproduced to the last bit (noise-free data), nothing
@@ -492,86 +558,49 @@ def solve(
             jax.debug.callback(
                 _print_progress, it + active, cost, change, damping, defect
             )
-        after = (
-            jnp.where(accepted, d1, ev.d),
-            jnp.where(accepted, ys1, ev.ys),
+        # the loop carries the last linearisation (at the point the last step
+        # started from: at convergence the step is negligible) so that the
+        # statistics need no other copy of the Jacobian program
+        state = Iterate(
+            z=new,
+            r=r_new,
+            cost=cost,
+            iterations=it + active,
+            done=done,
+            broken=broken,
+            information=h,
+            jacobian=jyw,
+            whitened=ew,
+            defects=jnp.where(accepted, d1, ev.d),
+            outputs=jnp.where(accepted, ys1, ev.ys),
+            change=change,
         )
-        lin = (h, g, jyw, ew)
-        return (
-            new,
-            r_new,
-            cost,
-            it + active,
-            done,
-            damping / 10.0,
-            broken,
-            lin,
-            after,
-            False,
-            change,
-        )
+        return state, damping / 10.0, jnp.array(False)
 
-    # The loop carries the last linearisation (at the point the last step started
-    # from: at convergence the step is negligible) so that the statistics below need
-    # no other copy of the Jacobian program.
-    shape, n_seg = layout.measured.shape, layout.n_segments
-    k = layout.local_columns(nx, p).shape[1]
-    lin0 = (jnp.zeros((n, n)), jnp.zeros(n), jnp.zeros((*shape, k)), jnp.zeros(shape))
-    after0 = (jnp.zeros((n_seg - 1, nx)), jnp.zeros(shape))
-    init = (z0, jnp.ones(n_out), jnp.array(jnp.inf), jnp.array(0), jnp.array(False))
-    init = (*init, jnp.array(0.0), jnp.array(False), lin0, after0, jnp.array(True))
-    init = (*init, jnp.array(jnp.inf))
-    z, r, cost, iterations, done, _, broken, lin, (d, ys), _, change = (
-        jax.lax.while_loop(
-            lambda c: ((c[3] < max_iter) | c[9]) & ~c[4] & ~c[6], body, init
-        )
-    )
-    h, _, jyw, ew = lin
-    return finish(
+    start = first_iterate(
         layout,
-        z,
-        r,
-        cost,
-        iterations,
-        done,
-        broken,
-        h,
-        jyw,
-        ew,
-        d,
-        ys,
-        free,
-        nx=nx,
-        p=p,
-        coloured=coloured,
-        change=change,
+        z0,
+        jnp.ones(n_out),
+        jnp.array(jnp.inf),
+        jnp.array(False),
+        jnp.zeros(layout.measured.shape),
+        nx,
+        p,
     )
+    state, _, _ = jax.lax.while_loop(
+        lambda c: ((c[0].iterations < max_iter) | c[2]) & ~c[0].done & ~c[0].broken,
+        body,
+        (start, jnp.array(0.0), jnp.array(True)),
+    )
+    return finish(layout, state, free, nx=nx, p=p, coloured=coloured)
 
 
-def finish(
-    layout,
-    z,
-    r,
-    cost,
-    iterations,
-    done,
-    broken,
-    h,
-    jyw,
-    ew,
-    d,
-    ys,
-    free,
-    *,
-    nx,
-    p,
-    coloured,
-    change,
-) -> Solution:
-    """The [`Solution`][] of a finished iteration: the covariances from the last
-    normal matrix `h` and whitened Jacobian `jyw` and residuals `ew`, the largest
-    defect of `d`, the result code (shared by [`solve`][] and the optimistix
-    solver's loop)."""
+def finish(layout, state: Iterate, free, *, nx, p, coloured) -> Solution:
+    """The [`Solution`][] of a finished iteration ([`Iterate`][]): the covariances
+    from its last normal matrix and whitened Jacobian and residuals, the largest
+    defect, the result code (shared by [`solve`][] and the optimistix solver's
+    loop)."""
+    h, jyw, ew = state.information, state.jacobian, state.whitened
     m = free.astype(h.dtype)
     hm = h * m[:, None] * m[None, :] + jnp.diag(1.0 - m)
     cov = jnp.linalg.inv(hm) * m[:, None] * m[None, :]
@@ -580,27 +609,27 @@ def finish(
     if coloured:
         tail = coloured_covariance(layout, jyw, ew, cov[:, ns:], nx, p)
         corrected = corrected.at[ns:, ns:].set(tail)
-    defect = jnp.max(jnp.abs(d), initial=0.0) * 1.0
-    finite = jnp.isfinite(cost) & jnp.all(jnp.isfinite(z)) & ~broken
+    defect = jnp.max(jnp.abs(state.defects), initial=0.0) * 1.0
+    finite = jnp.isfinite(state.cost) & jnp.all(jnp.isfinite(state.z)) & ~state.broken
     result = RESULTS.where(
         finite,
-        RESULTS.where(done, RESULTS.successful, RESULTS.max_iterations),
+        RESULTS.where(state.done, RESULTS.successful, RESULTS.max_iterations),
         RESULTS.nonfinite,
     )
     return Solution(
-        z=z,
-        R=r,
-        cost=cost,
-        iterations=iterations,
+        z=state.z,
+        R=state.r,
+        cost=state.cost,
+        iterations=state.iterations,
         result=result,
         covariance=cov,
         corrected=corrected,
-        outputs=ys,
+        outputs=state.outputs,
         defect=defect,
         jacobian=jyw,
         whitened=ew,
         information=hm * m[:, None] * m[None, :],
-        change=change,
+        change=state.change,
     )
 
 

@@ -33,9 +33,11 @@ from ._engine import (
     _cost,
     assemble,
     channel_variance,
+    damped_step,
     evaluate,
     finish,
-    lm_step,
+    first_iterate,
+    Iterate,
     residuals_at,
     Solution,
 )
@@ -126,22 +128,15 @@ class BlockLevenbergMarquardt(optx.AbstractLeastSquaresSolver):
         def sum_squares(res):
             return sum(jnp.sum(x**2) for x in jax.tree.leaves(res))
 
-        def trial(c):
-            lam = jnp.where(c[1], jnp.maximum(10.0 * c[0], 1e-8), c[0])
-            new = y + lm_step(h, g, prob.free, lam)
+        def cost_at(new):
             res, aux = fn(new, args)
-            return lam, jnp.array(True), new, sum_squares(res), res, aux
-
-        def again(c):
-            lam, tried, _, j1 = c[:4]
-            return ~tried | (~(j1 < j0) & (lam < 1e8))
+            return sum_squares(res), res, aux
 
         struct = jax.eval_shape(lambda: fn(y, args))
         zeros = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), struct)
-        start = (state.damping, jnp.array(False), y, jnp.array(jnp.inf), *zeros)
-        damping, _, new, j1, res1, aux1 = jax.lax.while_loop(again, trial, start)
-        accepted = j1 < j0
-        new = jnp.where(accepted, new, y)
+        damping, new, j1, (res1, aux1), accepted = damped_step(
+            h, g, prob.free, y, state.damping, j0, cost_at, zeros
+        )
         broken = ~(jnp.all(jnp.isfinite(h)) & jnp.all(jnp.isfinite(g)))
         change = jnp.abs(j0 - j1) / jnp.abs(j1)
         done = ~accepted | broken | (change <= self.rtol)
@@ -193,14 +188,12 @@ def solve_with_optimistix(
     current R (the relaxation of det(R)), the damping carried between them.
     Returns the engine's [`Solution`][]."""
     free = layout.free_columns(free_params, nx, p)
-    n = z0.shape[0]
     e0, _, _ = residuals_at(model, layout, z0, nx, p)
     r0 = channel_variance(layout, e0)
-    shape = layout.measured.shape
-    k = layout.local_columns(nx, p).shape[1]
 
     def body(c):
-        z, r, cost_prev, it, _, damping, _, _, _ = c
+        state, damping = c
+        z, r = state.z, state.r
         prob = OutputErrorProblem(
             model=model, layout=layout, r=r, free=free, nx=nx, p=p
         )
@@ -215,53 +208,46 @@ def solve_with_optimistix(
         )
         st = sol.state
         ew, d = st.residual
-        r_new = channel_variance(layout, ew * jnp.sqrt(r)[None, None, :])
+        e = ew * jnp.sqrt(r)[None, None, :]
+        r_new = channel_variance(layout, e)
         cost = jnp.prod(r_new)
+        cost_prev = state.cost
         small = (jnp.abs(cost_prev - cost) <= rtol * jnp.abs(cost)) | (cost == 0)
         accepted = jnp.any(sol.value != z)
         r_new = jnp.where(accepted, r_new, r)
         cost = jnp.where(accepted, cost, cost_prev)
         broken = st.broken | ~jnp.all(jnp.isfinite(r_new))
-        done = small | ~accepted | broken
-        change = jnp.abs(cost_prev - cost) / jnp.abs(cost)
-        lin = (
-            st.information,
-            st.jacobian,
-            st.whitened,
-            (ew * jnp.sqrt(r)[None, None, :], d),
+        state = Iterate(
+            z=sol.value,
+            r=r_new,
+            cost=cost,
+            iterations=state.iterations + 1,
+            done=small | ~accepted | broken,
+            broken=broken,
+            information=st.information,
+            jacobian=st.jacobian,
+            whitened=st.whitened,
+            defects=d,
+            # the accepted point's outputs from its residuals (whitened by the R
+            # before it)
+            outputs=jnp.where(layout.valid[..., None], layout.measured - e, 0.0),
+            change=jnp.abs(cost_prev - cost) / jnp.abs(cost),
         )
-        return sol.value, r_new, cost, it + 1, done, st.damping, broken, lin, change
+        return state, st.damping
 
-    lin0 = (
-        jnp.zeros((n, n)),
-        jnp.zeros((*shape, k)),
-        jnp.zeros(shape),
-        (jnp.zeros(shape), jnp.zeros((layout.n_segments - 1, nx))),
-    )
-    init = (z0, r0, jnp.prod(r0), jnp.array(0), jnp.array(False), jnp.array(0.0))
-    init = (*init, ~jnp.all(jnp.isfinite(r0)), lin0, jnp.array(jnp.inf))
-    z, r, cost, iterations, done, _, broken, lin, change = jax.lax.while_loop(
-        lambda c: (c[3] < max_iter) & ~c[4] & ~c[6], body, init
-    )
-    h, jyw, ew, (e_last, d) = lin
-    # the accepted point's outputs from its residuals (whitened by the R before it)
-    ys = jnp.where(layout.valid[..., None], layout.measured - e_last, 0.0)
-    return finish(
+    start = first_iterate(
         layout,
-        z,
-        r,
-        cost,
-        iterations,
-        done,
-        broken,
-        h,
-        jyw,
-        ew,
-        d,
-        ys,
-        free,
-        nx=nx,
-        p=p,
-        coloured=coloured,
-        change=change,
+        z0,
+        r0,
+        jnp.prod(r0),
+        ~jnp.all(jnp.isfinite(r0)),
+        jnp.where(layout.valid[..., None], layout.measured, 0.0),
+        nx,
+        p,
     )
+    state, _ = jax.lax.while_loop(
+        lambda c: (c[0].iterations < max_iter) & ~c[0].done & ~c[0].broken,
+        body,
+        (start, jnp.array(0.0)),
+    )
+    return finish(layout, state, free, nx=nx, p=p, coloured=coloured)

@@ -32,6 +32,30 @@ from .._log._format import FlightLog
 from .._model import Record
 
 
+class Simulation(eqx.Module):
+    """A simulated flight asked of a vehicle (`AbstractVehicleEntry`'s
+    `simulate`): `hidden` effects `NAME=VALUE` (SI units) planted, sensor noise
+    (`noise`) and any random effect drawn from `seed`; `duration` (s) and
+    `sample_rate` (Hz), `None` for the vehicle's own; `input` the excitation's
+    name; `perturb` a Monte Carlo perturbation of the vehicle where it has one."""
+
+    seed: int = 0
+    hidden: tuple[str, ...] = ()
+    duration: float | None = None
+    sample_rate: float | None = None
+    noise: bool = True
+    input: str = "pulse"
+    perturb: bool = False
+
+    def timing(self, duration: float, sample_rate: float) -> tuple[float, float]:
+        """`(duration, sample_rate)` asked for, each defaulting to the vehicle's own
+        (s, Hz)."""
+        return (
+            duration if self.duration is None else self.duration,
+            sample_rate if self.sample_rate is None else self.sample_rate,
+        )
+
+
 class AbstractVehicleEntry(eqx.Module):
     """What the command line needs of a vehicle (see the module).
 
@@ -61,7 +85,6 @@ class AbstractVehicleEntry(eqx.Module):
         **Returns:** `(spec, records)`; errors in the data are one `LogError`.
         """
 
-    @abc.abstractmethod
     def simulate(
         self,
         *,
@@ -73,11 +96,27 @@ class AbstractVehicleEntry(eqx.Module):
         input: str = "pulse",
         perturb: bool = False,
     ) -> FlightLog:
-        """A simulated flight: `hidden` effects `NAME=VALUE` (SI units) planted,
-        sensor noise and any random effect drawn from `seed`; `duration` (s) and
-        `sample_rate` (Hz) default to the vehicle's own; `input` names the
-        excitation; `perturb` draws a Monte Carlo perturbation of the vehicle
-        where it has one. Unsupported requests are one `LogError`."""
+        """A simulated flight of the vehicle (the arguments are those of a
+        `Simulation`) by its own simulator (`fly`); a request it cannot fly
+        is one `LogError`."""
+        request = Simulation(
+            seed=seed,
+            hidden=tuple(hidden),
+            duration=duration,
+            sample_rate=sample_rate,
+            noise=noise,
+            input=input,
+            perturb=perturb,
+        )
+        try:
+            return self.fly(request)
+        except ValueError as e:
+            raise LogError(str(e)) from None
+
+    @abc.abstractmethod
+    def fly(self, request: Simulation) -> FlightLog:
+        """The flight `request` asks for; what the vehicle cannot fly raises
+        `LogError` (or `ValueError`) with one line saying why."""
 
     @abc.abstractmethod
     def geometry(self) -> tuple[float, float] | None:
@@ -170,31 +209,21 @@ class ModelFileEntry(AbstractModelEntry):
         )
         return hold_candidates(spec)
 
-    def simulate(
-        self,
-        *,
-        seed=0,
-        hidden=(),
-        duration=None,
-        sample_rate=None,
-        noise=True,
-        input="pulse",
-        perturb=False,
-    ):
+    def fly(self, request):
         from ._simulate_file import simulate_model_file
 
-        if perturb:
+        if request.perturb:
             raise LogError(
                 f"{self.path}: --perturb needs a vehicle's Monte Carlo model"
             )
         return simulate_model_file(
-            self.spec(add=tuple(h.partition("=")[0].strip() for h in hidden)),
-            seed=seed,
-            hidden=hidden,
-            duration=duration,
-            sample_rate=sample_rate,
-            noise=noise,
-            input=input,
+            self.spec(add=tuple(h.partition("=")[0].strip() for h in request.hidden)),
+            seed=request.seed,
+            hidden=request.hidden,
+            duration=request.duration,
+            sample_rate=request.sample_rate,
+            noise=request.noise,
+            input=request.input,
         )
 
     def geometry(self):

@@ -72,30 +72,23 @@ class HFB320Entry(AbstractModelEntry):
             )
         )
 
-    def simulate(
-        self,
-        *,
-        seed=0,
-        hidden=(),
-        duration=None,
-        sample_rate=None,
-        noise=True,
-        input="pulse",
-        perturb=False,
-    ) -> FlightLog:
+    def fly(self, request) -> FlightLog:
         from .._vehicle._hfb320 import CANDIDATES
         from ._hfb320_simulator import simulate_log
 
-        if perturb:
+        if request.perturb:
             raise LogError("--perturb: the HFB-320 has no Monte Carlo model")
-        if input not in ("pulse", "3211"):
-            raise LogError(f"--input {input}: the HFB-320 flies the book's 3-2-1-1")
-        planted, turbulence = _planted(hidden, CANDIDATES, "hfb320")
+        if request.input not in ("pulse", "3211"):
+            raise LogError(
+                f"--input {request.input}: the HFB-320 flies the book's 3-2-1-1"
+            )
+        planted, turbulence = _planted(request.hidden, CANDIDATES, "hfb320")
+        duration, rate = request.timing(30.0, 10.0)
         channels, meta = simulate_log(
-            duration=30.0 if duration is None else duration,
-            rate=10.0 if sample_rate is None else sample_rate,
-            seed=seed,
-            noise=noise,
+            duration=duration,
+            rate=rate,
+            seed=request.seed,
+            noise=request.noise,
             hidden=planted,
             turbulence=turbulence,
         )
@@ -142,23 +135,13 @@ class HFB320LateralEntry(AbstractModelEntry):
             )
         )
 
-    def simulate(
-        self,
-        *,
-        seed=0,
-        hidden=(),
-        duration=None,
-        sample_rate=None,
-        noise=True,
-        input="pulse",
-        perturb=False,
-    ) -> FlightLog:
+    def fly(self, request) -> FlightLog:
         from .._vehicle._lateral_sixdof import simulate_lateral_log
 
-        if perturb:
+        if request.perturb:
             raise LogError("--perturb: the business jet has no Monte Carlo model")
         planted = {}
-        for text in hidden:
+        for text in request.hidden:
             spec, _, value = text.partition("=")
             try:
                 planted[spec.strip()] = float(value)
@@ -167,25 +150,23 @@ class HFB320LateralEntry(AbstractModelEntry):
                     f"--hidden {text}: expected sensor_bias:CHANNEL=VALUE"
                 ) from None
         first = {"pulse": "aileron", "aileron": "aileron", "rudder": "rudder"}.get(
-            input
+            request.input
         )
         if first is None:
             raise LogError(
-                f"--input {input}: a lateral manoeuvre starts with aileron (an "
+                f"--input {request.input}: a lateral manoeuvre starts with aileron (an "
                 "aileron 3-2-1-1, then a rudder doublet) or rudder (the other way "
                 "round)"
             )
-        try:
-            channels, meta = simulate_lateral_log(
-                duration=25.0 if duration is None else duration,
-                rate=25.0 if sample_rate is None else sample_rate,
-                seed=seed,
-                noise=noise,
-                first=first,
-                hidden=planted,
-            )
-        except ValueError as e:
-            raise LogError(str(e)) from None
+        duration, rate = request.timing(25.0, 25.0)
+        channels, meta = simulate_lateral_log(
+            duration=duration,
+            rate=rate,
+            seed=request.seed,
+            noise=request.noise,
+            first=first,
+            hidden=planted,
+        )
         return FlightLog(channels=channels, metadata=meta)
 
     def geometry(self):

@@ -260,31 +260,18 @@ class PegasusEntry(AbstractVehicleEntry):
                 out[name], _ = block_means(values, step)
         return out
 
-    def simulate(
-        self,
-        *,
-        seed=0,
-        hidden=(),
-        duration=None,
-        sample_rate=None,
-        noise=True,
-        input="pulse",
-        perturb=False,
-    ) -> FlightLog:
+    def fly(self, request) -> FlightLog:
         from ._pegasus_simulator import simulate_pegasus_log
 
-        try:
-            return simulate_pegasus_log(
-                seed=seed,
-                hidden=tuple(hidden),
-                duration=duration,
-                sample_rate=1000.0 if sample_rate is None else sample_rate,
-                noise=noise,
-                input=input,
-                perturb=perturb,
-            )
-        except ValueError as e:
-            raise LogError(str(e)) from None
+        return simulate_pegasus_log(
+            seed=request.seed,
+            hidden=request.hidden,
+            duration=request.duration,
+            sample_rate=1000.0 if request.sample_rate is None else request.sample_rate,
+            noise=request.noise,
+            input=request.input,
+            perturb=request.perturb,
+        )
 
     def geometry(self):
         from .._vehicle._pegasus._vehicle import C_REF, S_REF
