@@ -142,6 +142,25 @@ def window_data(model: Model, record: Record, windows: Windows) -> Layout:
     )
 
 
+def _knot_cols(n_seg, k, nx, p, linear) -> np.ndarray:
+    # `(knots, P)`: a block is `[node (nx), k knots x P]`, the tail the last knot
+    nb = nx + k * p
+    w = np.arange(n_seg * k + (1 if linear else 0))[:, None]
+    i = np.arange(p)[None, :]
+    inside = (w // k) * nb + nx + (w % k) * p + i
+    return np.where(w < n_seg * k, inside, n_seg * nb + i)
+
+
+def _local_cols(n_seg, k, nx, p, linear) -> np.ndarray:
+    # `(S, nl)`: a segment's own block, then (linear) the next segment's first knot
+    s = np.arange(n_seg)[:, None]
+    own = s * (nx + k * p) + np.arange(nx + k * p)[None, :]
+    if not linear:
+        return own
+    knots = _knot_cols(n_seg, k, nx, p, linear)
+    return np.concatenate([own, knots[(s[:, 0] + 1) * k]], axis=1)
+
+
 class _Layout(AbstractLayout):
     """The engine's layout for parameters per window: where each unknown lives in
     the flat vector `[blocks (S nb), tail (P)]`: a block is `[node (nx), k knots x
@@ -178,19 +197,11 @@ class _Layout(AbstractLayout):
 
     def knot_cols(self) -> np.ndarray:
         """`(knots, P)` columns of every knot (padded ones included)."""
-        n = self.n_seg * self.k + (1 if self.linear else 0)
-        w = np.arange(n)[:, None]
-        i = np.arange(self.p)[None, :]
-        inside = (w // self.k) * self.nb + self.nx + (w % self.k) * self.p + i
-        return np.where(w < self.n_seg * self.k, inside, self.n_seg * self.nb + i)
+        return _knot_cols(self.n_seg, self.k, self.nx, self.p, self.linear)
 
     def local_cols(self) -> np.ndarray:
         """`(S, nl)` columns of each segment's local vector `[block, next knot]`."""
-        s = np.arange(self.n_seg)[:, None]
-        own = s * self.nb + np.arange(self.nb)[None, :]
-        if not self.linear:
-            return own
-        return np.concatenate([own, self.knot_cols()[(s[:, 0] + 1) * self.k]], axis=1)
+        return _local_cols(self.n_seg, self.k, self.nx, self.p, self.linear)
 
     def used_knots(self) -> int:
         return self.n_windows + (1 if self.linear else 0)
@@ -384,47 +395,22 @@ def windowed_start(
     windows' `theta0`). Pure: it runs under `jax.vmap`."""
     theta0 = jnp.asarray(theta0, float)
     stepped = _stepped(linear, theta0.shape[1])
-    lay = _make_layout(
-        model,
-        _shape_only(windows, len(model.states), len(model.outputs)),
-        windows,
-        jnp.ones(windows.n_windows, bool),
-        jnp.zeros(theta0.shape, bool),
-        stepped,
-    )
-    if lay.linear:
+    shape = (windows.segments, windows.per_segment, len(model.states))
+    shape = (*shape, theta0.shape[1], not all(stepped))
+    if not all(stepped):
         mid = 0.5 * (theta0[1:] + theta0[:-1])
         theta0 = jnp.where(
             jnp.asarray(stepped)[None, :],
             jnp.concatenate([theta0, theta0[-1:]]),
             jnp.concatenate([theta0[:1], mid, theta0[-1:]]),
         )
-    cols = lay.knot_cols()
+    cols = _knot_cols(*shape)
     knots = jnp.concatenate(
         [theta0, jnp.repeat(theta0[-1:], cols.shape[0] - theta0.shape[0], axis=0)]
     )
-    z0 = jnp.zeros(lay.size).at[cols].set(knots)
-    return z0.at[lay.local_cols()[:, : lay.nx]].set(jnp.asarray(nodes0, float))
-
-
-def _shape_only(windows: Windows, nx: int, n_out: int) -> Layout:
-    # a data layout of the right shapes, for the column bookkeeping alone
-    w = windows.segments * windows.per_segment
-    return Layout(
-        inputs=np.zeros((1, 2, 1)),
-        t0=np.zeros(1),
-        dt=np.ones(1),
-        n=np.array([2]),
-        record=np.zeros(w, int),
-        first=np.zeros(w, int),
-        measured=np.zeros((w, windows.window, n_out)),
-        valid=np.ones((w, windows.window), bool),
-        link=np.ones(w - 1, bool),
-        scale=np.ones(nx),
-        node_free=np.ones((w, nx), bool),
-        length=windows.window,
-        bias_channels=(),
-    )
+    size = windows.segments * (shape[2] + shape[1] * shape[3])
+    z0 = jnp.zeros(size + (shape[3] if shape[4] else 0)).at[cols].set(knots)
+    return z0.at[_local_cols(*shape)[:, : shape[2]]].set(jnp.asarray(nodes0, float))
 
 
 def fit_windowed_data(
