@@ -130,7 +130,7 @@ PARAMETERS = ("hybrid", "linear", "window", "constant")
 
 
 def linear_mask(parameters: str, terms: tuple[str, ...]) -> bool | tuple[bool, ...]:
-    """`linear=` of [`fit_windowed_oem`][] for a parameterisation: per parameter
+    """`linear=` of [`fit_windowed`][] for a parameterisation: per parameter
     (the six derivatives, then [`term_names`][]) whether it is continuous and linear
     in time (else constant per window)."""
     if parameters == "linear":
@@ -255,6 +255,22 @@ def _thesis_model(s_ref: float, c_ref: float, wind_axes: bool, terms: tuple[str,
     )
 
 
+def make_model(
+    s_ref: float, c_ref: float, wind_axes: bool = False, terms: tuple[str, ...] = ()
+):
+    """`(rates, outputs)` of [`thesis_model`][] as functions of a parameter vector
+    (in [`parameter_names`][]'s order), for the `OEMProblem` form (input design)."""
+    model = _thesis_model(float(s_ref), float(c_ref), bool(wind_axes), tuple(terms))
+    return model.rates, model.observe
+
+
+def _vector(p, wind_axes, terms):
+    # the parameters as a vector: a `dp.Model` passes a dict, the problem form a vector
+    if isinstance(p, dict):
+        return jnp.stack([p[n] for n in parameter_names(wind_axes, terms)])
+    return p
+
+
 class _Rates(eqx.Module):
     """The thesis model's state rates: a value (equal for equal geometry,
     picklable), so that fits of different logs share compiled and kept programs."""
@@ -265,7 +281,7 @@ class _Rates(eqx.Module):
     terms: tuple[str, ...] = eqx.field(static=True)
 
     def __call__(self, t, x, u, p):
-        p = jnp.stack([p[n] for n in parameter_names(self.wind_axes, self.terms)])
+        p = _vector(p, self.wind_axes, self.terms)
         fx, fz, moment, _, _ = _loads(
             x, u, p, self.s_ref, self.c_ref, self.wind_axes, self.terms
         )
@@ -284,7 +300,7 @@ class _Outputs(eqx.Module):
     terms: tuple[str, ...] = eqx.field(static=True)
 
     def __call__(self, t, x, u, p):
-        p = jnp.stack([p[n] for n in parameter_names(self.wind_axes, self.terms)])
+        p = _vector(p, self.wind_axes, self.terms)
         fx, fz, moment, alpha, v = _loads(
             x, u, p, self.s_ref, self.c_ref, self.wind_axes, self.terms
         )
@@ -614,7 +630,7 @@ def estimate_oem(
       errors cover over the Monte Carlo campaign): `linear` (derivatives continuous and
       linear in time between window boundaries; a window's estimate is their mean
       over the window), `window` (per window the six derivatives and how the alpha
-      derivatives change inside it, with time and with alpha, see [`make_model`][];
+      derivatives change inside it, with time and with alpha, see [`thesis_model`][];
       the reported values are at the window's mean time and alpha: no structural
       bias from secant derivatives, twice the unknowns), `hybrid` (those terms
       for the force derivatives in alpha only, CXa and CZa per window with them;
