@@ -657,6 +657,29 @@ def test_pegasus_multiple_shooting_cli_json(pegasus_log):
     assert max(d["flags"]["max_defect"]) < 1e-2
 
 
+def test_thesis_fit_takes_the_reference_area_from_the_vehicle(pegasus_log):
+    """The log's metadata does not set the area: the vehicle's geometry does (the
+    Pegasus vehicle's by default), in the model and in the equation-error start."""
+    import dataclasses
+
+    log = dp.read_log(pegasus_log)
+    wrong = dataclasses.replace(log, metadata={**log.metadata, "S_ref": 1.0})
+    a, _ = dp.pegasus.oem_setup(log)
+    b, _ = dp.pegasus.oem_setup(wrong)
+    assert a.model == b.model and a.model.rates.s_ref == 13.5
+    np.testing.assert_array_equal(np.asarray(a.theta0), np.asarray(b.theta0))
+    big = dp.Geometry(s_ref=27.0, c_ref=2.48)
+    c, _ = dp.pegasus.oem_setup(log, geometry=big)
+    assert c.model.rates.s_ref == 27.0 and c.model != a.model
+    # coefficients from the same loads over twice the area: half the derivatives
+    # where the equation-error start has an estimate (the database fills the others)
+    lse = dp.pegasus.estimate_lse(log).values
+    ok = np.all(np.isfinite(np.asarray(lse)), axis=1)
+    np.testing.assert_allclose(
+        np.asarray(c.theta0)[ok], 0.5 * np.asarray(a.theta0)[ok], rtol=1e-9
+    )
+
+
 def test_body_and_lift_drag_forms_round_trip():
     body = jnp.array([[0.1, 0.02, -3.0, -0.5, -0.2, -1.0]])
     alpha = jnp.array([0.2])

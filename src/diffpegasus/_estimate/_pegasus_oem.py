@@ -5,7 +5,10 @@ Iyy, Iyy_dot, CG and cp stations, altitude for density and gravity); per-window
 parameters the body-axis derivatives `[CXa, CXde, CZa, CZde, CMa, CMde]` (the thesis
 found them better conditioned than the lift/drag ones); outputs `[ax, az, q, qdot,
 alpha, V]`. The same building blocks as the simulator (`pitch_plane_rates`,
-`moment_about_cg`, `isa`, `gravity`) give the dynamics.
+`moment_about_cg`, `isa`, `gravity`) give the dynamics. The model is a `dp.Model`
+([`thesis_model`][], the reference geometry the vehicle's), the decimated log a
+`dp.Record` ([`thesis_record`][]); the per-window parameters are a layout of the
+one output-error engine ([`fit_windowed`][]).
 
 With `terms` (`parameters="window"` of [`estimate_oem`][]) the alpha derivatives
 of a window may also change inside it, with time and with alpha: `CXa(t) = CXa +
