@@ -48,8 +48,7 @@ from scipy.optimize._numdiff import group_columns
 
 import diffpegasus as dp
 from diffpegasus._estimate import _engine
-from diffpegasus._estimate._global_oem import VectorModel
-from diffpegasus._estimate._windowed_oem import _make_layout
+from diffpegasus._estimate._windowed_oem import _make_layout, windowed_start
 
 
 HERE = pathlib.Path(__file__).resolve().parent
@@ -319,13 +318,10 @@ def windowed(logs, gflops):
     rows = []
     for i, log in enumerate(logs):
         setup = dp.oem_setup(log, parameters="linear")[0]
-        prob = setup.problem
+        windows, model = setup.windows, setup.model
 
         def ours_fit(setup=setup):
-            return dp.fit_windowed_oem(
-                setup.problem, setup.theta0, setup.nodes0, linear=True,
-                active=setup.active,
-            )  # fmt: skip
+            return setup.fit()
 
         compile_s = None
         if i == 0:
@@ -333,26 +329,18 @@ def windowed(logs, gflops):
         fit, solve_s = timed(ours_fit)
         solve_cpu = CPU["last"]
         print(f"windowed flight {i}: ours {solve_s:.2f} s", flush=True)
-        structure = (
-            prob.n_segments, setup.nodes0.shape[1], setup.theta0.shape[1],
-            prob.windows_per_segment, True, prob.n_windows,
-        )  # fmt: skip
-        layout = _make_layout(prob, setup.active, *structure)
-        nx, p = layout.nx, layout.p
-        theta0 = setup.theta0
-        mid = 0.5 * (theta0[1:] + theta0[:-1])
-        knots0 = jnp.concatenate([theta0[:1], mid, theta0[-1:]])
-        cols = layout.knot_cols()
-        knots0 = jnp.concatenate(
-            [knots0, jnp.repeat(knots0[-1:], cols.shape[0] - knots0.shape[0], 0)]
+        p = setup.theta0.shape[1]
+        held = jnp.zeros(setup.theta0.shape, bool)
+        layout = _make_layout(
+            model, setup.data, windows, setup.active, held, (False,) * p
         )
-        z0 = jnp.zeros(layout.size).at[cols].set(knots0)
-        z0 = z0.at[layout.local_cols()[:, :nx]].set(setup.nodes0)
+        nx = layout.nx
+        cols = layout.knot_cols()
+        z0 = windowed_start(model, windows, setup.theta0, setup.nodes0, True)
         free = np.asarray(layout.free_columns(None, nx, p))
-        model = VectorModel(prob.rates, prob.outputs, prob.input_delay)
         sc = scipy_fit(model, layout, z0, free, nx, p, rtol=1e-5, budget=BUDGET)
         # window means of the scipy knots, as the fit reports them
-        zk = sc["z"][cols[: prob.n_windows + 1]]
+        zk = sc["z"][cols[: windows.n_windows + 1]]
         sc_params = 0.5 * (zk[:-1] + zk[1:])
         active = np.asarray(setup.active)
         row = compare(
@@ -365,12 +353,12 @@ def windowed(logs, gflops):
         row["ours_compile_plus_first_s"] = compile_s
         samples = int(np.asarray(layout.valid).size)
         k = int(layout.local_cols().shape[1])
-        u = prob.inputs[100]
+        u = setup.data.inputs[0][100]
         mf = model_flops(
-            prob.rates, prob.outputs, setup.nodes0[5], u, setup.theta0[20], k, True
+            model.f, model.g, setup.nodes0[5], u, setup.theta0[20], k, True
         )
         row["arithmetic"] = arithmetic(
-            mf, samples, k, nx, prob.measured.shape[1], prob.n_segments,
+            mf, samples, k, nx, len(model.outputs), windows.segments,
             int(free.sum()), gflops,
         )  # fmt: skip
         row["arithmetic"]["model_flops"] = mf

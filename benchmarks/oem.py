@@ -31,7 +31,7 @@ import numpy as np  # noqa: E402
 import scipy.optimize  # noqa: E402
 
 import diffpegasus as dp  # noqa: E402
-from diffpegasus._estimate._oem import _input_at, _window_solve  # noqa: E402
+from diffpegasus._estimate._engine import segment_outputs  # noqa: E402
 from diffpegasus._estimate._pegasus_oem import measured_states  # noqa: E402
 
 
@@ -57,44 +57,33 @@ def main():
             for i in range(args.batch)
         )
     ]
-    _, first = timed(lambda: dp.estimate_oem(logs[0], parameters="linear").values)
-    _, single_run = timed(lambda: dp.estimate_oem(logs[0], parameters="linear").values)
+    oem = dp.pegasus.estimate_oem
+    _, first = timed(lambda: oem(logs[0], parameters="linear").values)
+    _, single_run = timed(lambda: oem(logs[0], parameters="linear").values)
 
-    setups = [dp.oem_setup(log, parameters="linear")[0] for log in logs]
+    setups = [dp.pegasus.oem_setup(log, parameters="linear")[0] for log in logs]
     stacked = jax.tree_util.tree_map(lambda *x: jnp.stack(x), *setups)
 
     def batch_fn(batch):
-        return jax.vmap(
-            lambda s: (
-                dp.fit_windowed_oem(
-                    s.problem, s.theta0, s.nodes0, linear=True, active=s.active
-                ).params
-            )
-        )(batch)
+        return jax.vmap(lambda s: s.fit().params)(batch)
 
     # one slice of the batch per core (shard_map), as the Monte Carlo runs it
     _, batch_first = timed(lambda: dp.map_over_devices(batch_fn, stacked))
     _, batch_run = timed(lambda: dp.map_over_devices(batch_fn, stacked))
-    problems = [s.problem for s in setups]
     thetas = [s.theta0 for s in setups]
 
-    # The straightforward alternative, on a subset of windows after ignition.
-    prob = problems[0]
-    length = prob.window_samples
+    # The straightforward alternative, on a subset of windows after ignition: a
+    # window of the fit's data layout is one segment of the engine's simulation.
+    model, data = setups[0].model, setups[0].data
+    length = setups[0].windows.window
     sigma = jnp.asarray(
         [0.05, 0.05, np.deg2rad(0.1), np.deg2rad(1.0), np.deg2rad(0.1), 0.5]
     )
 
     @jax.jit
     def residual(theta, w, x0):
-        t_start = prob.t0 + w * length * prob.dt
-        xs, ts = _window_solve(prob, x0, theta, t_start)
-        u = jax.vmap(lambda t: _input_at(prob, t))(ts[:-1])
-        y = jax.vmap(lambda t, x_, u_: prob.outputs(t, x_, u_, theta))(
-            ts[:-1], xs[:-1], u
-        )
-        z = jax.lax.dynamic_slice_in_dim(prob.measured, w * length, length)
-        return ((z - y) / sigma[None, :]).reshape(-1)
+        y, _ = segment_outputs(model, data, w, x0, theta, jnp.zeros(0))
+        return ((data.measured[w] - y) / sigma[None, :]).reshape(-1)
 
     log0 = logs[0]
     meas_states = measured_states(log0)[::5]
@@ -112,7 +101,7 @@ def main():
             ftol=1e-8,
         )
     scipy_per_window = (time.perf_counter() - t0) / len(windows)
-    n_windows = prob.n_windows
+    n_windows = setups[0].windows.n_windows
     scipy_per_flight = scipy_per_window * n_windows
     result = {
         "what": "Pegasus OEM, 161 windows of 0.5 s, 200 Hz, multiple shooting every 2 s",

@@ -80,7 +80,7 @@ def main():
     results["lse"] = lse
     for name, kw in runs.items():
         t0 = time.perf_counter()
-        est = dp.estimate_oem(log, **kw)
+        est = dp.pegasus.estimate_oem(log, **kw)
         jax.block_until_ready(est.values)
         timing[name] = time.perf_counter() - t0
         results[name] = est

@@ -15,7 +15,7 @@ from diffpegasus._estimate._engine import (
     segment_outputs,
 )
 from diffpegasus._estimate._global_oem import _layout, VectorModel
-from diffpegasus._estimate._windowed_oem import _make_layout, _segment
+from diffpegasus._estimate._windowed_oem import _make_layout, window_data, Windows
 
 
 EXPERIMENTS = pathlib.Path(__file__).resolve().parents[1] / "experiments"
@@ -61,6 +61,24 @@ def _rates(t, x, u, p):
 
 def _outputs(t, x, u, p):
     return jnp.stack([p[0] * x[0] + p[1] * x[1] + p[2] * u[0], x[0], x[1]])
+
+
+def _named(fn, names):
+    """`fn(t, x, u, p_vector)` as a `dp.Model` function of named parameters."""
+    return lambda t, x, u, p: fn(t, x, u, jnp.stack([p[n] for n in names]))
+
+
+NAMES = ("Zw", "Zq", "Zde", "Mw", "Mq", "Mde")
+MODEL = dp.Model(
+    ("w", "q"),
+    ("de",),
+    ("az", "w", "q"),
+    NAMES,
+    _named(_rates, NAMES),
+    _named(_outputs, NAMES),
+    fixed=("Zq",),
+    state_scale=(1.0, 0.1),
+)
 
 
 def _problem(
@@ -191,17 +209,34 @@ def drifting(data):
 
 
 def _windowed(measured, de):
-    prob = _problem(measured, de, node_interval=100, window=50)
+    """The record, per-window start (4 windows of 50 samples) and node guesses (2
+    segments)."""
+    record = dp.Record(np.arange(200) * 0.05, np.asarray(de), np.asarray(measured))
     theta0 = jnp.broadcast_to(START, (4, 6))
-    return prob, theta0, jnp.zeros((2, 2)).at[1].set(measured[100, 1:])
+    return record, theta0, jnp.zeros((2, 2)).at[1].set(measured[100, 1:])
 
 
-def _segment_jacobian_checked(prob, layout, v):
+def _fit_windowed(record, theta0, nodes0, model=MODEL, node_interval=100, **kw):
+    return dp.pegasus.fit_windowed(
+        model, record, theta0, nodes0, window=50, node_interval=node_interval, **kw
+    )
+
+
+def _window_layout(record, stepped, model=MODEL, node_interval=100):
+    """The engine's layout of 50-sample windows, all active, none held."""
+    windows = Windows.make(200, 50, node_interval)
+    p = len(model.parameters)
+    data = window_data(model, record, windows)
+    held = jnp.zeros((4, p), bool)
+    return _make_layout(model, data, windows, jnp.ones(4, bool), held, stepped)
+
+
+def _segment_jacobian_checked(layout, v):
     """The exact Jacobian of segment 0's outputs and end state in its local vector
     `v`, asserted equal to central finite differences."""
     f = jax.jit(
         lambda v_: jnp.concatenate(
-            [jnp.ravel(y) for y in _segment(prob, layout, 0, v_)]
+            [jnp.ravel(y) for y in layout.segment(MODEL, 0, v_, 2, 6)]
         )
     )
     exact = jax.jacfwd(f)(v)
@@ -216,20 +251,20 @@ def _segment_jacobian_checked(prob, layout, v):
 
 def test_windowed_segment_jacobian_matches_finite_differences(drifting):
     de, clean, _ = drifting
-    prob, theta0, nodes0 = _windowed(clean, de)
-    layout = _make_layout(prob, jnp.ones(4, bool), 2, 2, 6, 2, True, 4)
+    record, theta0, nodes0 = _windowed(clean, de)
+    layout = _window_layout(record, (False,) * 6)
     v = jnp.concatenate(
         [nodes0[0], jnp.ravel(jax.vmap(_theta_at)(jnp.arange(3) * 2.5))]
     )
-    _segment_jacobian_checked(prob, layout, v)
+    _segment_jacobian_checked(layout, v)
 
 
 def test_linear_windowed_parameters_follow_a_drift_constant_ones_cannot(drifting):
     de, clean, truth = drifting
-    prob, theta0, nodes0 = _windowed(clean, de)
+    record, theta0, nodes0 = _windowed(clean, de)
     free = np.array([0, 2, 3, 4, 5])
-    lin = dp.fit_windowed_oem(prob, theta0, nodes0, linear=True, rtol=1e-9)
-    const = dp.fit_windowed_oem(prob, theta0, nodes0, rtol=1e-9)
+    lin = _fit_windowed(record, theta0, nodes0, linear=True, rtol=1e-9)
+    const = _fit_windowed(record, theta0, nodes0, rtol=1e-9)
     assert bool(lin.converged) and bool(const.converged)
     err_lin = np.abs(np.asarray(lin.params - truth))[:, free]
     err_const = np.abs(np.asarray(const.params - truth))[:, free]
@@ -245,6 +280,19 @@ def test_linear_windowed_parameters_follow_a_drift_constant_ones_cannot(drifting
     )
     assert np.all(np.asarray(lin.params[:, 1]) == float(TRUE[1]))
     assert np.all(np.asarray(lin.stderr[:, 1]) == 0.0)
+
+
+def test_problem_form_is_deprecated_and_fits_the_same(drifting):
+    """`fit_windowed_oem(OEMProblem, ...)` converts to a model and a record: the
+    same fit, with a deprecation warning."""
+    de, clean, _ = drifting
+    record, theta0, nodes0 = _windowed(clean, de)
+    prob = _problem(clean, de, node_interval=100, window=50)
+    with pytest.warns(DeprecationWarning, match="fit_windowed"):
+        old = dp.pegasus.fit_windowed_oem(prob, theta0, nodes0, rtol=1e-9)
+    new = _fit_windowed(record, theta0, nodes0, rtol=1e-9)
+    # one model, two spellings of its functions: equal to rounding
+    np.testing.assert_allclose(old.params, new.params, rtol=1e-12)
 
 
 # A mixed fit (`linear` one bool per parameter): Zde constant per window and stepping
@@ -267,13 +315,12 @@ def stepping(data):
 
 def test_mixed_segment_jacobian_matches_finite_differences(drifting):
     de, clean, _ = drifting
-    prob, theta0, nodes0 = _windowed(clean, de)
-    stepped = tuple(not m for m in MIXED)
-    layout = _make_layout(prob, jnp.ones(4, bool), 2, 2, 6, 2, True, 4, stepped)
+    record, theta0, nodes0 = _windowed(clean, de)
+    layout = _window_layout(record, tuple(not m for m in MIXED))
     v = jnp.concatenate(
         [nodes0[0], jnp.ravel(jax.vmap(_theta_stepped)(jnp.arange(3) * 2.5))]
     )
-    exact = _segment_jacobian_checked(prob, layout, v)
+    exact = _segment_jacobian_checked(layout, v)
     # a stepped parameter's next knot does not enter the segment (its window's
     # value holds to the window's end); Zde is column 2 of a knot, after the node
     zde_next = 2 + 2 * 6 + 2
@@ -282,10 +329,10 @@ def test_mixed_segment_jacobian_matches_finite_differences(drifting):
 
 def test_mixed_windowed_parameters_follow_steps_and_drifts(stepping):
     de, clean, truth = stepping
-    prob, theta0, nodes0 = _windowed(clean, de)
+    record, theta0, nodes0 = _windowed(clean, de)
     free = np.array([0, 2, 3, 4, 5])
-    mixed = dp.fit_windowed_oem(prob, theta0, nodes0, linear=MIXED, rtol=1e-9)
-    lin = dp.fit_windowed_oem(prob, theta0, nodes0, linear=True, rtol=1e-9)
+    mixed = _fit_windowed(record, theta0, nodes0, linear=MIXED, rtol=1e-9)
+    lin = _fit_windowed(record, theta0, nodes0, linear=True, rtol=1e-9)
     assert bool(mixed.converged) and bool(lin.converged)
     rel = (
         np.abs(np.asarray(mixed.params - truth))[:, free]
@@ -323,6 +370,19 @@ def _outputs_terms(t, x, u, p):
     return _outputs(t, x, u[:1], p[:6].at[2].set(zde))
 
 
+TERM_NAMES = NAMES + ("Zde_t", "Zde_d")
+MODEL_TERMS = dp.Model(
+    ("w", "q"),
+    ("de", "tau", "d"),
+    ("az", "w", "q"),
+    TERM_NAMES,
+    _named(_rates_terms, TERM_NAMES),
+    _named(_outputs_terms, TERM_NAMES),
+    fixed=("Zq",),
+    state_scale=(1.0, 0.1),
+)
+
+
 @pytest.fixture(scope="module")
 def collinear(data):
     """Problem, truth `(4, 8)` and nodes of the model with window terms, its
@@ -340,39 +400,30 @@ def collinear(data):
         .set(0.0)
     )  # held at zero where it cannot be told from Zde_t
 
-    def problem(measured, node_interval):
-        return dp.OEMProblem(
-            rates=_rates_terms,
-            outputs=_outputs_terms,
-            t0=0.0,
-            dt=0.05,
-            inputs=inputs,
-            measured=measured,
-            free=(True, False) + (True,) * 6,
-            node_interval=node_interval,
-            window=50,
-            state_scale=jnp.array([1.0, 0.1]),
-        )
-
-    probe = problem(jnp.zeros((200, 3)), 200)
-    one = _make_layout(probe, jnp.ones(4, bool), 1, 2, 8, 4, False, 4)
-    clean, _ = _segment(probe, one, 0, jnp.concatenate([jnp.zeros(2), truth.ravel()]))
+    probe = dp.Record(np.arange(200) * 0.05, np.asarray(inputs), np.zeros((200, 3)))
+    one = _window_layout(probe, (True,) * 8, MODEL_TERMS, node_interval=200)
+    v = jnp.concatenate([jnp.zeros(2), truth.ravel()])
+    clean, _ = one.segment(MODEL_TERMS, 0, v, 2, 8)
     noise = (
         jax.random.normal(jax.random.key(5), clean.shape)
         * jnp.array([0.02, 0.005, 0.0005])[None, :]
     )
-    prob = problem(clean + noise, 100)
+    record = dp.Record(
+        np.arange(200) * 0.05, np.asarray(inputs), np.asarray(clean + noise)
+    )
     nodes0 = jnp.zeros((2, 2)).at[1].set(clean[100, 1:])
-    return prob, truth, nodes0
+    return record, truth, nodes0
 
 
 def test_held_window_term_converges_and_is_reported(collinear):
-    prob, truth, nodes0 = collinear
+    record, truth, nodes0 = collinear
     theta0 = jnp.broadcast_to(jnp.concatenate([START, jnp.zeros(2)]), (4, 8))
     mixed = (True,) * 6 + (False, False)  # as `hybrid`: the terms per window
     held = np.zeros((4, 8), bool)
     held[2, 7] = True
-    fit = dp.fit_windowed_oem(prob, theta0, nodes0, linear=mixed, held=held, rtol=1e-9)
+    fit = _fit_windowed(
+        record, theta0, nodes0, MODEL_TERMS, linear=mixed, held=held, rtol=1e-9
+    )
     assert bool(fit.converged)
     np.testing.assert_array_equal(np.asarray(fit.held), held)
     # held: at its start, no standard error; its window's other term still estimated
@@ -389,7 +440,7 @@ def test_held_window_term_converges_and_is_reported(collinear):
     # with the term free in window 2 the normal equations are singular there: the
     # covariance is unusable (measured: zero standard errors, standard errors 1e15,
     # correlations 1e149 or inf depending on rounding), no valid correlation matrix
-    loose = dp.fit_windowed_oem(prob, theta0, nodes0, linear=mixed, rtol=1e-9)
+    loose = _fit_windowed(record, theta0, nodes0, MODEL_TERMS, linear=mixed, rtol=1e-9)
     assert not np.any(np.asarray(loose.held))
     corr = np.asarray(loose.correlation)
     assert not np.all(np.isfinite(corr)) or np.max(np.abs(corr)) > 1.5
@@ -434,8 +485,8 @@ def test_linear_windowed_noisy_recovery_within_standard_errors(drifting):
         jax.random.normal(jax.random.key(3), clean.shape)
         * jnp.array([0.2, 0.05, 0.005])[None, :]
     )
-    prob, theta0, nodes0 = _windowed(clean + noise, de)
-    fit = dp.fit_windowed_oem(prob, theta0, nodes0, linear=True)
+    record, theta0, nodes0 = _windowed(clean + noise, de)
+    fit = _fit_windowed(record, theta0, nodes0, linear=True)
     assert bool(fit.converged)
     free = np.array([0, 2, 3, 4, 5])
     z = np.asarray((fit.params - truth) / fit.stderr_corrected)[:, free]
@@ -606,6 +657,29 @@ def test_pegasus_multiple_shooting_cli_json(pegasus_log):
     assert max(d["flags"]["max_defect"]) < 1e-2
 
 
+def test_thesis_fit_takes_the_reference_area_from_the_vehicle(pegasus_log):
+    """The log's metadata does not set the area: the vehicle's geometry does (the
+    Pegasus vehicle's by default), in the model and in the equation-error start."""
+    import dataclasses
+
+    log = dp.read_log(pegasus_log)
+    wrong = dataclasses.replace(log, metadata={**log.metadata, "S_ref": 1.0})
+    a, _ = dp.pegasus.oem_setup(log)
+    b, _ = dp.pegasus.oem_setup(wrong)
+    assert a.model == b.model and a.model.rates.s_ref == 13.5
+    np.testing.assert_array_equal(np.asarray(a.theta0), np.asarray(b.theta0))
+    big = dp.Geometry(s_ref=27.0, c_ref=2.48)
+    c, _ = dp.pegasus.oem_setup(log, geometry=big)
+    assert c.model.rates.s_ref == 27.0 and c.model != a.model
+    # coefficients from the same loads over twice the area: half the derivatives
+    # where the equation-error start has an estimate (the database fills the others)
+    lse = dp.pegasus.estimate_lse(log).values
+    ok = np.all(np.isfinite(np.asarray(lse)), axis=1)
+    np.testing.assert_allclose(
+        np.asarray(c.theta0)[ok], 0.5 * np.asarray(a.theta0)[ok], rtol=1e-9
+    )
+
+
 def test_body_and_lift_drag_forms_round_trip():
     body = jnp.array([[0.1, 0.02, -3.0, -0.5, -0.2, -1.0]])
     alpha = jnp.array([0.2])
@@ -614,29 +688,30 @@ def test_body_and_lift_drag_forms_round_trip():
 
 
 def test_window_solve_equals_diffrax_rk4(drifting):
-    """The windowed fit's integrator (a lax.scan) against diffrax's solve with the
-    same RK4 tableau, parameters varying linearly over the window."""
-    from diffpegasus._estimate._oem import _input_at, _theta_at, _window_solve
+    """The windowed layout's integrator (the engine's lax.scan, a window of the
+    data layout) against diffrax's solve with the same RK4 tableau, parameters
+    varying linearly over the window."""
+    from diffpegasus._estimate._engine import segment_solve
 
     de, clean, _ = drifting
-    prob, theta0, _ = _windowed(clean, de)
+    record, theta0, _ = _windowed(clean, de)
+    data = window_data(MODEL, record, Windows.make(200, 50, 100))
     th0, th1 = theta0[0], theta0[0] * 1.1
     x0 = jnp.array([0.3, 0.01])
-    xs, ts = _window_solve(prob, x0, th0, 0.5, th1)
-    span = prob.window_samples * prob.dt
+    xs, ts = segment_solve(MODEL, data, 1, x0, th0, th1)  # window 1: from 2.5 s
+    u = diffrax.LinearInterpolation(ts=jnp.asarray(record.t), ys=jnp.asarray(de))
 
     def field(t, x, args):
-        th = _theta_at(args, t, span)
-        return prob.rates(t, x, _input_at(prob, t, th), th)
+        th = th0 + (th1 - th0) * (t - 2.5) / 2.5
+        return _rates(t, x, u.evaluate(t), th)
 
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(field),
         dp.RK4(),
         t0=ts[0],
         t1=ts[-1],
-        dt0=prob.dt,
+        dt0=record.dt,
         y0=x0,
-        args=(th0, th1, 0.5),
         saveat=diffrax.SaveAt(ts=ts),
         max_steps=len(ts) + 2,
     )
@@ -649,24 +724,23 @@ def test_pegasus_outputs_see_the_inputs_averaged_like_the_measurements():
     model at the true states and derivatives of each model sample reproduces those
     means only with the inputs averaged over the same samples: az and qdot follow
     the elevator without lag, and its pulses' 20 ms ramps bend inside a block."""
-    from diffpegasus._estimate._pegasus_oem import INPUTS, OUTPUTS, pegasus_problem
+    from diffpegasus._estimate._pegasus_oem import INPUTS, OUTPUTS
 
     from .helpers import short_config
 
     config = short_config(t_final=9.0, sample_rate=1000.0, sensors=dp.SensorModel())
     log = dp.flight_to_log(dp.simulate(config, jax.random.key(2), noise=False))
-    problem, idx = pegasus_problem(log, wind_axes=True, decimate=5)
+    model = dp.pegasus.thesis_model(wind_axes=True)
+    record, idx = dp.pegasus.thesis_record(log, decimate=5)
     x = np.column_stack([log[c][idx] for c in ("u", "w", "q", "theta")])
     p = np.column_stack([log["true_" + c][idx] for c in dp.DERIVATIVE_NAMES])
 
     def misfit(inputs):
-        y = jax.vmap(lambda xx, uu, pp: problem.outputs(0.0, xx, uu, pp))(
-            x, inputs[: problem.n_samples], p
-        )
-        e = np.abs(np.asarray(problem.measured) - np.asarray(y))
+        y = jax.vmap(lambda xx, uu, pp: model.g(0.0, xx, uu, pp))(x, inputs, p)
+        e = np.abs(record.measured - np.asarray(y))
         return e[log.t[idx] > 5.0].max(axis=0)  # the pulses start at 5 s
 
-    averaged = misfit(problem.inputs)
+    averaged = misfit(jnp.asarray(record.inputs))
     picked = misfit(jnp.asarray(np.column_stack([log[c][idx] for c in INPUTS])))
     az, qdot = OUTPUTS.index("az"), OUTPUTS.index("qdot")
     # measured: averaged 5.5e-5 m/s^2 and 1.0e-5 rad/s^2 (the states' and

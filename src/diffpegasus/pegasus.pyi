@@ -32,6 +32,8 @@ from ._estimate._pegasus_oem import (
     estimate_oem as estimate_oem,
     oem_setup as oem_setup,
     OEMSetup as OEMSetup,
+    thesis_model as thesis_model,
+    thesis_record as thesis_record,
     to_body as to_body,
     to_lift_drag as to_lift_drag,
     windowed_lift_drag as windowed_lift_drag,
@@ -47,8 +49,10 @@ from ._estimate._training import (
     TrainingHistory as TrainingHistory,
 )
 from ._estimate._windowed_oem import (
+    fit_windowed as fit_windowed,
     fit_windowed_oem as fit_windowed_oem,
     WindowedFit as WindowedFit,
+    Windows as Windows,
 )
 from ._estimate._windows import (
     WindowLayout as WindowLayout,

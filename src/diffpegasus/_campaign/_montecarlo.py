@@ -51,6 +51,7 @@ from .._simulate._solve import (
     simulate,
     simulate_batch,
 )
+from .._vehicle._parts import Geometry
 from ._distributed import _note, _Processes, _warn
 from ._settings import (  # noqa: F401 (the campaign's constants, imported from here)
     Campaign,
@@ -301,6 +302,7 @@ def run_campaign(
                     min_qbar=campaign.min_qbar,
                     lse=lse_values[i],
                     parameters=ESTIMATOR_SETTINGS["oem"]["parameters"],
+                    geometry=Geometry(s_ref=s_ref, c_ref=c_ref),
                 )
                 setups.append(setup)
             stacked = jax.tree_util.tree_map(lambda *x: jnp.stack(x), *setups)

@@ -26,6 +26,7 @@ from ._common import (
     positive,
     ResampleOption,
     UnitsOption,
+    vehicle_geometry,
     with_vehicle,
 )
 
@@ -254,6 +255,7 @@ def estimate_oem_command(
     from .._estimate import estimate_oem
     from .._estimate._pegasus_oem import PARAMETERS
     from .._log._format import read_log
+    from .._vehicle._parts import Geometry
 
     _check_units(units)
     _check_out(out, "folder")
@@ -270,6 +272,7 @@ def estimate_oem_command(
         typer.echo("fitting (compiles on first use)...", err=True)
         est = estimate_oem(
             flight,
+            geometry=Geometry(*vehicle_geometry(vehicle)),
             window=window,
             node_interval=node_interval,
             shooting=shooting,

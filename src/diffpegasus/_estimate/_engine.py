@@ -191,10 +191,13 @@ def _sampled_inputs(layout: Layout, s):
     return layout.inputs[r][jnp.clip(idx, 0, layout.n[r] - 1)]
 
 
-def segment_solve(model: Model, layout: Layout, s, node, theta):
+def segment_solve(model: Model, layout: Layout, s, node, theta, theta_end=None):
     """States at segment `s`'s samples and one step beyond, `(length + 1, states)`,
     and their times: classical RK4 at the record's sample step (the middle stages
-    see the inputs averaged over the step, as flight-test codes do).
+    see the inputs averaged over the step, as flight-test codes do). With
+    `theta_end` the parameters change linearly in time from `theta` at the
+    segment's start to `theta_end` one segment later (a parameter layout's
+    derivatives that follow the flight condition, see `_windowed.py`).
 
     A `lax.scan`, not `diffrax.diffeqsolve`: on the HFB-320 fit the scan compiles in
     half the time and runs twice as fast; the tests check it against diffrax's
@@ -203,29 +206,40 @@ def segment_solve(model: Model, layout: Layout, s, node, theta):
     dt = layout.dt[r]
     t_start = layout.t0[r] + layout.first[s] * dt
     ts = t_start + dt * jnp.arange(layout.length + 1)
+    at = _parameters_at(theta, theta_end, t_start, layout.length * dt)
     delay = model.input_delays(theta)
     if delay is None:
         # inputs at the samples, looked up once rather than at every stage
         u = _sampled_inputs(layout, s)
-        return rk4_scan(lambda t, x, u_: model.f(t, x, u_, theta), node, ts, dt, u), ts
+        return rk4_scan(lambda t, x, u_: model.f(t, x, u_, at(t)), node, ts, dt, u), ts
 
     def field(t, x):
-        return model.f(t, x, _input_at(layout, r, t, delay), theta)
+        return model.f(t, x, _input_at(layout, r, t, delay), at(t))
 
     return rk4_scan(field, node, ts, dt), ts
 
 
-def segment_outputs(model: Model, layout: Layout, s, node, theta, bias):
+def _parameters_at(theta, theta_end, t_start, span):
+    """The parameters as a function of time: `theta`, or linear from `theta` at
+    `t_start` to `theta_end` at `t_start + span`."""
+    if theta_end is None:
+        return lambda t: theta
+    return lambda t: theta + (theta_end - theta) * ((t - t_start) / span)
+
+
+def segment_outputs(model: Model, layout: Layout, s, node, theta, bias, theta_end=None):
     """Model outputs of segment `s` `(length, outputs)` (record biases `bias`
-    `(nb,)` added) and its end state `(states,)`."""
-    xs, ts = segment_solve(model, layout, s, node, theta)
+    `(nb,)` added) and its end state `(states,)`; `theta_end` as in
+    [`segment_solve`][]."""
+    xs, ts = segment_solve(model, layout, s, node, theta, theta_end)
     r = layout.record[s]
     delay = model.input_delays(theta)
     if delay is None:
         u = _sampled_inputs(layout, s)[:-1]
     else:
         u = jax.vmap(lambda t: _input_at(layout, r, t, delay))(ts[:-1])
-    ys = jax.vmap(lambda t, x, u_: model.g(t, x, u_, theta))(ts[:-1], xs[:-1], u)
+    at = _parameters_at(theta, theta_end, ts[0], layout.length * layout.dt[r])
+    ys = jax.vmap(lambda t, x, u_: model.g(t, x, u_, at(t)))(ts[:-1], xs[:-1], u)
     if layout.bias_channels:
         ys = ys.at[:, jnp.asarray(layout.bias_channels)].add(bias[None, :])
     return ys, xs[-1]

@@ -1,16 +1,14 @@
-"""The vector form of an output-error problem, shared by the windowed Pegasus fit and
-the engine's adapter (`_global_oem.py`), and helpers to report a fit.
+"""The vector form of an output-error problem (the input design's, and the engine's
+adapter `_global_oem.py`; the windowed fit converts it to a `dp.Model`, deprecated),
+and helpers to report a fit.
 
 A model is two pure functions of time, state, known inputs and parameters:
 `rates(t, x, u, theta) -> x'` and `outputs(t, x, u, theta) -> y`. The record is cut
 into parameter windows (the parameters are constant in each, or over the whole record)
 and shooting segments (groups of windows, each integrated from its own node state).
-Inside a window the model is integrated by RK4 at the sample step in one diffrax solve,
-with the known inputs interpolated linearly between samples.
-
-The windowed fit (`_windowed_oem.py`) integrates each window with `_window_solve`
-(diffrax RK4 at the sample step); problems with one parameter set go to the engine
-through [`fit_global_oem`][].
+Inside a window the model is integrated by RK4 at the sample step, with the known
+inputs interpolated linearly between samples (`_window_solve`, which the input design
+uses); problems with one parameter set go to the engine through [`fit_global_oem`][].
 """
 
 from collections.abc import Callable

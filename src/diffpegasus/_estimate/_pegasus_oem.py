@@ -5,7 +5,10 @@ Iyy, Iyy_dot, CG and cp stations, altitude for density and gravity); per-window
 parameters the body-axis derivatives `[CXa, CXde, CZa, CZde, CMa, CMde]` (the thesis
 found them better conditioned than the lift/drag ones); outputs `[ax, az, q, qdot,
 alpha, V]`. The same building blocks as the simulator (`pitch_plane_rates`,
-`moment_about_cg`, `isa`, `gravity`) give the dynamics.
+`moment_about_cg`, `isa`, `gravity`) give the dynamics. The model is a `dp.Model`
+([`thesis_model`][], the reference geometry the vehicle's), the decimated log a
+`dp.Record` ([`thesis_record`][]); the per-window parameters are a layout of the
+one output-error engine ([`fit_windowed`][]).
 
 With `terms` (`parameters="window"` of [`estimate_oem`][]) the alpha derivatives
 of a window may also change inside it, with time and with alpha: `CXa(t) = CXa +
@@ -85,22 +88,31 @@ import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from .._log._format import FlightLog
+from .._model import Model, Record
 from .._vehicle._atmosphere import isa
 from .._vehicle._axes import wind_body
 from .._vehicle._flight import moment_about_cg, pitch_plane_rates
 from .._vehicle._gravity import gravity
+from .._vehicle._parts import Geometry
 from .._vehicle._pegasus._aerodynamics import body_axis, load_database
-from ._global_oem import fit_global_oem
+from .._vehicle._pegasus._vehicle import C_REF, S_REF
+from ._engine import Layout, RESULTS, segment_solve, solve
 from ._lse import estimate_lse, window_truth
-from ._oem import _window_solve, node_times, OEMProblem
 from ._result import Estimates
-from ._windowed_oem import fit_windowed_oem, WindowedFit
+from ._windowed_oem import (
+    fit_windowed_data,
+    window_data,
+    windowed_start,
+    WindowedFit,
+    Windows,
+)
 from ._windows import WindowLayout
 
 
 INPUTS = ("de", "thrust", "mass", "Iyy", "Iyy_dot", "xcg", "xcp", "h")
 OUTPUTS = ("ax", "az", "q", "qdot", "alpha", "V")
 BODY_NAMES = ("CXa", "CXde", "CZa", "CZde", "CMa", "CMde")
+WIND_NAMES = ("CLa", "CLde", "CDa", "CDde", "CMa", "CMde")
 # Which alpha derivatives may change inside a window (`terms`), each with time (per
 # window length, 1/rad) and with alpha (1/rad^2); all parameters are then constant
 # per window (a continuous parameter cannot take the terms, see the module).
@@ -121,7 +133,7 @@ PARAMETERS = ("hybrid", "linear", "window", "constant")
 
 
 def linear_mask(parameters: str, terms: tuple[str, ...]) -> bool | tuple[bool, ...]:
-    """`linear=` of [`fit_windowed_oem`][] for a parameterisation: per parameter
+    """`linear=` of [`fit_windowed`][] for a parameterisation: per parameter
     (the six derivatives, then [`term_names`][]) whether it is continuous and linear
     in time (else constant per window)."""
     if parameters == "linear":
@@ -205,26 +217,65 @@ def _loads(x, u, p, s_ref, c_ref, wind_axes, terms=()):
     return fx_aero + thrust, fz_aero, moment, alpha, v
 
 
+def parameter_names(wind_axes: bool = False, terms: tuple[str, ...] = ()):
+    """The thesis model's parameters: the six derivatives in body axes
+    ([`BODY_NAMES`][]) or lift/drag form ([`WIND_NAMES`][]), then
+    [`term_names`][] of `terms`."""
+    return (WIND_NAMES if wind_axes else BODY_NAMES) + term_names(terms)
+
+
+def thesis_model(
+    geometry: Geometry | None = None,
+    *,
+    wind_axes: bool = False,
+    terms: tuple[str, ...] = (),
+) -> Model:
+    """The thesis's output-error model of the Pegasus first stage as a `dp.Model`:
+    states `[u, w, q, theta]` (m/s, m/s, rad/s, rad), known inputs [`INPUTS`][]
+    (with `terms` also [`TERM_INPUTS`][]), outputs [`OUTPUTS`][], parameters
+    [`parameter_names`][] (1/rad; the alpha terms per window length and 1/rad^2),
+    the reference area and length from `geometry` (default the Pegasus vehicle's).
+    With the windowed layout ([`fit_windowed`][]) the parameters are per window.
+    Cached, so that fits of different logs share the compiled programs."""
+    if geometry is None:
+        geometry = Geometry(s_ref=S_REF, c_ref=C_REF)
+    return _thesis_model(
+        float(geometry.s_ref), float(geometry.c_ref), bool(wind_axes), tuple(terms)
+    )
+
+
 @functools.cache
+def _thesis_model(s_ref: float, c_ref: float, wind_axes: bool, terms: tuple[str, ...]):
+    geometry = (s_ref, c_ref, wind_axes, terms)
+    return Model(
+        states=("u", "w", "q", "theta"),
+        inputs=INPUTS + (TERM_INPUTS if terms else ()),
+        outputs=OUTPUTS,
+        parameters=parameter_names(wind_axes, terms),
+        rates=_Rates(*geometry),
+        observe=_Outputs(*geometry),
+        state_scale=tuple(float(v) for v in STATE_SCALE),
+    )
+
+
 def make_model(
     s_ref: float, c_ref: float, wind_axes: bool = False, terms: tuple[str, ...] = ()
 ):
-    """`(rates, outputs)` of the Pegasus OEM model for the given reference geometry;
-    parameters `[CXa, CXde, CZa, CZde, CMa, CMde]`, or with `wind_axes`
-    `[CLa, CLde, CDa, CDde, CMa, CMde]`; with `terms` (names of alpha derivatives,
-    [`ALPHA_DERIVATIVES`][]) two more for each, [`term_names`][] (how they change
-    inside the window, see the module), with
-    two more known inputs after [`INPUTS`][]: [`TERM_INPUTS`][] (the window's
-    mean alpha, rad, and the time in the window, `tau`, -1/2 to 1/2). Cached,
-    so that problems built from different logs share the same functions and hence
-    the compiled fits."""
+    """`(rates, outputs)` of [`thesis_model`][] as functions of a parameter vector
+    (in [`parameter_names`][]'s order), for the `OEMProblem` form (input design)."""
+    model = _thesis_model(float(s_ref), float(c_ref), bool(wind_axes), tuple(terms))
+    return model.rates, model.observe
 
-    geometry = (float(s_ref), float(c_ref), bool(wind_axes), tuple(terms))
-    return _Rates(*geometry), _Outputs(*geometry)
+
+def _vector(p, wind_axes, terms):
+    # the parameters as a vector: a `dp.Model` passes a dict, the problem form a vector
+    if isinstance(p, dict):
+        return jnp.stack([p[n] for n in parameter_names(wind_axes, terms)])
+    return p
 
 
 class _Rates(eqx.Module):
-    """The Pegasus OEM model's state rates: a value (equal for equal geometry,
+    """The thesis model's state rates: a value (equal for equal geometry,
     picklable), so that fits of different logs share compiled and kept programs."""
 
     s_ref: float = eqx.field(static=True)
@@ -233,6 +284,7 @@ class _Rates(eqx.Module):
     terms: tuple[str, ...] = eqx.field(static=True)
 
     def __call__(self, t, x, u, p):
+        p = _vector(p, self.wind_axes, self.terms)
         fx, fz, moment, _, _ = _loads(
             x, u, p, self.s_ref, self.c_ref, self.wind_axes, self.terms
         )
@@ -243,7 +295,7 @@ class _Rates(eqx.Module):
 
 
 class _Outputs(eqx.Module):
-    """The Pegasus OEM model's outputs (see [`_Rates`][])."""
+    """The thesis model's outputs (see [`_Rates`][])."""
 
     s_ref: float = eqx.field(static=True)
     c_ref: float = eqx.field(static=True)
@@ -251,6 +303,7 @@ class _Outputs(eqx.Module):
     terms: tuple[str, ...] = eqx.field(static=True)
 
     def __call__(self, t, x, u, p):
+        p = _vector(p, self.wind_axes, self.terms)
         fx, fz, moment, alpha, v = _loads(
             x, u, p, self.s_ref, self.c_ref, self.wind_axes, self.terms
         )
@@ -283,26 +336,21 @@ def measured_states(log: FlightLog) -> np.ndarray:
     )
 
 
-def pegasus_problem(
+def thesis_record(
     log: FlightLog,
     *,
-    window=0.5,
-    node_interval=2.0,
-    decimate=5,
-    single=False,
-    wind_axes=False,
-    terms=(),
-) -> tuple[OEMProblem, np.ndarray]:
-    """The OEM problem for a log, at `1/decimate` of its rate, each measurement
-    and each known input the mean of the `decimate` log samples around its model
-    sample (see the module); returns it with the decimated sample indices.
-    `terms`: the model of [`make_model`][] with the alpha derivatives `terms`
-    changing inside each window (two more parameters per window for each; the
-    window's mean measured alpha, rad, and `tau` are two more input columns)."""
+    window: float = 0.5,
+    decimate: int = 5,
+    terms: tuple[str, ...] = (),
+) -> tuple[Record, np.ndarray]:
+    """The log as the thesis model's [`Record`][] at `1/decimate` of its rate,
+    each measurement and each known input the mean of the `decimate` log samples
+    around its model sample (see the module); returns it with the decimated sample
+    indices. With `terms`, the window's mean measured alpha (rad) and `tau` are two
+    more input columns ([`TERM_INPUTS`][])."""
     layout = WindowLayout.make(len(log), log.sample_rate, window)
     idx = np.arange(0, layout.used, decimate)
     rate = log.sample_rate / decimate
-    rates, outputs = make_model(log.s_ref, log.c_ref, wind_axes, terms)
     w = int(round(window * rate))
     # the inputs averaged over the same samples as the measurements (see the module)
     columns = [_block_mean(log[c], idx, decimate) for c in INPUTS]
@@ -313,22 +361,13 @@ def pegasus_problem(
         # time in the window over its length, mean zero over its model samples
         j = (idx - win * layout.per_window) // decimate
         columns.append((j + 0.5) / w - 0.5)
-    problem = OEMProblem(
-        rates=rates,
-        outputs=outputs,
-        t0=float(log.t[0]),
-        dt=float(decimate / log.sample_rate),
-        inputs=jnp.asarray(np.column_stack(columns)),
-        measured=jnp.asarray(
-            np.column_stack([_block_mean(log[c], idx, decimate) for c in OUTPUTS])
-        ),
-        free=(True,) * (6 + len(term_names(terms))),
-        window=w,
-        node_interval=w if single else int(round(node_interval * rate)),
-        state_scale=jnp.asarray(STATE_SCALE),
-        continuity_tol=1e-4,
+    record = Record(
+        float(log.t[0]) + np.arange(len(idx)) * (decimate / log.sample_rate),
+        np.column_stack(columns),
+        np.column_stack([_block_mean(log[c], idx, decimate) for c in OUTPUTS]),
+        name=log.path.name if log.path is not None else "log",
     )
-    return problem, idx
+    return record, idx
 
 
 def _block_mean(x: np.ndarray, idx: np.ndarray, n: int) -> np.ndarray:
@@ -375,16 +414,20 @@ def _prior(db, alpha, mach):
 
 
 class OEMSetup(eqx.Module):
-    """One flight's multiple-shooting OEM problem, ready to fit (stack several to
-    fit a batch with `jax.vmap`): the problem, starting parameters `(windows, 6)`
-    (`(windows, 6 + 2 k)` with `k` window terms, which start at zero), starting nodes
-    `(segments, 4)`, the window-mean alpha `(windows,)` (rad) for the axis
-    conversion, which windows are fitted `(windows,)`, which parameters are held at
-    their start in each window `(windows, params)` (the alpha terms where neither
-    alpha nor the loads depart from their straight line, see the module) and
-    `linear` (static, a bool or one per parameter); [`OEMSetup.fit`][] fits it."""
+    """One flight's windowed output-error fit, ready to run (stack several to fit
+    a batch with `jax.vmap`): the thesis model (static), how the record is cut
+    (`windows`, static), the record as the engine's data layout (`data`), starting
+    parameters `(windows, 6)` (`(windows, 6 + 2 k)` with `k` window terms, which
+    start at zero), starting nodes `(segments, 4)`, the window-mean alpha
+    `(windows,)` (rad) for the axis conversion, which windows are fitted
+    `(windows,)`, which parameters are held at their start in each window `(windows,
+    params)` (the alpha terms where neither alpha nor the loads depart from their
+    straight line, see the module) and `linear` (static, a bool or one per
+    parameter); [`OEMSetup.fit`][] fits it."""
 
-    problem: OEMProblem
+    model: Model
+    windows: Windows
+    data: Layout
     theta0: Float[Array, "windows params"]
     nodes0: Float[Array, "segments 4"]
     alpha: Float[Array, " windows"]
@@ -393,13 +436,16 @@ class OEMSetup(eqx.Module):
     linear: bool | tuple[bool, ...] = eqx.field(static=True, default=False)
 
     def fit(self, **options) -> WindowedFit:
-        """[`fit_windowed_oem`][] of this problem from its start, with its windows,
-        held parameters and parameterisation; `options` (`rtol`, `max_iter`) as
-        there."""
-        return fit_windowed_oem(
-            self.problem,
-            self.theta0,
-            self.nodes0,
+        """The windowed fit ([`fit_windowed`][]) of this setup from its start, with
+        its windows, held parameters and parameterisation; `options` (`rtol`,
+        `max_iter`) as there. Pure: `jax.vmap` batches it over stacked setups."""
+        return fit_windowed_data(
+            self.model,
+            self.windows,
+            self.data,
+            windowed_start(
+                self.model, self.windows, self.theta0, self.nodes0, self.linear
+            ),
             linear=self.linear,
             active=self.active,
             held=self.held,
@@ -419,10 +465,12 @@ def oem_setup(
     min_qbar: float = 2000.0,
     lse=None,
     parameters: str = "hybrid",
+    geometry: Geometry | None = None,
 ) -> tuple[OEMSetup, np.ndarray]:
-    """The OEM problem of a log with its starting values (see [`estimate_oem`][]
-    for the arguments; `parameters` as there, single shooting takes `constant`);
-    returns it with the measured states `[u, w, q, theta]` at the decimated samples."""
+    """The windowed output-error fit of a log with its starting values (see
+    [`estimate_oem`][] for the arguments; `parameters` as there, single shooting
+    takes `constant`); returns it with the measured states `[u, w, q, theta]` at the
+    decimated samples."""
     if axes not in ("body", "wind"):
         raise ValueError(f"axes must be body or wind, got {axes!r}")
     if parameters not in PARAMETERS:
@@ -432,17 +480,16 @@ def oem_setup(
     if single:
         parameters = "constant"
     terms = {"window": WINDOW_TERMS, "hybrid": HYBRID_TERMS}.get(parameters, ())
+    log = _with_geometry(log, geometry)
     layout = WindowLayout.make(len(log), log.sample_rate, window)
-    problem, idx = pegasus_problem(
-        log,
-        window=window,
-        node_interval=node_interval,
-        decimate=decimate,
-        single=single,
-        wind_axes=axes == "wind",
-        terms=terms,
+    model = thesis_model(geometry, wind_axes=axes == "wind", terms=terms)
+    record, idx = thesis_record(log, window=window, decimate=decimate, terms=terms)
+    rate = log.sample_rate / decimate
+    w = int(round(window * rate))
+    windows = Windows.make(
+        len(idx), w, w if single else int(round(node_interval * rate))
     )
-    if problem.n_windows != layout.count:
+    if windows.n_windows != layout.count:
         raise ValueError(
             "window layout mismatch after decimation; use a window that is "
             "a whole number of decimated samples"
@@ -456,15 +503,13 @@ def oem_setup(
             [theta0, jnp.zeros((theta0.shape[0], len(term_names(terms))))], axis=1
         )
     states = measured_states(log)[idx]
-    nodes0 = jnp.asarray(states[node_times(problem)])
+    nodes0 = jnp.asarray(states[windows.node_samples()])
     active = layout.window_mean(jnp.asarray(log["qbar"])) >= min_qbar
     held = np.zeros(theta0.shape, bool)
     if terms:
         k = len(terms)
-        w = problem.window_samples
-        n = problem.n_samples
-        u = np.asarray(problem.inputs[:n])
-        y = np.asarray(problem.measured)
+        u = record.inputs
+        y = record.measured
         tau = u[:, len(INPUTS) + TERM_INPUTS.index("tau")]
         known = np.column_stack(
             [
@@ -488,7 +533,9 @@ def oem_setup(
                 free |= departs[channel]
             held[:, 6 + k + i] = ~free
     setup = OEMSetup(
-        problem,
+        model,
+        windows,
+        window_data(model, record, windows),
         theta0,
         nodes0,
         alpha_w,
@@ -497,6 +544,15 @@ def oem_setup(
         linear=linear_mask(parameters, terms),
     )
     return setup, states
+
+
+def _with_geometry(log: FlightLog, geometry: Geometry | None) -> FlightLog:
+    """`log` with the vehicle's reference area and length in its metadata, for
+    the equation-error start ([`estimate_lse`][] reads them there)."""
+    if geometry is None:
+        geometry = Geometry(s_ref=S_REF, c_ref=C_REF)
+    meta = {**log.metadata, "S_ref": geometry.s_ref, "c_ref": geometry.c_ref}
+    return dataclasses.replace(log, metadata=meta)
 
 
 @eqx.filter_jit
@@ -556,6 +612,7 @@ def estimate_oem(
     min_qbar: float = 2000.0,
     rtol: float = 1e-5,
     max_iter: int = 30,
+    geometry: Geometry | None = None,
 ) -> Estimates:
     """Output-error estimates of the six derivatives per window.
 
@@ -576,7 +633,7 @@ def estimate_oem(
       errors cover over the Monte Carlo campaign): `linear` (derivatives continuous and
       linear in time between window boundaries; a window's estimate is their mean
       over the window), `window` (per window the six derivatives and how the alpha
-      derivatives change inside it, with time and with alpha, see [`make_model`][];
+      derivatives change inside it, with time and with alpha, see [`thesis_model`][];
       the reported values are at the window's mean time and alpha: no structural
       bias from secant derivatives, twice the unknowns), `hybrid` (those terms
       for the force derivatives in alpha only, CXa and CZa per window with them;
@@ -585,6 +642,9 @@ def estimate_oem(
     - `min_qbar` (multiple shooting): windows whose mean measured dynamic pressure is
       below this (Pa) are not fitted and get no estimate (high in the climb the
       aerodynamic forces vanish into the noise and nothing can be identified).
+    - `geometry`: the vehicle's reference area and length (a `Geometry`; default
+      the Pegasus vehicle's, 13.5 m^2 and 2.48 m). The log's metadata is not read
+      for them.
 
     **Returns:** [`Estimates`][] in lift/drag form (1/rad) with standard errors
     (multiple shooting: Cramér-Rao corrected for coloured residuals; single:
@@ -611,13 +671,20 @@ def estimate_oem(
         single=shooting == "single",
         min_qbar=min_qbar,
         parameters=parameters,
+        geometry=geometry,
     )
     if shooting == "multiple":
         fit = setup.fit(rtol=rtol, max_iter=max_iter)
         values, sd, ok, flags = windowed_lift_drag(fit, setup.alpha, axes)
     else:
         body, body_sd, ok, its = _sequential_single(
-            setup.problem, setup.theta0, states[0], rtol, max_iter
+            setup.model,
+            setup.data,
+            setup.windows,
+            setup.theta0,
+            jnp.asarray(states[0]),
+            jnp.asarray(rtol, float),
+            max_iter=max_iter,
         )
         flags = {"converged": ok, "iterations": its}
         cov = jax.vmap(jnp.diag)(body_sd**2)  # the sequential fits give no correlation
@@ -639,39 +706,56 @@ def estimate_oem(
     )
 
 
-def _sequential_single(problem, theta0, x0, rtol, max_iter=30):
-    """The thesis's single shooting: window by window (the engine, one segment), each
-    window starting from the previous window's simulated end state."""
-    n, length = problem.n_windows, problem.window_samples
-    inputs = _pad(problem.inputs, n * length + 1)
-    measured = _pad(problem.measured, n * length)
-    # one window as a single-shooting problem of its own (start state held)
-    single = dataclasses.replace(
-        problem,
-        inputs=inputs[: length + 1],
-        measured=measured[:length],
-        window=None,
-        node_interval=None,
-        free_initial_state=False,
+@functools.partial(jax.jit, static_argnames=("model", "windows", "max_iter"))
+def _sequential_single(model, data, windows, theta0, x0, rtol, max_iter=30):
+    """The thesis's single shooting: window by window, each a one-segment fit on
+    the engine from the previous window's simulated end state (held). A padded
+    last window is fitted to the record's last sample repeated, as the thesis's
+    sequential code did."""
+    n, length = windows.n_windows, windows.window
+    nx, p = len(model.states), len(model.parameters)
+    inputs = _pad(data.inputs[0], n * length + 1)
+    measured = _pad(
+        data.measured.reshape(-1, data.measured.shape[-1])[: windows.samples],
+        n * length,
     )
 
     def one(x_start, w):
-        sub = eqx.tree_at(
-            lambda p: (p.inputs, p.measured, p.t0),
-            single,
-            (
-                jax.lax.dynamic_slice_in_dim(inputs, w * length, length + 1),
-                jax.lax.dynamic_slice_in_dim(measured, w * length, length),
-                problem.t0 + w * length * problem.dt,
-            ),
+        lay = Layout(
+            inputs=inputs[None],
+            t0=data.t0,
+            dt=data.dt,
+            n=jnp.array([n * length + 1]),
+            record=jnp.zeros(1, int),
+            first=(w * length)[None],
+            measured=jax.lax.dynamic_slice_in_dim(measured, w * length, length)[None],
+            valid=jnp.ones((1, length), bool),
+            link=jnp.zeros(0, bool),
+            scale=jnp.ones(nx),
+            node_free=jnp.zeros((1, nx), bool),
+            length=length,
+            bias_channels=(),
         )
-        res = fit_global_oem(sub, theta0[w], x_start[None], rtol=rtol, max_iter=max_iter)
-        xs, _ = _window_solve(problem, x_start, res.params, sub.t0)
-        ok = res.converged & jnp.all(jnp.isfinite(xs[-1]))
+        z0 = jnp.concatenate([x_start, theta0[w]])
+        sol = solve(
+            model,
+            lay,
+            z0,
+            jnp.ones(p, bool),
+            nx=nx,
+            p=p,
+            rtol=rtol,
+            max_iter=max_iter,
+            coloured=False,
+        )
+        params = sol.z[nx:]
+        sd = jnp.sqrt(jnp.clip(jnp.diag(sol.covariance)[nx:], 0.0))
+        xs, _ = segment_solve(model, lay, 0, x_start, params)
+        ok = (sol.result == RESULTS.successful) & jnp.all(jnp.isfinite(xs[-1]))
         x_next = jnp.where(ok, xs[-1], x_start)
-        return x_next, (res.params, res.stderr, ok, res.iterations)
+        return x_next, (params, sd, ok, sol.iterations)
 
-    _, (params, sd, ok, its) = jax.lax.scan(one, jnp.asarray(x0, float), jnp.arange(n))
+    _, (params, sd, ok, its) = jax.lax.scan(one, x0, jnp.arange(n))
     return params, sd, ok, its
 
 
