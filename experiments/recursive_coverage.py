@@ -79,7 +79,7 @@ def input_signal(t):
     return de
 
 
-def simulate(n_flights, duration, rate, seed):
+def simulate(n_flights, duration, rate, seed, scale=1.0):
     """Noise-free states exactly (matrix exponential with inputs linear between
     samples), then per-flight noise."""
     dt = 1.0 / rate
@@ -99,12 +99,13 @@ def simulate(n_flights, duration, rate, seed):
     rng = np.random.default_rng(seed)
     white = rng.normal(size=(n_flights, len(t), 3)) * np.array(
         [0.0, NOISE["w"], NOISE["q"]]
-    )
+    ) * scale
     # first-order coloured noise of standard deviation NOISE["az"]
     rho = np.exp(-dt / COLOUR_TIME)
-    drive = rng.normal(size=(n_flights, len(t))) * NOISE["az"] * np.sqrt(1 - rho**2)
+    drive = rng.normal(size=(n_flights, len(t))) * scale * NOISE["az"]
+    drive = drive * np.sqrt(1 - rho**2)
     col = np.zeros((n_flights, len(t)))
-    col[:, 0] = rng.normal(size=n_flights) * NOISE["az"]
+    col[:, 0] = rng.normal(size=n_flights) * NOISE["az"] * scale
     for k in range(1, len(t)):
         col[:, k] = rho * col[:, k - 1] + drive[:, k]
     white[..., 0] = col
@@ -125,10 +126,18 @@ def main():
     parser.add_argument("--rate", type=float, default=50.0)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
+        "--noise-scale", type=float, default=1.0, help="multiplies every noise level"
+    )
+    parser.add_argument(
+        "--methods", default="rls,rls_memory_10s,rft", help="comma-separated labels"
+    )
+    parser.add_argument(
         "--out", type=pathlib.Path, default=pathlib.Path("results/recursive_coverage")
     )
     args = parser.parse_args()
-    t, de, measured = simulate(args.flights, args.duration, args.rate, args.seed)
+    t, de, measured = simulate(
+        args.flights, args.duration, args.rate, args.seed, args.noise_scale
+    )
     dt = 1.0 / args.rate
     regs = [
         rc.model_regression(
@@ -166,6 +175,8 @@ def main():
         "parameters": list(names),
         "methods": {},
     }
+    wanted = args.methods.split(",")
+    estimators = {k: v for k, v in estimators.items() if k in wanted}
     for label, est in estimators.items():
         start = time.perf_counter()
         hist = jax.vmap(lambda hh, yy, oo, est=est: rc.replay(est, hh, yy, oo, theta0))(
@@ -206,6 +217,15 @@ def main():
                 )
             ),
         }
+        # bias against scatter: how much of the miss a band of the noise alone
+        # cannot hold
+        sd_c = np.asarray(hist.stderr_corrected)[:, -1, :]
+        for k, n in enumerate(names):
+            print(
+                f"  {n}: bias/scatter {(final[:, k].mean() - truth[k]) / final[:, k].std():+.3f}"
+                f", scatter/mean band {final[:, k].std() / sd_c[:, k].mean():.3f}"
+                f", coverage at {check_times} s: {np.round(cov_corr[:, k], 3).tolist()}"
+            )
         print(
             f"{label}: coverage plain {cov_plain.mean():.3f}, corrected "
             f"{cov_corr.mean():.3f} ({elapsed:.1f} s for {args.flights} flights)"

@@ -70,10 +70,9 @@ class RecursiveState(eqx.Module):
     prev_h: Float[Array, "q p"]
     prev_y: Float[Array, " q"]
     prev_o: Float[Array, " q"]
-    lag_h: Float[Array, "lags q p"]
-    lag_e: Float[Array, "lags q"]
-    sums: Float[Array, "lags1 q p p"]
-    autocov: Float[Array, "lags1 q"]
+    lag_z: Float[Array, "lags d"]
+    pairs: Float[Array, "d d"]
+    white: Float[Array, "d d"]
     fh: Complex[Array, "f q p"]
     fy: Complex[Array, "f q"]
     phasor: Complex[Array, " f"]
@@ -149,8 +148,9 @@ class AbstractRecursiveEstimator(eqx.Module):
         )
 
 
-def _empty_state(p, q, lags, frequencies, dt, theta0, prior):
+def _empty_state(p, q, lags, frequencies, dt, theta0, prior, scores):
     f = jnp.asarray(frequencies, float)
+    d = (p + p * p) if scores else 0
     rotation = jnp.exp(-2j * jnp.pi * f * dt)
     return RecursiveState(
         theta=jnp.asarray(theta0, float),
@@ -161,10 +161,9 @@ def _empty_state(p, q, lags, frequencies, dt, theta0, prior):
         prev_h=jnp.zeros((q, p)),
         prev_y=jnp.zeros(q),
         prev_o=jnp.zeros(q),
-        lag_h=jnp.zeros((lags, q, p)),
-        lag_e=jnp.zeros((lags, q)),
-        sums=jnp.zeros((lags + 1, q, p, p)),
-        autocov=jnp.zeros((lags + 1, q)),
+        lag_z=jnp.zeros((lags, d)),
+        pairs=jnp.zeros((d, d)),
+        white=jnp.zeros((d, d)),
         fh=jnp.zeros((len(f), q, p), rotation.dtype),
         fy=jnp.zeros((len(f), q), rotation.dtype),
         phasor=jnp.ones_like(rotation),
@@ -206,12 +205,28 @@ def _weights(r):
     return jnp.where(ok, jnp.exp(0.5 * (mean - logr)), 1.0)
 
 
+def _fitted_sandwich(pm, middle, pairs_gg, p):
+    """The diagonal of the estimate's covariance `V` from the pair sums of the
+    scores at the estimate (`middle`, `P M P` the plain sandwich).
+
+    The residuals of a fit are smaller than the errors: with `s_i = a_i - G_i
+    theta` and the estimate's error `d`, the scores at the estimate are `s_i - G_i
+    d`, so their pair sums miss about `K(V) = sum_pairs G_i V G_j` (`pairs_gg`, the
+    same pair sums of `vec G`; exact for all data, first order with forgetting).
+    `V = P (M + K(V)) P` is linear in `V` and solved as such.
+    """
+    k = pairs_gg.reshape(p, p, p, p).transpose(0, 3, 1, 2).reshape(p * p, p * p)
+    a = jnp.eye(p * p) - jnp.kron(pm, pm) @ k
+    v = jnp.linalg.solve(a, (pm @ middle @ pm).reshape(p * p)).reshape(p, p)
+    return jnp.diag(v)
+
+
 class RecursiveLeastSquares(AbstractRecursiveEstimator):
     """Recursive least squares with exponential forgetting, bounds corrected for
     coloured residuals (see the module docstring).
 
     **Fields:** `forgetting` (`lam`), `derivative` `(q,)` bool, `dt` (s), `lags`:
-    how many lags of the residuals' autocovariance enter the corrected bound
+    how many lags of the scores' autocovariance enter the corrected bound
     (default 64 samples: it should span the residuals' correlation time; the cost
     of an update grows with it).
     """
@@ -223,10 +238,11 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
 
     def init(self, theta0, prior=1e6):
         p, q = len(theta0), len(self.derivative)
-        return _empty_state(p, q, self.lags, np.zeros(0), self.dt, theta0, prior)
+        return _empty_state(p, q, self.lags, np.zeros(0), self.dt, theta0, prior, True)
 
     def absorb(self, state, h, y):
         lam = self.forgetting
+        p = h.shape[-1]
         active = jnp.any(h != 0, axis=1)
         # the running variance of the prediction errors (before this sample):
         # never the near-zero residual of a fit with fewer samples than parameters
@@ -240,49 +256,32 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
         info = lam * state.info + hn.T @ hn
         rhs = lam * state.rhs + hn.T @ yn
         theta = _solve(info, rhs)
-        e_norm = yn - hn @ theta
-        # lag sums: sum_i w_i w_(i-l) h_i h_(i-l)^T, newest sample's terms added
-        past = jnp.concatenate([hn[None], state.lag_h], axis=0)  # (lags+1, q, p)
-        decay = lam ** jnp.arange(self.lags + 1)
-        cross = jnp.einsum("qa,lqb->lqab", hn, past) * decay[:, None, None, None]
-        sums = lam**2 * state.sums + cross
-        past_e = jnp.concatenate([e_norm[None], state.lag_e], axis=0)
-        lam_c = jnp.minimum(lam, 0.98)
-        started = state.count > self.lags
-        autocov = jnp.where(
-            started,
-            lam_c * state.autocov + (1 - lam_c) * e_norm[None, :] * past_e,
-            state.autocov
-            + (e_norm[None, :] * past_e - state.autocov) / (state.count + 1.0),
-        )
+        # the sample's score at any theta is a - G theta: z = [a, vec G] keeps
+        # it exactly, so the bound is evaluated with the current estimate's
+        # residuals (no transient of early estimates stays in it)
+        z = jnp.concatenate([hn.T @ yn, (hn.T @ hn).reshape(p * p)])
+        decay = lam ** jnp.arange(1, self.lags + 1)
+        near = z + jnp.einsum("l,ld->d", decay, state.lag_z)
+        pairs = lam**2 * state.pairs + jnp.outer(z, near) + jnp.outer(near, z)
+        pairs = pairs - jnp.outer(z, z)
+        white = lam**2 * state.white + jnp.outer(z, z)
+        lag_z = jnp.concatenate([z[None], state.lag_z[:-1]], axis=0)
         return eqx.tree_at(
-            lambda s: (
-                s.theta,
-                s.info,
-                s.rhs,
-                s.r,
-                s.lag_h,
-                s.lag_e,
-                s.sums,
-                s.autocov,
-            ),
+            lambda s: (s.theta, s.info, s.rhs, s.r, s.lag_z, s.pairs, s.white),
             state,
-            (theta, info, rhs, r, past[:-1], past_e[:-1], sums, autocov),
+            (theta, info, rhs, r, lag_z, pairs, white),
         )
 
     def estimates(self, state):
+        p = state.theta.shape[0]
         pm = _inverse(state.info)
-        c = state.autocov  # (lags+1, q)
-        white = jnp.einsum("q,qab->ab", c[0], state.sums[0])
-        sym = state.sums[1:] + jnp.swapaxes(state.sums[1:], -1, -2)
-        # a flat (truncated) lag window: a tapered one would miss most of the
-        # negative lag-1 correlation that differencing puts in the derivative rows
-        # (whose effect on the estimate telescopes away), and part of a slow one
-        coloured = white + jnp.einsum("lq,lqab->ab", c[1:], sym)
-        var = jnp.clip(jnp.diag(pm @ white @ pm), 0.0)
-        var_c = jnp.diag(pm @ coloured @ pm)
-        # may be below the white bound (negatively correlated residuals); a
-        # truncated window can make it negative: then the white bound stands
+        # the scores' pair sums with the current estimate: s_i s_j^T summed over
+        # |i - j| <= lags (forgetting-weighted), s = [I, -kron(I, theta^T)] z
+        t = jnp.concatenate([jnp.eye(p), -jnp.kron(jnp.eye(p), state.theta[None])], 1)
+        var = _fitted_sandwich(pm, t @ state.white @ t.T, state.white[p:, p:], p)
+        var_c = _fitted_sandwich(pm, t @ state.pairs @ t.T, state.pairs[p:, p:], p)
+        var = jnp.where(var > 0, var, jnp.inf)
+        # a truncated window can make it negative: then the white bound stands
         var_c = jnp.where(var_c > 0, var_c, var)
         return RecursiveEstimates(state.theta, jnp.sqrt(var), jnp.sqrt(var_c))
 
@@ -313,7 +312,7 @@ class RecursiveFourier(AbstractRecursiveEstimator):
 
     def init(self, theta0, prior=1e6):
         p, q = len(theta0), len(self.derivative)
-        return _empty_state(p, q, 0, self.frequencies, self.dt, theta0, prior)
+        return _empty_state(p, q, 0, self.frequencies, self.dt, theta0, prior, False)
 
     def absorb(self, state, h, y):
         lam = self.forgetting
