@@ -48,6 +48,14 @@ import numpy as np
 from jaxtyping import Array, Bool, Complex, Float, Int
 
 
+class _Spread(eqx.Module):
+    """Forgetting-weighted sums of `vec G_i` (weights `w_i^2`) and of `vec G_i
+    vec G_i^T` (`w_i^4`): how the data are spread over the memory."""
+
+    g2: Float[Array, " pp"]
+    g4: Float[Array, "pp pp"]
+
+
 class RecursiveState(eqx.Module):
     """Everything an estimator carries between samples.
 
@@ -77,16 +85,42 @@ class RecursiveState(eqx.Module):
     fy: Complex[Array, "f q"]
     phasor: Complex[Array, " f"]
     rotation: Complex[Array, " f"]
+    filt: Float[Array, "2 q p1"]
+    rows: Float[Array, "q p2 p2"]
+    spread: "_Spread"
 
 
 class RecursiveEstimates(eqx.Module):
     """The estimates at one time: `theta` `(p,)`, `stderr` `(p,)` (white
-    residuals), `stderr_corrected` `(p,)` (coloured residuals, never below
-    `stderr`)."""
+    residuals), `stderr_corrected` `(p,)` (coloured residuals), `dof` `(p,)` the
+    effective degrees of freedom of the corrected bound (how many independent
+    pieces of data it was estimated from), and `halfwidth` `(p,)` the half-width
+    of the 95% band: the Student-t quantile at `dof` times `stderr_corrected`
+    (the bound is itself estimated, so 1.96 of it would cover less than 95%)."""
 
     theta: Float[Array, " p"]
     stderr: Float[Array, " p"]
     stderr_corrected: Float[Array, " p"]
+    dof: Float[Array, " p"]
+    halfwidth: Float[Array, " p"]
+
+
+def _t_quantile(dof, z=1.959963984540054):
+    """The Student-t quantile of the normal quantile `z` at `dof` degrees of
+    freedom (Cornish-Fisher expansion; within 0.5% of the exact one from 3
+    degrees of freedom up)."""
+    v = jnp.maximum(dof, 1.0)
+    return (
+        z
+        + (z**3 + z) / (4 * v)
+        + (5 * z**5 + 16 * z**3 + 3 * z) / (96 * v**2)
+        + (3 * z**7 + 19 * z**5 + 17 * z**3 - 15 * z) / (384 * v**3)
+    )
+
+
+def _finish(theta, var, var_c, dof):
+    sd_c = jnp.sqrt(var_c)
+    return RecursiveEstimates(theta, jnp.sqrt(var), sd_c, dof, _t_quantile(dof) * sd_c)
 
 
 class AbstractRecursiveEstimator(eqx.Module):
@@ -137,15 +171,42 @@ class AbstractRecursiveEstimator(eqx.Module):
         first = state.count == 0
         dy = (y - state.prev_y) / self.dt - 0.5 * (o + state.prev_o)
         hm = 0.5 * (h + state.prev_h)
+        filt = state.filt
+        bandwidth = getattr(self, "bandwidth", None)
+        if bandwidth is not None:
+            # both sides of the differenced state equations through the same
+            # low-pass (w / (s + w))^2, the differences held over each step:
+            # the equation still holds (to the differencing's own order), while
+            # the differenced noise, whose power grows with frequency, is cut
+            # above `bandwidth`; started at rest on the first difference
+            phi, gam = _filter_matrices(bandwidth, self.dt)
+            v = jnp.concatenate([hm, dy[:, None]], axis=1)  # (q, p + 1)
+            stepped = jnp.einsum("ij,jqc->iqc", phi, filt) + gam[:, None, None] * v
+            filt = jnp.where(state.count == 1, jnp.stack([v, 0 * v]), stepped)
+            hm, dy = filt[0, :, :-1], filt[0, :, -1]
         use = ~(deriv & first)
         rows_y = jnp.where(deriv, dy, y - o) * use
         rows_h = jnp.where(deriv[:, None], hm, h) * use[:, None]
         state = self.absorb(state, rows_h, rows_y)
         return eqx.tree_at(
-            lambda s: (s.prev_h, s.prev_y, s.prev_o, s.count),
+            lambda s: (s.prev_h, s.prev_y, s.prev_o, s.count, s.filt),
             state,
-            (h, y, o, state.count + 1),
+            (h, y, o, state.count + 1, filt),
         )
+
+
+def _filter_matrices(bandwidth, dt):
+    """The low-pass `(w / (s + w))^2`, `w = 2 pi bandwidth` rad/s, on the state
+    `(F[v], d/dt F[v] / w)`, discretised exactly for an input held over each
+    step: `x_k = phi x_(k-1) + gam v_k`."""
+    import scipy.linalg
+
+    w = 2.0 * np.pi * bandwidth
+    m = np.zeros((3, 3))
+    m[:2, :2] = [[0.0, w], [-w, -2.0 * w]]
+    m[1, 2] = w
+    e = scipy.linalg.expm(m * dt)
+    return jnp.asarray(e[:2, :2]), jnp.asarray(e[:2, 2])
 
 
 def _empty_state(p, q, lags, frequencies, dt, theta0, prior, scores):
@@ -168,6 +229,9 @@ def _empty_state(p, q, lags, frequencies, dt, theta0, prior, scores):
         fy=jnp.zeros((len(f), q), rotation.dtype),
         phasor=jnp.ones_like(rotation),
         rotation=rotation,
+        filt=jnp.zeros((2, q, p + 1)),
+        rows=jnp.zeros((q, p + 2, p + 2)),
+        spread=_Spread(jnp.zeros(p * p), jnp.zeros((p * p, p * p))),
     )
 
 
@@ -235,6 +299,7 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
     derivative: tuple[bool, ...] = eqx.field(static=True)
     dt: float = eqx.field(static=True)
     lags: int = eqx.field(static=True, default=64)
+    bandwidth: float | None = eqx.field(static=True, default=None)
 
     def init(self, theta0, prior=1e6):
         p, q = len(theta0), len(self.derivative)
@@ -246,8 +311,20 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
         active = jnp.any(h != 0, axis=1)
         # the running variance of the prediction errors (before this sample):
         # never the near-zero residual of a fit with fewer samples than parameters
-        r = _running_variance(state.r, y - h @ state.theta, lam, active)
+        # each equation's residual variance over the memory, with the current
+        # estimate (kept as sums of y^2, h y, h h^T: no early transient stays)
+        th = state.theta
+        ss = state.rows
+        n = ss[:, 0, 0]
+        rss = ss[:, 0, 1] - 2.0 * ss[:, 1, 2:] @ th + jnp.einsum(
+            "a,qab,b->q", th, ss[:, 2:, 2:], th
+        )
+        r = jnp.where(n > p + 1, jnp.maximum(rss, 0.0) / jnp.maximum(n, 1.0), jnp.nan)
         wq = _weights(r)
+        # the rows of [1, y, h]^T [1, y, h] for those sums
+        one = jnp.concatenate([active[:, None] * 1.0, y[:, None], h], axis=1)
+        rows = lam * ss + jnp.einsum("qa,qb->qab", one, one)
+        rows = rows.at[:, 0, 0].set(lam * n + active)
         hn, yn = h * wq[:, None], y * wq
         # the information form of recursive least squares: the same estimate as
         # the covariance form's gain update, without its loss of positive
@@ -265,11 +342,20 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
         pairs = lam**2 * state.pairs + jnp.outer(z, near) + jnp.outer(near, z)
         pairs = pairs - jnp.outer(z, z)
         white = lam**2 * state.white + jnp.outer(z, z)
+        g = z[p:]
+        spread = eqx.tree_at(
+            lambda s: (s.g2, s.g4),
+            state.spread,
+            (lam**2 * state.spread.g2 + g, lam**4 * state.spread.g4 + jnp.outer(g, g)),
+        )
         lag_z = jnp.concatenate([z[None], state.lag_z[:-1]], axis=0)
         return eqx.tree_at(
-            lambda s: (s.theta, s.info, s.rhs, s.r, s.lag_z, s.pairs, s.white),
+            lambda s: (
+                s.theta, s.info, s.rhs, s.r, s.rows, s.lag_z, s.pairs, s.white,
+                s.spread,
+            ),
             state,
-            (theta, info, rhs, r, lag_z, pairs, white),
+            (theta, info, rhs, r, rows, lag_z, pairs, white, spread),
         )
 
     def estimates(self, state):
@@ -283,7 +369,16 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
         var = jnp.where(var > 0, var, jnp.inf)
         # a truncated window can make it negative: then the white bound stands
         var_c = jnp.where(var_c > 0, var_c, var)
-        return RecursiveEstimates(state.theta, jnp.sqrt(var), jnp.sqrt(var_c))
+        # degrees of freedom: the samples' shares c_i = w_i^2 (P G_i P)_aa of the
+        # variance give an effective count (sum c)^2 / sum c^2, and a window of
+        # 2 lags + 1 samples per estimated product leaves that over 2 lags + 1
+        # (the variance of a truncated-window long-run variance estimate)
+        pp = jnp.einsum("ab,ac->abc", pm, pm).reshape(p, p * p)  # rows a: P_ab P_ac
+        total = pp @ state.spread.g2
+        square = jnp.einsum("ai,ij,aj->a", pp, state.spread.g4, pp)
+        n_eff = total**2 / jnp.maximum(square, 1e-300)
+        dof = n_eff / (2 * self.lags + 1)
+        return _finish(state.theta, var, var_c, dof)
 
 
 class RecursiveFourier(AbstractRecursiveEstimator):
@@ -368,17 +463,23 @@ class RecursiveFourier(AbstractRecursiveEstimator):
         var = jnp.where(known, jnp.clip(jnp.diag(cov), 0.0), jnp.inf)
         var_c = jnp.diag(cov_c)
         var_c = jnp.where(known & (var_c > 0), var_c, var)
-        return RecursiveEstimates(theta, jnp.sqrt(var), jnp.sqrt(var_c))
+        # degrees of freedom: the frequencies' shares of the variance give an
+        # effective count of independent transforms
+        share = jnp.abs(jnp.einsum("ab,fb->fa", cov, v)) ** 2  # (f, p)
+        dof = jnp.sum(share, 0) ** 2 / jnp.maximum(jnp.sum(share**2, 0), 1e-300)
+        return _finish(theta, var, var_c, dof)
 
 
 class RecursiveHistory(eqx.Module):
     """Estimates at every sample of a replay: `t` `(n,)` s, `theta`, `stderr`,
-    `stderr_corrected` `(n, p)`."""
+    `stderr_corrected`, `halfwidth` (of the 95% band) `(n, p)` (see
+    [`RecursiveEstimates`][])."""
 
     t: Float[Array, " n"]
     theta: Float[Array, "n p"]
     stderr: Float[Array, "n p"]
     stderr_corrected: Float[Array, "n p"]
+    halfwidth: Float[Array, "n p"]
 
 
 @eqx.filter_jit
@@ -404,11 +505,11 @@ def replay(
     def step(state, sample):
         state = estimator.update(state, *sample)
         est = estimator.estimates(state)
-        return state, (est.theta, est.stderr, est.stderr_corrected)
+        return state, (est.theta, est.stderr, est.stderr_corrected, est.halfwidth)
 
-    _, (theta, sd, sd_c) = jax.lax.scan(step, estimator.init(theta0, prior), (h, y, o))
+    _, out = jax.lax.scan(step, estimator.init(theta0, prior), (h, y, o))
     t = t0 + jnp.arange(h.shape[0]) * estimator.dt
-    return RecursiveHistory(t, theta, sd, sd_c)
+    return RecursiveHistory(t, *out)
 
 
 class Regression(eqx.Module):
