@@ -35,7 +35,8 @@ U0, ZQ = 45.0, -1.5
 TRUE = {"Zw": -1.2, "Zde": -4.0, "Mw": -0.06, "Mq": -2.5, "Mde": -15.0}
 NOISE = {"az": 0.05, "w": 0.02, "q": 0.002}  # 1 sigma, SI units
 COLOUR_TIME = 0.3  # s, correlation time of the az noise
-BAND = 1.5  # Hz: the upper end of the manoeuvre's band, for both estimators
+BAND = 1.5  # Hz: the upper end of the recursive Fourier transform's frequencies
+RLS_BAND = 2.0  # Hz: least squares' low-pass of the state equations
 
 
 def rates(t, x, u, p):
@@ -157,13 +158,13 @@ def main():
     freqs = tuple(float(f) for f in np.arange(0.1, BAND + 0.01, 0.04))
     estimators = {
         "rls": rc.RecursiveLeastSquares(
-            forgetting=1.0, derivative=regs[0].derivative, dt=dt, bandwidth=BAND
+            forgetting=1.0, derivative=regs[0].derivative, dt=dt, bandwidth=RLS_BAND
         ),
         "rls_memory_10s": rc.RecursiveLeastSquares(
             forgetting=rc.forgetting_for(10.0, dt),
             derivative=regs[0].derivative,
             dt=dt,
-            bandwidth=BAND,
+            bandwidth=RLS_BAND,
         ),
         "rft": rc.RecursiveFourier(
             frequencies=freqs, forgetting=1.0, derivative=regs[0].derivative, dt=dt
@@ -174,7 +175,7 @@ def main():
         "duration_s": args.duration,
         "rate_hz": args.rate,
         "noise_scale": args.noise_scale,
-        "rls_bandwidth_hz": BAND,
+        "rls_bandwidth_hz": RLS_BAND,
         "noise": NOISE,
         "az_noise_correlation_time_s": COLOUR_TIME,
         "check_times_s": check_times,
