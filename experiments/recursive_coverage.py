@@ -99,9 +99,11 @@ def simulate(n_flights, duration, rate, seed, scale=1.0):
     az = TRUE["Zw"] * x[:, 0] + ZQ * x[:, 1] + TRUE["Zde"] * de
     clean = np.column_stack([az, x])
     rng = np.random.default_rng(seed)
-    white = rng.normal(size=(n_flights, len(t), 3)) * np.array(
-        [0.0, NOISE["w"], NOISE["q"]]
-    ) * scale
+    white = (
+        rng.normal(size=(n_flights, len(t), 3))
+        * np.array([0.0, NOISE["w"], NOISE["q"]])
+        * scale
+    )
     # first-order coloured noise of standard deviation NOISE["az"]
     rho = np.exp(-dt / COLOUR_TIME)
     drive = rng.normal(size=(n_flights, len(t))) * scale * NOISE["az"]

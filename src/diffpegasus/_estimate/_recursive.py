@@ -24,19 +24,19 @@ Two estimators share the contract ([`AbstractRecursiveEstimator`][]: `init`,
 
 **Error bounds** (Grauer & Morelli's point: recursive bounds must account for
 coloured residuals to match the scatter). For least squares with forgetting the
-estimate is `theta = P sum_i w_i H_i^T y_i`, `P = (sum_i w_i H_i^T H_i)^-1`,
-`w_i = lam^(k-i)`, so its covariance is the sandwich `P (sum_ij w_i w_j H_i^T
-E[e_i e_j] H_j) P`: kept recursively for lags up to `lags` samples from running
-sums of `w_i w_(i-l) H_i^T H_(i-l)` and the residuals' running autocovariance
-(Bartlett-weighted, so it stays positive). `stderr` keeps only lag 0 (white
-residuals; already smaller than the textbook `P s^2`, which ignores that the
-weights enter squared). For the recursive Fourier transform the residual transforms
-at different frequencies are nearly independent, so the bound is the per-frequency
-sandwich of the batch method ([`frequency_equation_error`][]), with the scores of
-frequencies closer than the memory resolves (`1 / T`) summed first. Both corrected
-bounds may fall below the white ones: differencing a noisy state makes neighbouring
-residuals negatively correlated, and the estimate's error smaller than the white
-bound says.
+estimate's error is `P sum_i w_i s_i`, `w_i = lam^(k-i)`, `s_i` the sample's score,
+so its covariance is the sandwich `P (sum_ij w_i w_j E[s_i s_j^T]) P`. Each score is
+kept as `a_i - G_i theta`, so the pair sums over lags up to `lags` samples are
+evaluated with the current estimate; the fitted residuals' first-order loss
+`sum_pairs G_i V G_j` is solved for; `stderr` keeps lag 0 only. The 95% band
+(`halfwidth`) is the Student-t quantile at the bound's effective degrees of freedom
+times `stderr_corrected`. With `bandwidth`, the differenced state equations are
+low-passed on both sides, so that their noise (whose power grows with frequency)
+does not swamp the band of the dynamics. For the recursive Fourier transform the
+residual transforms at different frequencies are nearly independent, so the bound
+is the per-frequency sandwich of the batch method ([`frequency_equation_error`][]),
+with the scores of frequencies closer than the memory resolves (`1 / T`) summed
+first.
 """
 
 import abc
@@ -62,12 +62,14 @@ class RecursiveState(eqx.Module):
     **Fields:** `theta` `(p,)` the current estimate (least squares) or the last one
     computed (Fourier); `info` `(p, p)` and `rhs` `(p,)` the weighted normal
     equations `sum_i w_i H_i^T H_i` (plus the decaying prior) and `sum_i w_i H_i^T
-    y_i`; `r` `(q,)` running residual variance per
-    equation; `count` samples absorbed; `prev_h`, `prev_y`, `prev_o`: the previous
-    sample (for derivative rows); `lag_h` `(lags, q, p)` and `lag_e` `(lags, q)` the
-    recent normalised regressors and residuals; `sums` `(lags + 1, q, p, p)` the
-    running `sum w_i w_(i-l) h_i h_(i-l)^T`; `autocov` `(lags + 1, q)`; `fh`
-    `(f, q, p)`, `fy` `(f, q)` the running transforms, `phasor`, `rotation` `(f,)`.
+    y_i`; `r` `(q,)` residual variance per
+    equation and `rows` `(q, p + 2, p + 2)` the sums it comes from; `count` samples
+    absorbed; `prev_h`, `prev_y`, `prev_o`: the previous sample (for derivative
+    rows); `filt` `(2, q, p + 1)` the low-pass state of the differenced rows;
+    `lag_z` `(lags, p + p^2)` the recent scores `[a, vec G]`, `pairs`, `white` their
+    forgetting-weighted pair sums (lags up to `lags`, lag 0); `spread` how the
+    information is spread; `fh` `(f, q, p)`, `fy` `(f, q)` the running transforms,
+    `phasor`, `rotation` `(f,)`.
     """
 
     theta: Float[Array, " p"]
@@ -235,15 +237,6 @@ def _empty_state(p, q, lags, frequencies, dt, theta0, prior, scores):
     )
 
 
-def _running_variance(r, e, lam, active):
-    """Exponentially weighted mean square of `e` per equation; the first value
-    starts it. Rows that took no part (`active` False) keep theirs."""
-    # a memory of at least 50 samples so that short memories still average noise
-    lam_r = jnp.minimum(lam, 0.98)
-    new = jnp.where(jnp.isnan(r), e**2, lam_r * r + (1 - lam_r) * e**2)
-    return jnp.where(active, new, r)
-
-
 def _inverse(m):
     """Inverse of a symmetric positive definite matrix, scaled to unit diagonal
     first (columns in very different units)."""
@@ -316,8 +309,10 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
         th = state.theta
         ss = state.rows
         n = ss[:, 0, 0]
-        rss = ss[:, 0, 1] - 2.0 * ss[:, 1, 2:] @ th + jnp.einsum(
-            "a,qab,b->q", th, ss[:, 2:, 2:], th
+        rss = (
+            ss[:, 0, 1]
+            - 2.0 * ss[:, 1, 2:] @ th
+            + jnp.einsum("a,qab,b->q", th, ss[:, 2:, 2:], th)
         )
         r = jnp.where(n > p + 1, jnp.maximum(rss, 0.0) / jnp.maximum(n, 1.0), jnp.nan)
         wq = _weights(r)
@@ -351,7 +346,14 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
         lag_z = jnp.concatenate([z[None], state.lag_z[:-1]], axis=0)
         return eqx.tree_at(
             lambda s: (
-                s.theta, s.info, s.rhs, s.r, s.rows, s.lag_z, s.pairs, s.white,
+                s.theta,
+                s.info,
+                s.rhs,
+                s.r,
+                s.rows,
+                s.lag_z,
+                s.pairs,
+                s.white,
                 s.spread,
             ),
             state,
