@@ -35,6 +35,8 @@ U0, ZQ = 45.0, -1.5
 TRUE = {"Zw": -1.2, "Zde": -4.0, "Mw": -0.06, "Mq": -2.5, "Mde": -15.0}
 NOISE = {"az": 0.05, "w": 0.02, "q": 0.002}  # 1 sigma, SI units
 COLOUR_TIME = 0.3  # s, correlation time of the az noise
+BAND = 1.5  # Hz: the upper end of the recursive Fourier transform's frequencies
+RLS_BAND = 2.0  # Hz: least squares' low-pass of the state equations
 
 
 def rates(t, x, u, p):
@@ -79,7 +81,7 @@ def input_signal(t):
     return de
 
 
-def simulate(n_flights, duration, rate, seed):
+def simulate(n_flights, duration, rate, seed, scale=1.0):
     """Noise-free states exactly (matrix exponential with inputs linear between
     samples), then per-flight noise."""
     dt = 1.0 / rate
@@ -97,24 +99,27 @@ def simulate(n_flights, duration, rate, seed):
     az = TRUE["Zw"] * x[:, 0] + ZQ * x[:, 1] + TRUE["Zde"] * de
     clean = np.column_stack([az, x])
     rng = np.random.default_rng(seed)
-    white = rng.normal(size=(n_flights, len(t), 3)) * np.array(
-        [0.0, NOISE["w"], NOISE["q"]]
+    white = (
+        rng.normal(size=(n_flights, len(t), 3))
+        * np.array([0.0, NOISE["w"], NOISE["q"]])
+        * scale
     )
     # first-order coloured noise of standard deviation NOISE["az"]
     rho = np.exp(-dt / COLOUR_TIME)
-    drive = rng.normal(size=(n_flights, len(t))) * NOISE["az"] * np.sqrt(1 - rho**2)
+    drive = rng.normal(size=(n_flights, len(t))) * scale * NOISE["az"]
+    drive = drive * np.sqrt(1 - rho**2)
     col = np.zeros((n_flights, len(t)))
-    col[:, 0] = rng.normal(size=n_flights) * NOISE["az"]
+    col[:, 0] = rng.normal(size=n_flights) * NOISE["az"] * scale
     for k in range(1, len(t)):
         col[:, k] = rho * col[:, k - 1] + drive[:, k]
     white[..., 0] = col
     return t, de, clean[None] + white
 
 
-def coverage(theta, sd, truth, times_idx):
-    """Fraction of flights whose 95% band holds the truth, per checked time and
-    parameter: `(times, p)`."""
-    inside = np.abs(theta - truth[None, None, :]) <= 1.96 * sd
+def coverage(theta, halfwidth, truth, times_idx):
+    """Fraction of flights whose 95% band (`theta +- halfwidth`) holds the
+    truth, per checked time and parameter: `(times, p)`."""
+    inside = np.abs(theta - truth[None, None, :]) <= halfwidth
     return inside[:, times_idx, :].mean(axis=0)
 
 
@@ -125,10 +130,18 @@ def main():
     parser.add_argument("--rate", type=float, default=50.0)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
+        "--noise-scale", type=float, default=1.0, help="multiplies every noise level"
+    )
+    parser.add_argument(
+        "--methods", default="rls,rls_memory_10s,rft", help="comma-separated labels"
+    )
+    parser.add_argument(
         "--out", type=pathlib.Path, default=pathlib.Path("results/recursive_coverage")
     )
     args = parser.parse_args()
-    t, de, measured = simulate(args.flights, args.duration, args.rate, args.seed)
+    t, de, measured = simulate(
+        args.flights, args.duration, args.rate, args.seed, args.noise_scale
+    )
     dt = 1.0 / args.rate
     regs = [
         rc.model_regression(
@@ -144,13 +157,16 @@ def main():
     theta0 = jnp.asarray(np.asarray(MODEL.start)[list(regs[0].index)])
     check_times = [10.0, 15.0, 20.0, 25.0, args.duration]
     times_idx = [int(round((c - t[0]) / dt)) for c in check_times]
-    freqs = tuple(float(f) for f in np.arange(0.1, 1.51, 0.04))
+    freqs = tuple(float(f) for f in np.arange(0.1, BAND + 0.01, 0.04))
     estimators = {
         "rls": rc.RecursiveLeastSquares(
-            forgetting=1.0, derivative=regs[0].derivative, dt=dt
+            forgetting=1.0, derivative=regs[0].derivative, dt=dt, bandwidth=RLS_BAND
         ),
         "rls_memory_10s": rc.RecursiveLeastSquares(
-            forgetting=rc.forgetting_for(10.0, dt), derivative=regs[0].derivative, dt=dt
+            forgetting=rc.forgetting_for(10.0, dt),
+            derivative=regs[0].derivative,
+            dt=dt,
+            bandwidth=RLS_BAND,
         ),
         "rft": rc.RecursiveFourier(
             frequencies=freqs, forgetting=1.0, derivative=regs[0].derivative, dt=dt
@@ -160,12 +176,16 @@ def main():
         "flights": args.flights,
         "duration_s": args.duration,
         "rate_hz": args.rate,
+        "noise_scale": args.noise_scale,
+        "rls_bandwidth_hz": RLS_BAND,
         "noise": NOISE,
         "az_noise_correlation_time_s": COLOUR_TIME,
         "check_times_s": check_times,
         "parameters": list(names),
         "methods": {},
     }
+    wanted = args.methods.split(",")
+    estimators = {k: v for k, v in estimators.items() if k in wanted}
     for label, est in estimators.items():
         start = time.perf_counter()
         hist = jax.vmap(lambda hh, yy, oo, est=est: rc.replay(est, hh, yy, oo, theta0))(
@@ -173,8 +193,8 @@ def main():
         )
         theta = np.asarray(hist.theta)
         elapsed = time.perf_counter() - start
-        cov_plain = coverage(theta, np.asarray(hist.stderr), truth, times_idx)
-        cov_corr = coverage(theta, np.asarray(hist.stderr_corrected), truth, times_idx)
+        cov_plain = coverage(theta, 1.96 * np.asarray(hist.stderr), truth, times_idx)
+        cov_corr = coverage(theta, np.asarray(hist.halfwidth), truth, times_idx)
         final = theta[:, -1, :]
         summary["methods"][label] = {
             "seconds_all_flights": elapsed,
@@ -205,6 +225,23 @@ def main():
                     strict=True,
                 )
             ),
+        }
+        # bias against scatter: how much of the miss a band of the noise alone
+        # cannot hold
+        sd_c = np.asarray(hist.stderr_corrected)[:, -1, :]
+        for k, n in enumerate(names):
+            print(
+                f"  {n}: bias/scatter {(final[:, k].mean() - truth[k]) / final[:, k].std():+.3f}"
+                f", scatter/mean band {final[:, k].std() / sd_c[:, k].mean():.3f}"
+                f", coverage at {check_times} s: {np.round(cov_corr[:, k], 3).tolist()}"
+            )
+        summary["methods"][label]["bias_over_scatter"] = {
+            n: float((final[:, k].mean() - truth[k]) / final[:, k].std())
+            for k, n in enumerate(names)
+        }
+        summary["methods"][label]["scatter_over_rms_stderr"] = {
+            n: float(final[:, k].std() / np.sqrt(np.mean(sd_c[:, k] ** 2)))
+            for k, n in enumerate(names)
         }
         print(
             f"{label}: coverage plain {cov_plain.mean():.3f}, corrected "

@@ -36,7 +36,13 @@ def replay_command(
         float,
         typer.Option(help="Forgetting time constant, s (inf: all data)"),
     ] = float("inf"),
-    band: Annotated[str, typer.Option(help="rft frequencies LOW,HIGH Hz")] = "0.1,1.5",
+    band: Annotated[
+        str,
+        typer.Option(
+            help="the manoeuvre's band LOW,HIGH Hz: rft's frequencies; rls "
+            "low-passes its differenced state equations at HIGH"
+        ),
+    ] = "0.1,1.5",
     step: Annotated[float, typer.Option(help="rft frequency spacing, Hz")] = 0.04,
     out: OutOption = None,
     as_json: JsonOption = False,
@@ -83,12 +89,12 @@ def replay_command(
         _fail(str(e))
     try:
         lam = rec_.forgetting_for(memory, dt)
+        low, high = _band(band)
         if method == "rls":
             est = rec_.RecursiveLeastSquares(
-                forgetting=lam, derivative=reg.derivative, dt=dt
+                forgetting=lam, derivative=reg.derivative, dt=dt, bandwidth=high
             )
         else:
-            low, high = _band(band)
             freqs = tuple(float(f) for f in np.arange(low, high + 1e-9, step))
             est = rec_.RecursiveFourier(
                 frequencies=freqs, forgetting=lam, derivative=reg.derivative, dt=dt
@@ -98,6 +104,7 @@ def replay_command(
     hist = rec_.replay(est, reg.h, reg.y, reg.o, np.asarray(start, float), t0)
     theta = np.asarray(hist.theta)
     sd = np.asarray(hist.stderr_corrected)
+    half = np.asarray(hist.halfwidth)
     final = {n: float(v) for n, v in zip(reg.parameters, theta[-1], strict=True)}
     final_sd = {n: float(v) for n, v in zip(reg.parameters, sd[-1], strict=True)}
     summary = {
@@ -107,14 +114,17 @@ def replay_command(
         "equations": list(reg.equations),
         "final": final,
         "final_stderr_corrected": final_sd,
+        "final_band_halfwidth": {
+            n: float(v) for n, v in zip(reg.parameters, half[-1], strict=True)
+        },
     }
     if truth is not None:
         cover = {}
         for k, n in enumerate(reg.parameters):
             if n in truth:
-                inside = np.abs(theta[:, k] - truth[n]) <= 1.96 * sd[:, k]
-                half = len(inside) // 10  # after the first tenth (start-up)
-                cover[n] = float(np.mean(inside[half:]))
+                inside = np.abs(theta[:, k] - truth[n]) <= half[:, k]
+                skip = len(inside) // 10  # after the first tenth (start-up)
+                cover[n] = float(np.mean(inside[skip:]))
         summary["band_coverage_of_truth"] = cover
     if out is not None:
         from .._report._bode import plot_history
@@ -128,7 +138,7 @@ def replay_command(
         plot_history(
             hist.t,
             theta,
-            sd,
+            half,
             reg.parameters,
             out / "estimates.png",
             truth=tr,

@@ -114,7 +114,7 @@ def plot_bode(fit, out, units: dict[str, str] | None = None, record: int = 0):
 def plot_history(
     t,
     theta,
-    stderr,
+    halfwidth,
     names,
     path,
     *,
@@ -123,11 +123,11 @@ def plot_history(
     units: dict[str, str] | None = None,
     title: str = "",
 ):
-    """Every estimate against time with its 95% band (`1.96 stderr`), and optional
-    horizontal reference values (e.g. a batch fit) or a true time history `(n,
-    p)`, in one PNG at `path`."""
+    """Every estimate against time with its 95% band (`theta +- halfwidth`, `(n,
+    p)`), and optional horizontal reference values (e.g. a batch fit) or a true
+    time history `(n, p)`, in one PNG at `path`."""
     plt = _plt()
-    t, theta, stderr = (np.asarray(a) for a in (t, theta, stderr))
+    t, theta, halfwidth = (np.asarray(a) for a in (t, theta, halfwidth))
     p = len(names)
     cols = min(3, p)
     rows = -(-p // cols)
@@ -137,8 +137,8 @@ def plot_history(
     units = units or {}
     for k, name in enumerate(names):
         ax = axes.flat[k]
-        lo = theta[:, k] - 1.96 * stderr[:, k]
-        hi = theta[:, k] + 1.96 * stderr[:, k]
+        lo = theta[:, k] - halfwidth[:, k]
+        hi = theta[:, k] + halfwidth[:, k]
         ax.fill_between(t, lo, hi, color="C0", alpha=0.25, lw=0, label="95% band")
         ax.plot(t, theta[:, k], "C0", lw=1.0, label="recursive")
         if truth is not None:
