@@ -162,21 +162,20 @@ def run_model_fem(
 ) -> dict:
     """Fit `spec`'s model to `files` by the filter-error method (process noise on
     `--process-noise` states, else the spec's), as the library's
-    `estimate(model, records, FilterError(process_noise=...), max_iter=max_iter,
-    throw=False)`; the JSON-ready report, with per-channel metrics of the
-    innovations when `channels`."""
+    `estimate(model, records, FilterError(process_noise=..., start=the spec's
+    output-error fit), max_iter=max_iter, throw=False)` with the gain chosen from
+    the record (one steady-state gain about one flight condition, else a gain
+    scheduled along the trajectory, see `choose_gain`); the JSON-ready report,
+    with per-channel metrics of the innovations when `channels`. The spec's
+    shooting and initial state shape the output-error fit the filter starts
+    from (a launch vehicle's multiple shooting: one simulation from drop does not
+    follow the flight)."""
     spec = parse_holds(list(holds), spec)
     noise = parse_process_noise(process_noise, spec)
-    if (
-        spec.biases
-        or spec.initial_state != "fixed"
-        or not isinstance(spec.shooting, SingleShooting)
-    ):
+    if spec.biases:
         raise LogError(
-            f"{spec.name}: the filter-error method holds each record's initial state "
-            "(the filter corrects it) on one segment, without output biases; this "
-            "model file asks for biases, estimated initial states or multiple "
-            "shooting (use --method oem)"
+            f"{spec.name}: the filter-error method has no output biases; this model "
+            "file asks for them (use --method oem)"
         )
     if records is None:
         records = load_records(spec, files, columns)
@@ -194,6 +193,8 @@ def run_model_fem(
             max_iter=max_iter,
             throw=False,
             progress=sys.stderr.isatty(),
+            gain=None,
+            start_fit=start_fit(spec),
         )
     except ValueError as e:
         raise LogError(str(e)) from None
@@ -201,6 +202,15 @@ def run_model_fem(
     if channels and result.converged:
         report["channels"] = channel_report(result)
     return report
+
+
+def start_fit(spec: ModelSpec) -> dict:
+    """The output-error fit a filter-error fit of `spec` starts from: the spec's
+    shooting and initial state."""
+    return {
+        "shooting": spec.shooting or SingleShooting(),
+        "initial_state": spec.initial_state or "fixed",
+    }
 
 
 def diagnosis_states(texts, spec: ModelSpec):
@@ -225,7 +235,7 @@ def process_noise_diagnosis(spec: ModelSpec, result, ranking, report: dict, name
 
     names = tuple(names)
     _say(f"scoring process noise on {', '.join(names)} (filter-error fit)")
-    fem, new, message = process_noise_candidate(result, ranking, names)
+    fem, new, message = process_noise_candidate(result, ranking, names, gain=None)
     for row in new:
         row["hard_to_tell_from"] = [n.split(".")[0] for n in row["hard_to_tell_from"]]
     report["ranking"] = new

@@ -177,12 +177,27 @@ def best_filter_error(result: Fit, process_noise, **fem_options) -> FilterErrorF
     in 0.3 m/s gusts CMq -630 and -290 for -27) and the filter-error fit from there
     stops in a local optimum with 10x the det(R)."""
     options = {"throw": False, **fem_options}
+    # the output-error fit's residuals scale the start intensities (no refit from
+    # each start); its initial states start the filter when it estimated them
+    residuals = [
+        rec.measured - y for rec, y in zip(result.records, result.outputs, strict=True)
+    ]
+    x0 = (
+        np.asarray(result.initial_states)
+        if np.any(np.asarray(result.initial_stderr) > 0)
+        and all(rec.x0 is None for rec in result.records)
+        else None
+    )
+    if isinstance(process_noise, Mapping):
+        residuals = None
     fits = [
         fit_filter_error(
             result.model,
             result.records,
             process_noise=process_noise,
             start=start,
+            residuals=residuals,
+            x0=x0,
             **options,
         )
         for start in (result.params, result.model.start)

@@ -9,8 +9,11 @@ white noise and `F` diagonal on the states listed in `process_noise`, sampled ou
     correction         x^_k = x~_k + K nu_k
     prediction         x~_k+1 = RK4 step of f from x^_k (the engine's integrator)
 
-The gain `K = P C^T R^-1` comes from the model linearised by JAX at the record's
-initial state and first input (`A = df/dx`, `C = dg/dx`, as FVSysID does), discretised
+The gain `K = P C^T R^-1` comes from the model linearised by JAX (`A = df/dx`,
+`C = dg/dx`) at the record's initial state and first input (as FVSysID does,
+[`SteadyStateGain`][]), or at a few points along the filter's predicted
+trajectory with the gains interpolated in time between them ([`ScheduledGain`][],
+for a vehicle whose flight condition changes through the record), discretised
 exactly at the sample step (`Phi = expm(A dt)`, `Q` by Van Loan) and the discrete
 Riccati equation written with the innovation covariance `R`
 ([`solve_filter_riccati`][]). The cost is det(R); as in output error, `R` (diagonal by default, full
@@ -24,13 +27,15 @@ physical, `diag(K C) <= 1` (else the implied measurement noise `R - C P C^T` wou
 negative), by an equality-constrained step on the linearised constraint for the rows
 the free step would violate; the result says when the constraint is active.
 
-Why steady state, not an extended Kalman filter with a time-varying gain: the
-steady-state filter needs one Riccati solution per record per evaluation (and its
-forward-mode tangents) instead of a covariance propagation and a gain per sample
-inside the scan, whose tangents would multiply the work of every step by the
-states squared; around a trim point the linearisation is good, and it is what
-FVSysID does, so its published HFB-320 estimates are a check we can reproduce
-(README). An EKF was not built or measured.
+Why not an extended Kalman filter with a gain per sample: it propagates a
+covariance and solves a gain inside the scan, so every tangent of the Jacobian
+differentiates both at every sample, and its innovation covariance changes per
+sample, so `R` can no longer be relaxed in closed form. A schedule solves a
+handful of Riccati equations outside the scan (each differentiated by one
+implicit linear solve per tangent) and keeps the method's structure; measured
+against an EKF in `benchmarks/filter_gain.py` (see the filter-error guide). Around
+a trim point the steady-state gain is the schedule's first point, and it is what
+FVSysID does, so its published HFB-320 estimates are a check we can reproduce.
 """
 
 import functools
@@ -558,8 +563,9 @@ def fit_filter_error(
     - `throw`: raise a `RuntimeError` with the reason when the fit fails; with
       `throw=False` the result carries the code and `message` instead.
     - `gain`: [`SteadyStateGain`][] (default, one gain from the linearisation at
-      the initial state) or [`ScheduledGain`][] (a gain following the flight
-      condition).
+      the initial state), [`ScheduledGain`][] (a gain following the flight
+      condition), or `None`: chosen from the record by [`choose_gain`][] at the
+      start values (what `fit --method fem` does).
     - `start_fit`: keywords of the output-error fit that gives the start
       (`shooting`, `initial_state`; default single shooting from the held initial
       state); with `initial_state="estimated"` its initial states are the
@@ -682,6 +688,12 @@ def filter_error(
         f0 = residual_intensities(model, records, residuals, theta0, noise_states)
     if np.any(f0 == 0):
         raise ValueError("process-noise start intensities must be non-zero")
+    if gain is None:
+        gain = choose_gain(
+            model, records, noise_states, np.asarray(prob.x0), theta0, f0, residuals
+        )
+        if not isinstance(gain, SteadyStateGain):
+            prob = problem(model, records, noise_states, gain, np.asarray(prob.x0))
     z0 = np.concatenate([theta0, f0])
     free = np.concatenate([model.free, np.ones(len(names), bool)])
     sol = solve_filter_error(
@@ -744,6 +756,48 @@ def filter_error(
     if throw and not out.converged:
         raise RuntimeError(f"filter-error fit failed: {out.message}")
     return out
+
+
+# the steady-state gain serves a record while the weight the filter gives the
+# measurements of each state, diag(K C) (0: none, 1: all), stays within this of
+# its value at the start, wherever the gain is solved along the record
+GAIN_VARIATION = 0.1
+
+
+def gain_variation(model, prob, theta, f, residuals) -> float:
+    """The largest change of `diag(K C)` (dimensionless, 0 to 1) between the
+    steady-state gains solved at the schedule points of `prob` and its first,
+    linearised at its reference states (measured; unmeasured states held at the
+    initial state), for the intensities `f` and the innovation covariance of
+    `residuals` (per record `(samples, outputs)`)."""
+    e = np.concatenate([np.asarray(r) for r in residuals])
+    rmat = jnp.diag(jnp.asarray(np.maximum(np.mean(e**2, axis=0), 1e-300)))
+    ref = jnp.where(jnp.isnan(prob.reference), prob.x0[:, None, :], prob.reference)
+
+    @jax.jit
+    def weights(theta, f, rmat, ref):
+        def one(r):
+            k, c, _ = gain(model, prob, r, theta, f, rmat, ref[r])
+            return jnp.einsum("pij,pji->pi", k, c)
+
+        return jax.vmap(one)(jnp.arange(prob.layout.n_records))
+
+    kc = np.asarray(weights(jnp.asarray(theta), jnp.asarray(f), rmat, ref))
+    change = np.abs(kc - kc[:, :1])
+    return float(np.max(np.where(np.isfinite(change), change, np.inf)))
+
+
+def choose_gain(model, records, noise_states, x0, theta, f, residuals, points=16):
+    """[`SteadyStateGain`][] when the gains solved at `points` samples along the
+    records (initial states `x0`) stay within [`GAIN_VARIATION`][] of the first
+    (a record about one flight condition), else [`ScheduledGain`][]`(points)`."""
+    from ._filter_gain import ScheduledGain
+
+    sched = ScheduledGain(points=points)
+    trial = problem(model, records, noise_states, sched, x0)
+    if gain_variation(model, trial, theta, f, residuals) > GAIN_VARIATION:
+        return sched
+    return SteadyStateGain()
 
 
 def _output_error_start(model, records, start, options):
