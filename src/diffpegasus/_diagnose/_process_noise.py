@@ -39,7 +39,12 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.stats
 
-from .._estimate._filter_error import FilterErrorFit, fit_filter_error
+from .._estimate._filter_error import (
+    choose_gain,
+    FilterErrorFit,
+    fit_filter_error,
+    residual_intensities,
+)
 from .._estimate._fit import Fit
 from .._estimate._score import score_variance
 
@@ -190,6 +195,27 @@ def best_filter_error(result: Fit, process_noise, **fem_options) -> FilterErrorF
     )
     if isinstance(process_noise, Mapping):
         residuals = None
+    elif options.get("gain", 0) is None:
+        # one choice for both starts (see `choose_gain`), at the output-error fit
+        noise_states = tuple(result.model.states.index(s) for s in process_noise)
+        x_start = x0 if x0 is not None else np.array(
+            [
+                rec.x0 if rec.x0 is not None else rec.measured_states(result.model, [0])[0]
+                for rec in result.records
+            ]
+        )
+        f0 = residual_intensities(
+            result.model, result.records, residuals, result.params, noise_states
+        )
+        options["gain"] = choose_gain(
+            result.model,
+            result.records,
+            noise_states,
+            x_start,
+            result.params,
+            f0,
+            residuals,
+        )
     fits = [
         fit_filter_error(
             result.model,
