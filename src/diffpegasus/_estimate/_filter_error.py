@@ -564,7 +564,7 @@ def fit_filter_error(
       `throw=False` the result carries the code and `message` instead.
     - `gain`: [`SteadyStateGain`][] (default, one gain from the linearisation at
       the initial state), [`ScheduledGain`][] (a gain following the flight
-      condition), or `None`: chosen from the record by [`choose_gain`][] at the
+      condition), or `None`: chosen from the record by `choose_gain` at the
       start values (what `fit --method fem` does).
     - `start_fit`: keywords of the output-error fit that gives the start
       (`shooting`, `initial_state`; default single shooting from the held initial
