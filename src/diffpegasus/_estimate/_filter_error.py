@@ -672,23 +672,28 @@ def filter_error(
     if len(set(names)) != len(names):
         raise ValueError(f"process_noise names a state twice: {names}")
     noise_states = tuple(model.states.index(s) for s in names)
+    first = SteadyStateGain() if gain is None else gain
     if isinstance(process_noise, Mapping):
-        prob = problem(model, records, noise_states, gain, x0)
+        prob = problem(model, records, noise_states, first, x0)
         theta0 = np.asarray(model.start if start is None else start, float)
         f0 = np.array([float(process_noise[s]) for s in names])
     elif residuals is not None:
-        prob = problem(model, records, noise_states, gain, x0)
+        prob = problem(model, records, noise_states, first, x0)
         theta0 = np.asarray(model.start if start is None else start, float)
         f0 = residual_intensities(model, records, residuals, theta0, noise_states)
     else:
         theta0, residuals, x_oe = _output_error_start(
             model, records, start, dict(start_fit or {})
         )
-        prob = problem(model, records, noise_states, gain, x0 if x0 is not None else x_oe)
+        x_start = x0 if x0 is not None else x_oe
+        prob = problem(model, records, noise_states, first, x_start)
         f0 = residual_intensities(model, records, residuals, theta0, noise_states)
     if np.any(f0 == 0):
         raise ValueError("process-noise start intensities must be non-zero")
-    if gain is None:
+    if gain is None and residuals is None:
+        # start intensities given, no residuals to weigh a schedule by
+        gain = first
+    elif gain is None:
         gain = choose_gain(
             model, records, noise_states, np.asarray(prob.x0), theta0, f0, residuals
         )
