@@ -139,8 +139,9 @@ def format_fem_table(report: dict) -> str:
         else:
             rel = 100 * sd / abs(est) if est else float("nan")
             lines.append(f"{name:>12s} {est:14.6g} {sd:12.4g} {rel:8.2f}")
+    cost = "-" if report["cost"] is None else f"{report['cost']:.6e}"
     lines.append(
-        f"filter error: det(R) = {report['cost']:.6e}   iterations: "
+        f"filter error: det(R) = {cost}   iterations: "
         f"{report['iterations']}   diag(KC) <= 1 constraint "
         f"{'active' if report['constraint_active'] else 'inactive'}"
     )
