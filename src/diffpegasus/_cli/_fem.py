@@ -184,19 +184,28 @@ def run_model_fem(
         f"fitting {spec.name} ({sum(spec.model.free)} free parameters, process noise "
         f"on {', '.join(noise)}) to {len(records)} record(s) by filter error"
     )
+    options = dict(
+        process_noise=noise,
+        full_R=False,
+        rtol=1e-6,
+        max_iter=max_iter,
+        throw=False,
+        progress=sys.stderr.isatty(),
+        gain=None,
+        start_fit=start_fit(spec),
+    )
     try:
-        result = filter_error(
-            spec.model,
-            records,
-            process_noise=noise,
-            full_R=False,
-            rtol=1e-6,
-            max_iter=max_iter,
-            throw=False,
-            progress=sys.stderr.isatty(),
-            gain=None,
-            start_fit=start_fit(spec),
-        )
+        result = filter_error(spec.model, records, **options)
+        if not result.converged and not isinstance(noise, dict):
+            # as the diagnosis does: the output-error estimates can be far off in
+            # turbulence; the model's start values are the second start
+            _say(f"filter error from the output-error estimates: {result.message}; "
+                 "trying the model's start values")
+            second = filter_error(
+                spec.model, records, start=spec.model.start, **options
+            )
+            if second.converged or not np.isfinite(result.cost):
+                result = second
     except ValueError as e:
         raise LogError(str(e)) from None
     report = fem_report(result, spec)
