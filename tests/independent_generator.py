@@ -564,3 +564,119 @@ def generate_hfb320(
         "simulator": "tests/independent_generator.py",
     }
     return channels, metadata
+
+
+# --- turbulence for the Pegasus-like flight ---------------------------------------
+# Written for the filter-error tests from the textbook gust model, not from the
+# package's: each earth-axis gust component (u_g forward, w_g down) is a first-order
+# Gauss-Markov process (the Dryden longitudinal form) of intensity sigma and time
+# constant L / V, drawn by its exact discrete recursion on a 10 ms grid and
+# interpolated by a cubic spline, so the integrator sees a smooth wind. The
+# vehicle's states stay inertial; the aerodynamics, V and alpha see the air.
+GUST_LENGTH = 533.0  # m (1750 ft)
+GUST_STEP = 0.01  # s
+
+
+def gust_field(seed: int, duration: float, sigma: float, airspeed: float):
+    """`t -> (u_g, w_g)` (m/s, earth axes, w_g down) for `duration` s: the same
+    realisation for a seed at every sample rate."""
+    from scipy.interpolate import CubicSpline
+
+    rng = np.random.default_rng([seed, 7_777])
+    n = int(np.ceil(duration / GUST_STEP)) + 3
+    a = np.exp(-GUST_STEP * airspeed / GUST_LENGTH)
+    kick = sigma * np.sqrt(1.0 - a * a)
+    g = np.empty((n, 2))
+    g[0] = sigma * rng.normal(size=2)
+    for k in range(1, n):
+        g[k] = a * g[k - 1] + kick * rng.normal(size=2)
+    return CubicSpline(GUST_STEP * (np.arange(n) - 1), g, axis=0)
+
+
+class _GustyFlight(_Flight):
+    """The flight of `_Flight` through the wind `gusts(t) -> (n, 2)`."""
+
+    def __init__(self, times, levels, effects, gusts):
+        super().__init__(times, levels, effects)
+        self.gusts = gusts
+
+    def evaluate(self, t, x, de):
+        ug, wg = np.moveaxis(np.asarray(self.gusts(t)), -1, 0)
+        u, w, q, theta = x[0], x[1], x[2], x[3]
+        ugb = ug * np.cos(theta) - wg * np.sin(theta)
+        wgb = ug * np.sin(theta) + wg * np.cos(theta)
+        air = np.array(x, float, copy=True)
+        air[0], air[1] = u - ugb, w - wgb
+        # forces and air data from the air-relative velocity; the kinematics of
+        # the inertial one: the parent's rates corrected by the wind terms
+        rates, out = super().evaluate(t, air, de)
+        rates = np.array(rates, float)
+        rates[0] = rates[0] - q * wgb
+        rates[1] = rates[1] + q * ugb
+        rates[4] = rates[4] + ug
+        rates[5] = rates[5] - wg
+        return rates, out
+
+
+def generate_turbulent(
+    seed: int = 0,
+    sample_rate: float = 1000.0,
+    duration: float = 30.0,
+    sigma: float = 1.5,
+    noise: bool = True,
+) -> tuple[dict[str, np.ndarray], dict]:
+    """[`generate`][]'s flight (same seed: same drop, pulses and noise) flown
+    through gusts of intensity `sigma` (m/s, both components)."""
+    times, levels = elevator_schedule(seed, duration)
+    x = drop_state(seed)
+    gusts = gust_field(seed, duration, sigma, float(np.hypot(x[0], x[1])))
+    flight = _GustyFlight(times, levels, {}, gusts)
+    n = int(round(duration * sample_rate)) + 1
+    t = np.arange(n) / sample_rate
+    edges = np.unique(np.clip(times, 0.0, duration))
+    edges = np.concatenate([[0.0], edges[(edges > 0) & (edges < duration)], [duration]])
+    states = np.empty((n, 7))
+    de_surface = np.empty(n)
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        de = _step_value(0.5 * (a + b), times, levels)
+        sel = (t >= a) & ((t < b) | ((b == duration) & (t <= b)))
+        sol = solve_ivp(
+            flight.rhs,
+            (a, b),
+            x,
+            method="DOP853",
+            rtol=1e-9,
+            atol=1e-8,
+            args=(de,),
+            dense_output=True,
+        )
+        if not sol.success:
+            raise RuntimeError(f"integration failed at t = {a}: {sol.message}")
+        if sel.any():
+            states[sel] = sol.sol(t[sel]).T
+            de_surface[sel] = de
+        x = sol.y[:, -1]
+    _, out = flight.evaluate(t, states.T, de_surface)
+    channels = {"t": t, "de": _step_value(t, times, levels)}
+    channels.update({k: np.asarray(v, float) * np.ones(n) for k, v in out.items()})
+    if noise:
+        rng = np.random.default_rng([seed, int(round(sample_rate))])
+        for name, s in NOISE.items():
+            channels[name] = channels[name] + s * rng.normal(size=n)
+    metadata = {
+        "S_ref": S_REF,
+        "c_ref": C_REF,
+        "vehicle": "pegasus-like (independent generator)",
+        "sample_rate_hz": float(sample_rate),
+        "seed": seed,
+        "noise_sigmas": dict(NOISE) if noise else {},
+        "hidden_effects": {},
+        "turbulence": {"sigma": sigma, "length_m": GUST_LENGTH, "model": "Gauss-Markov"},
+        "simulator": "tests/independent_generator.py",
+    }
+    return channels, metadata
+
+
+def make_turbulent_log(path, seed=0, sample_rate=1000.0, duration=30.0, sigma=1.5):
+    """Generate and write one turbulent flight; returns the CSV path."""
+    return write(path, *generate_turbulent(seed, sample_rate, duration, sigma))

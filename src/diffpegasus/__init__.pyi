@@ -35,6 +35,10 @@ from ._estimate._filter_error import (
     FilterErrorFit as FilterErrorFit,
     fit_filter_error as fit_filter_error,
 )
+from ._estimate._filter_gain import (
+    ScheduledGain as ScheduledGain,
+    SteadyStateGain as SteadyStateGain,
+)
 from ._estimate._fit import (
     Fit as Fit,
     fit as fit,

@@ -139,8 +139,9 @@ def format_fem_table(report: dict) -> str:
         else:
             rel = 100 * sd / abs(est) if est else float("nan")
             lines.append(f"{name:>12s} {est:14.6g} {sd:12.4g} {rel:8.2f}")
+    cost = "-" if report["cost"] is None else f"{report['cost']:.6e}"
     lines.append(
-        f"filter error: det(R) = {report['cost']:.6e}   iterations: "
+        f"filter error: det(R) = {cost}   iterations: "
         f"{report['iterations']}   diag(KC) <= 1 constraint "
         f"{'active' if report['constraint_active'] else 'inactive'}"
     )
@@ -162,21 +163,20 @@ def run_model_fem(
 ) -> dict:
     """Fit `spec`'s model to `files` by the filter-error method (process noise on
     `--process-noise` states, else the spec's), as the library's
-    `estimate(model, records, FilterError(process_noise=...), max_iter=max_iter,
-    throw=False)`; the JSON-ready report, with per-channel metrics of the
-    innovations when `channels`."""
+    `estimate(model, records, FilterError(process_noise=..., start=the spec's
+    output-error fit), max_iter=max_iter, throw=False)` with the gain chosen from
+    the record (one steady-state gain about one flight condition, else a gain
+    scheduled along the trajectory, see `choose_gain`); the JSON-ready report,
+    with per-channel metrics of the innovations when `channels`. The spec's
+    shooting and initial state shape the output-error fit the filter starts
+    from (a launch vehicle's multiple shooting: one simulation from drop does not
+    follow the flight)."""
     spec = parse_holds(list(holds), spec)
     noise = parse_process_noise(process_noise, spec)
-    if (
-        spec.biases
-        or spec.initial_state != "fixed"
-        or not isinstance(spec.shooting, SingleShooting)
-    ):
+    if spec.biases:
         raise LogError(
-            f"{spec.name}: the filter-error method holds each record's initial state "
-            "(the filter corrects it) on one segment, without output biases; this "
-            "model file asks for biases, estimated initial states or multiple "
-            "shooting (use --method oem)"
+            f"{spec.name}: the filter-error method has no output biases; this model "
+            "file asks for them (use --method oem)"
         )
     if records is None:
         records = load_records(spec, files, columns)
@@ -184,23 +184,43 @@ def run_model_fem(
         f"fitting {spec.name} ({sum(spec.model.free)} free parameters, process noise "
         f"on {', '.join(noise)}) to {len(records)} record(s) by filter error"
     )
+    options = dict(
+        process_noise=noise,
+        full_R=False,
+        rtol=1e-6,
+        max_iter=max_iter,
+        throw=False,
+        progress=sys.stderr.isatty(),
+        gain=None,
+        start_fit=start_fit(spec),
+    )
     try:
-        result = filter_error(
-            spec.model,
-            records,
-            process_noise=noise,
-            full_R=False,
-            rtol=1e-6,
-            max_iter=max_iter,
-            throw=False,
-            progress=sys.stderr.isatty(),
-        )
+        result = filter_error(spec.model, records, **options)
+        if not result.converged and not isinstance(noise, dict):
+            # as the diagnosis does: the output-error estimates can be far off in
+            # turbulence; the model's start values are the second start
+            _say(f"filter error from the output-error estimates: {result.message}; "
+                 "trying the model's start values")
+            second = filter_error(
+                spec.model, records, start=spec.model.start, **options
+            )
+            if second.converged or not np.isfinite(result.cost):
+                result = second
     except ValueError as e:
         raise LogError(str(e)) from None
     report = fem_report(result, spec)
     if channels and result.converged:
         report["channels"] = channel_report(result)
     return report
+
+
+def start_fit(spec: ModelSpec) -> dict:
+    """The output-error fit a filter-error fit of `spec` starts from: the spec's
+    shooting and initial state."""
+    return {
+        "shooting": spec.shooting or SingleShooting(),
+        "initial_state": spec.initial_state or "fixed",
+    }
 
 
 def diagnosis_states(texts, spec: ModelSpec):
@@ -225,7 +245,7 @@ def process_noise_diagnosis(spec: ModelSpec, result, ranking, report: dict, name
 
     names = tuple(names)
     _say(f"scoring process noise on {', '.join(names)} (filter-error fit)")
-    fem, new, message = process_noise_candidate(result, ranking, names)
+    fem, new, message = process_noise_candidate(result, ranking, names, gain=None)
     for row in new:
         row["hard_to_tell_from"] = [n.split(".")[0] for n in row["hard_to_tell_from"]]
     report["ranking"] = new

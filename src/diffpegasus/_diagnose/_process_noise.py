@@ -39,7 +39,12 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.stats
 
-from .._estimate._filter_error import FilterErrorFit, fit_filter_error
+from .._estimate._filter_error import (
+    choose_gain,
+    FilterErrorFit,
+    fit_filter_error,
+    residual_intensities,
+)
 from .._estimate._fit import Fit
 from .._estimate._score import score_variance
 
@@ -177,12 +182,48 @@ def best_filter_error(result: Fit, process_noise, **fem_options) -> FilterErrorF
     in 0.3 m/s gusts CMq -630 and -290 for -27) and the filter-error fit from there
     stops in a local optimum with 10x the det(R)."""
     options = {"throw": False, **fem_options}
+    # the output-error fit's residuals scale the start intensities (no refit from
+    # each start); its initial states start the filter when it estimated them
+    residuals = [
+        rec.measured - y for rec, y in zip(result.records, result.outputs, strict=True)
+    ]
+    x0 = (
+        np.asarray(result.initial_states)
+        if np.any(np.asarray(result.initial_stderr) > 0)
+        and all(rec.x0 is None for rec in result.records)
+        else None
+    )
+    if isinstance(process_noise, Mapping):
+        residuals = None
+    elif options.get("gain", 0) is None:
+        # one choice for both starts (see `choose_gain`), at the output-error fit
+        noise_states = tuple(result.model.states.index(s) for s in process_noise)
+        x_start = x0 if x0 is not None else np.array(
+            [
+                rec.x0 if rec.x0 is not None else rec.measured_states(result.model, [0])[0]
+                for rec in result.records
+            ]
+        )
+        f0 = residual_intensities(
+            result.model, result.records, residuals, result.params, noise_states
+        )
+        options["gain"] = choose_gain(
+            result.model,
+            result.records,
+            noise_states,
+            x_start,
+            result.params,
+            f0,
+            residuals,
+        )
     fits = [
         fit_filter_error(
             result.model,
             result.records,
             process_noise=process_noise,
             start=start,
+            residuals=residuals,
+            x0=x0,
             **options,
         )
         for start in (result.params, result.model.start)

@@ -53,6 +53,10 @@ __getattr__, __dir__, __all__ = attach(
             "FilterErrorFit",
             "fit_filter_error",
         ),
+        "_filter_gain": (
+            "ScheduledGain",
+            "SteadyStateGain",
+        ),
         "_fit": (
             "Fit",
             "fit",

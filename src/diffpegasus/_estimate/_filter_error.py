@@ -9,8 +9,11 @@ white noise and `F` diagonal on the states listed in `process_noise`, sampled ou
     correction         x^_k = x~_k + K nu_k
     prediction         x~_k+1 = RK4 step of f from x^_k (the engine's integrator)
 
-The gain `K = P C^T R^-1` comes from the model linearised by JAX at the record's
-initial state and first input (`A = df/dx`, `C = dg/dx`, as FVSysID does), discretised
+The gain `K = P C^T R^-1` comes from the model linearised by JAX (`A = df/dx`,
+`C = dg/dx`) at the record's initial state and first input (as FVSysID does,
+[`SteadyStateGain`][]), or at a few points along the filter's predicted
+trajectory with the gains interpolated in time between them ([`ScheduledGain`][],
+for a vehicle whose flight condition changes through the record), discretised
 exactly at the sample step (`Phi = expm(A dt)`, `Q` by Van Loan) and the discrete
 Riccati equation written with the innovation covariance `R`
 ([`solve_filter_riccati`][]). The cost is det(R); as in output error, `R` (diagonal by default, full
@@ -24,13 +27,15 @@ physical, `diag(K C) <= 1` (else the implied measurement noise `R - C P C^T` wou
 negative), by an equality-constrained step on the linearised constraint for the rows
 the free step would violate; the result says when the constraint is active.
 
-Why steady state, not an extended Kalman filter with a time-varying gain: the
-steady-state filter needs one Riccati solution per record per evaluation (and its
-forward-mode tangents) instead of a covariance propagation and a gain per sample
-inside the scan, whose tangents would multiply the work of every step by the
-states squared; around a trim point the linearisation is good, and it is what
-FVSysID does, so its published HFB-320 estimates are a check we can reproduce
-(README). An EKF was not built or measured.
+Why not an extended Kalman filter with a gain per sample: it propagates a
+covariance and solves a gain inside the scan, so every tangent of the Jacobian
+differentiates both at every sample, and its innovation covariance changes per
+sample, so `R` can no longer be relaxed in closed form. A schedule solves a
+handful of Riccati equations outside the scan (each differentiated by one
+implicit linear solve per tangent) and keeps the method's structure; measured
+against an EKF in `benchmarks/filter_gain.py` (see the filter-error guide). Around
+a trim point the steady-state gain is the schedule's first point, and it is what
+FVSysID does, so its published HFB-320 estimates are a check we can reproduce.
 """
 
 import functools
@@ -45,17 +50,24 @@ from jaxtyping import Array, Bool, Float, Int
 from .._model import Model, Record
 from ._engine import _input_at, coloured_information, explain, Layout, MAX_ITER, RESULTS
 from ._estimator import AbstractFit
+from ._filter_gain import AbstractFilterGain, SteadyStateGain
 from ._fit import layout as _layout, output_error, simulate, SingleShooting
 from ._riccati import discretise, solve_filter_riccati
 
 
 class FilterProblem(eqx.Module):
     """What [`solve_filter_error`][] needs besides the model: the records cut as one
-    segment each ([`Layout`][]), their initial states `x0` `(records, states)` and
-    the state index of each process-noise intensity `noise_states` (static)."""
+    segment each ([`Layout`][]), their initial states `x0` `(records, states)`, the
+    sample indices where the gain is solved `schedule` `(records, points)` (see
+    [`AbstractFilterGain`][]), the states measured there `reference` `(records,
+    points, states)` (NaN where no output measures a state; the first point is
+    `x0`) and the state index of each process-noise intensity `noise_states`
+    (static)."""
 
     layout: Layout
     x0: Float[Array, "records states"]
+    schedule: Int[Array, "records points"]
+    reference: Float[Array, "records points states"]
     noise_states: tuple[int, ...] = eqx.field(static=True)
 
 
@@ -65,60 +77,90 @@ def _noise_matrix(nx, noise_states, f):
     return m.at[jnp.asarray(noise_states), jnp.arange(len(noise_states))].set(f)
 
 
-def gain(model: Model, prob: FilterProblem, r, theta, f, rmat):
-    """Steady-state gain `K` `(states, outputs)` of record `r` for innovation
-    covariance `rmat` `(outputs, outputs)`, the linearised `C` `(outputs, states)`
-    and the a-priori covariance `P` `(states, states)`."""
+def gain(model: Model, prob: FilterProblem, r, theta, f, rmat, ref):
+    """Steady-state gains `K` `(points, states, outputs)` of record `r` at its
+    schedule points, the model linearised at the states `ref` `(points, states)`
+    there, for innovation covariance `rmat` `(outputs, outputs)`; with the
+    linearised `C` `(points, outputs, states)` and the a-priori covariances `P`
+    `(points, states, states)`."""
     lay = prob.layout
-    x0 = prob.x0[r]
-    t0 = lay.t0[r]
-    u0 = _input_at(lay, r, t0, model.input_delays(theta))
-    a = jax.jacfwd(model.f, argnums=1)(t0, x0, u0, theta)
-    c = jax.jacfwd(model.g, argnums=1)(t0, x0, u0, theta)
-    phi, q = discretise(a, _noise_matrix(x0.shape[0], prob.noise_states, f), lay.dt[r])
-    p = solve_filter_riccati(phi, c, q, rmat)
-    k = jnp.linalg.solve(rmat, c @ p).T
-    return k, c, p
+    delay = model.input_delays(theta)
+    fm = _noise_matrix(prob.x0.shape[1], prob.noise_states, f)
+
+    def at(j, x):
+        t = lay.t0[r] + lay.dt[r] * j
+        u = _input_at(lay, r, t, delay)
+        a = jax.jacfwd(model.f, argnums=1)(t, x, u, theta)
+        c = jax.jacfwd(model.g, argnums=1)(t, x, u, theta)
+        phi, q = discretise(a, fm, lay.dt[r])
+        p = solve_filter_riccati(phi, c, q, rmat)
+        return jnp.linalg.solve(rmat, c @ p).T, c, p
+
+    return jax.vmap(at)(prob.schedule[r], ref)
+
+
+def _gain_at(schedule, ks, i):
+    """The gain at sample `i`: `ks` `(points, states, outputs)` interpolated
+    linearly between the schedule's samples (constant with one point)."""
+    m = ks.shape[0]
+    if m == 1:
+        return ks[0]
+    j = jnp.clip(jnp.searchsorted(schedule, i, side="right") - 1, 0, m - 2)
+    s0, s1 = schedule[j], schedule[j + 1]
+    w = jnp.clip(jnp.where(s1 > s0, (i - s0) / jnp.maximum(s1 - s0, 1), 0.0), 0, 1)
+    return ks[j] * (1 - w) + ks[j + 1] * w
 
 
 def run_filter(model: Model, prob: FilterProblem, r, theta, k):
-    """Innovations `(length, outputs)` (0 at padding) and predicted outputs of
-    record `r` through the filter with gain `k`."""
+    """Innovations `(length, outputs)` (0 at padding), predicted outputs and
+    predicted (a-priori) states `(length, states)` of record `r` through the
+    filter with gains `k` `(points, states, outputs)` at its schedule points (or
+    one gain `(states, outputs)`)."""
     lay = prob.layout
     dt = lay.dt[r]
     delay = model.input_delays(theta)
     ts = lay.t0[r] + dt * jnp.arange(lay.length)
+    ks = k if k.ndim == 3 else k[None]
+    sched = prob.schedule[r]
 
     def field(t, x):
         return model.f(t, x, _input_at(lay, r, t, delay), theta)
 
     def step(x, inp):
-        t, z, valid = inp
+        i, t, z, valid = inp
         y = model.g(t, x, _input_at(lay, r, t, delay), theta)
         nu = jnp.where(valid, z - y, 0.0)
-        xc = x + k @ nu
+        xc = x + _gain_at(sched, ks, i) @ nu
         k1 = field(t, xc)
         k2 = field(t + dt / 2, xc + dt / 2 * k1)
         k3 = field(t + dt / 2, xc + dt / 2 * k2)
         k4 = field(t + dt, xc + dt * k3)
         # padding holds the state: propagating it could overflow into the tangents
         x1 = jnp.where(valid, xc + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4), x)
-        return x1, (nu, y)
+        return x1, (nu, y, x)
 
-    _, (nu, y) = jax.lax.scan(step, prob.x0[r], (ts, lay.measured[r], lay.valid[r]))
-    return nu, y
+    idx = jnp.arange(lay.length)
+    _, (nu, y, xs) = jax.lax.scan(
+        step, prob.x0[r], (idx, ts, lay.measured[r], lay.valid[r])
+    )
+    return nu, y, xs
 
 
-def innovations(model: Model, prob: FilterProblem, z, rmat):
+def innovations(model: Model, prob: FilterProblem, z, rmat, ref=None):
     """Innovations `(records, length, outputs)`, predicted outputs, `diag(K C)`
-    `(records, states)`, gains and linearised `C`s at unknowns `z = [theta, f]`."""
+    `(records, points, states)`, gains `(records, points, states, outputs)`,
+    linearised `C`s `(records, points, outputs, states)` and predicted states
+    `(records, length, states)` at unknowns `z = [theta, f]`, the gains
+    linearised at the states `ref` `(records, points, states)` (default
+    `prob.reference`)."""
     p = len(model.parameters)
     theta, f = z[:p], z[p:]
+    ref = prob.reference if ref is None else ref
 
     def one(r):
-        k, c, _ = gain(model, prob, r, theta, f, rmat)
-        nu, y = run_filter(model, prob, r, theta, k)
-        return nu, y, jnp.diag(k @ c), k, c
+        k, c, _ = gain(model, prob, r, theta, f, rmat, ref[r])
+        nu, y, xs = run_filter(model, prob, r, theta, k)
+        return nu, y, jnp.einsum("pij,pji->pi", k, c), k, c, xs
 
     return jax.vmap(one)(jnp.arange(prob.layout.n_records))
 
@@ -129,8 +171,10 @@ class FilterSolution(eqx.Module):
     **Fields:** `z` `[theta, f]`; `R` `(outputs, outputs)` innovation covariance; `cost`
     det(R); `iterations`; `result`; `covariance` of `z` (inverse Fisher information
     of the innovations, zero for held unknowns); `innovations` and `outputs`
-    `(records, length, outputs)`; `kc` `(records, states)` the diagonal of `K C`;
-    `gain` `(records, states, outputs)`; `active` whether `diag(K C) <= 1` bound a
+    `(records, length, outputs)`; `kc` `(records, points, states)` the diagonal of
+    `K C` at the schedule points; `gain` `(records, points, states, outputs)`;
+    `reference` `(records, points, states)` the states the gains were linearised
+    at; `active` whether `diag(K C) <= 1` bound a
     step at the end; `jacobian` `(records, length, outputs, unknowns)` the whitened
     innovations' Jacobian in every unknown (held ones too: a score test of a held
     parameter needs its column) and `whitened` `(records, length, outputs)` the
@@ -145,8 +189,9 @@ class FilterSolution(eqx.Module):
     covariance: Float[Array, "unknowns unknowns"]
     innovations: Float[Array, "records length outputs"]
     outputs: Float[Array, "records length outputs"]
-    kc: Float[Array, "records states"]
-    gain: Float[Array, "records states outputs"]
+    kc: Float[Array, "records points states"]
+    gain: Float[Array, "records points states outputs"]
+    reference: Float[Array, "records points states"]
     active: Bool[Array, ""]
     jacobian: Float[Array, "records length outputs unknowns"]
     whitened: Float[Array, "records length outputs"]
@@ -160,15 +205,16 @@ def _whiten(rmat):
     return jax.scipy.linalg.solve_triangular(chol, jnp.eye(rmat.shape[0]), lower=True)
 
 
-def _linearise(model, prob, z, rmat, rows=False):
-    """Normal matrix `(n, n)` and gradient of `sum nu^T R^-1 nu`, with the
-    innovations, `diag(K C)` and its Jacobian `(records, states, n)`, and `C`s;
+def _linearise(model, prob, z, rmat, ref, rows=False):
+    """Normal matrix `(n, n)` and gradient of `sum nu^T R^-1 nu` with the gains
+    linearised at `ref`, with the innovations, `diag(K C)` and its Jacobian
+    `(records, points, states, n)`, `C`s and predicted states;
     with `rows`, also the whitened innovation Jacobian `(records, length,
     outputs, n)` and whitened innovations `(records, length, outputs)`."""
 
     def fn(v):
-        nu, y, kc, k, c = innovations(model, prob, v, rmat)
-        return (nu, kc), (nu, y, kc, k, c)
+        nu, y, kc, k, c, xs = innovations(model, prob, v, rmat, ref)
+        return (nu, kc), (nu, y, kc, k, c, xs)
 
     (jnu, jkc), aux = jax.jacfwd(fn, has_aux=True)(z)
     nu = aux[0]
@@ -236,9 +282,13 @@ def solve_filter_error(
     def weighted(nu, rmat):
         return jnp.sum(jnp.einsum("ij,rtj->rti", _whiten(rmat), nu) ** 2)
 
-    def cost_at(z, rmat):
-        nu = innovations(model, prob, z, rmat)[0]
-        return weighted(nu, rmat), nu
+    def cost_at(z, rmat, ref):
+        nu, _, _, _, _, xs = innovations(model, prob, z, rmat, ref)
+        return weighted(nu, rmat), nu, xs
+
+    def reference(xs):
+        """The predicted states at the schedule points."""
+        return jax.vmap(lambda x, i: x[i])(xs, prob.schedule)
 
     def sample(nu):
         r = jnp.einsum("rti,rtj->ij", nu, nu) / nvalid
@@ -247,29 +297,30 @@ def solve_filter_error(
     def relax(z, rmat, nu, c):
         """New R from the innovations and `f` rescaled to keep the gain."""
         r_new = sample(nu)
-        info_old = jnp.diag(c[0].T @ jnp.linalg.solve(rmat, c[0]))
-        info_new = jnp.diag(c[0].T @ jnp.linalg.solve(r_new, c[0]))
+        c0 = c[0, 0]
+        info_old = jnp.diag(c0.T @ jnp.linalg.solve(rmat, c0))
+        info_new = jnp.diag(c0.T @ jnp.linalg.solve(r_new, c0))
         ratio = jnp.sqrt(info_old / jnp.where(info_new > 0, info_new, info_old))
         ratio = jnp.where(jnp.isfinite(ratio) & (info_old > 0), ratio, 1.0)
         f = z[p:] * ratio[jnp.asarray(prob.noise_states, int)]
         return r_new, z.at[p:].set(f)
 
     def body(carry):
-        z, rmat, cost_prev, it, _, damping, _, _, _ = carry
-        h, g, jkc, (nu, _, kc, _, c) = _linearise(model, prob, z, rmat)
+        z, rmat, ref, cost_prev, it, _, damping, _, _, _ = carry
+        h, g, jkc, (nu, _, kc, _, c, xs) = _linearise(model, prob, z, rmat, ref)
         j0 = weighted(nu, rmat)
 
         def trial(lam):
             step, act = _constrained_step(h, g, free, lam, kc, jkc)
             new = z + step
-            j1, nu1 = cost_at(new, rmat)
-            return new, jnp.where(jnp.isfinite(j1), j1, jnp.inf), nu1, act
+            j1, nu1, xs1 = cost_at(new, rmat, ref)
+            return new, jnp.where(jnp.isfinite(j1), j1, jnp.inf), nu1, xs1, act
 
         def increase(carry):
             lam = jnp.maximum(10.0 * carry[0], 1e-8)
             return (lam, *trial(lam))
 
-        damping, new, j1, nu1, act = jax.lax.while_loop(
+        damping, new, j1, nu1, xs1, act = jax.lax.while_loop(
             lambda c_: ~(c_[2] < j0) & (c_[0] < 1e8),
             increase,
             (damping, *trial(damping)),
@@ -277,6 +328,10 @@ def solve_filter_error(
         accepted = j1 < j0
         new = jnp.where(accepted, new, z)
         nu_used = jnp.where(accepted, nu1, nu)
+        # the linearisation points follow the filter's predicted trajectory,
+        # relaxed with R (the first point stays the held initial state)
+        ref_new = reference(jnp.where(accepted, xs1, xs))
+        ref_new = jnp.where(jnp.all(jnp.isfinite(ref_new)), ref_new, ref)
         r_new, new = relax(new, rmat, nu_used, c)
         cost = jnp.linalg.det(r_new)
         small = jnp.abs(cost_prev - cost) <= rtol * jnp.abs(cost)
@@ -288,6 +343,7 @@ def solve_filter_error(
         return (
             new,
             r_new,
+            ref_new,
             cost,
             it + 1,
             done,
@@ -301,16 +357,22 @@ def solve_filter_error(
     # gain); the first gain is the one the start intensities imply with that R
     nx = prob.x0.shape[1]
     k0 = jnp.zeros((nx, lay.measured.shape[-1]))
-    e0 = jax.vmap(lambda r: run_filter(model, prob, r, z0[:p], k0)[0])(
+    e0, _, x_sim = jax.vmap(lambda r: run_filter(model, prob, r, z0[:p], k0))(
         jnp.arange(lay.n_records)
     )
     r0 = jnp.diag(jnp.sum(e0**2, axis=(0, 1)) / nvalid)
-    init = (z0, r0, jnp.linalg.det(r0), jnp.array(0), jnp.array(False), jnp.array(0.0))
-    init = (*init, ~jnp.all(jnp.isfinite(r0)), jnp.array(False), jnp.array(jnp.inf))
-    z, rmat, cost, iterations, done, _, broken, active, change = jax.lax.while_loop(
-        lambda c_: (c_[3] < max_iter) & ~c_[4] & ~c_[6], body, init
+    # the first linearisation points: measured states, else the start simulation
+    ref0 = prob.reference
+    ref0 = jnp.where(jnp.isnan(ref0), jnp.nan_to_num(reference(x_sim)), ref0)
+    init = (z0, r0, ref0, jnp.linalg.det(r0), jnp.array(0), jnp.array(False))
+    init = (*init, jnp.array(0.0), ~jnp.all(jnp.isfinite(r0)), jnp.array(False))
+    init = (*init, jnp.array(jnp.inf))
+    z, rmat, ref, cost, iterations, done, _, broken, active, change = (
+        jax.lax.while_loop(lambda c_: (c_[4] < max_iter) & ~c_[5] & ~c_[7], body, init)
     )
-    h, _, _, (nu, y, kc, k, _), jw, ew = _linearise(model, prob, z, rmat, rows=True)
+    h, _, _, (nu, y, kc, k, _, _), jw, ew = _linearise(
+        model, prob, z, rmat, ref, rows=True
+    )
     m = free.astype(h.dtype)
     hm = h * m[:, None] * m[None, :] + jnp.diag(1.0 - m)
     cov = jnp.linalg.inv(hm) * m[:, None] * m[None, :]
@@ -331,6 +393,7 @@ def solve_filter_error(
         outputs=y,
         kc=kc,
         gain=k,
+        reference=ref,
         active=active | jnp.any(kc > 1.0 - 1e-3),
         jacobian=jw,
         whitened=jnp.where(lay.valid[..., None], ew, 0.0),
@@ -357,8 +420,10 @@ class FilterErrorFit(AbstractFit):
       unless fitted with `full_R=True`).
     - `innovations`, `outputs`: per record `(samples, outputs)`, the filter's
       innovations (residuals) and predicted outputs.
-    - `gain` per record `(states, outputs)`; `kc` per record `(states,)` the
-      diagonal of `K C`; `constraint_active` whether `diag(K C) <= 1` binds.
+    - `gain` `(records, points, states, outputs)` the gains at the schedule
+      points (one point for [`SteadyStateGain`][]) at times `gain_times`
+      `(records, points)` s; `kc` per record `(states,)` the largest diagonal of
+      `K C` over the points; `constraint_active` whether `diag(K C) <= 1` binds.
     - `jacobian` `(records, length, outputs, params + noise)`: the whitened
       innovations' Jacobian in every parameter (held ones too) and intensity, and
       `whitened` `(records, length, outputs)` the whitened innovations `W nu`
@@ -384,6 +449,7 @@ class FilterErrorFit(AbstractFit):
     innovations: tuple[np.ndarray, ...]
     outputs: tuple[np.ndarray, ...]
     gain: np.ndarray
+    gain_times: np.ndarray
     kc: np.ndarray
     constraint_active: bool
     jacobian: np.ndarray
@@ -412,25 +478,43 @@ class FilterErrorFit(AbstractFit):
 
 
 def problem(
-    model: Model, records: Sequence[Record], noise_states: tuple[int, ...]
+    model: Model,
+    records: Sequence[Record],
+    noise_states: tuple[int, ...],
+    gain: AbstractFilterGain = SteadyStateGain(),
+    x0=None,
 ) -> FilterProblem:
-    """Records as a [`FilterProblem`][] (one padded segment each)."""
-    x0 = []
-    for rec in records:
+    """Records as a [`FilterProblem`][] (one padded segment each), the gain solved
+    at `gain`'s schedule; initial states `x0` `(records, states)` (default each
+    record's `x0`, else its first measured sample)."""
+    starts, schedule, reference = [], [], []
+    for i, rec in enumerate(records):
         rec.check(model)
-        x = rec.x0 if rec.x0 is not None else rec.measured_states(model, [0])[0]
+        if x0 is not None:
+            x = np.asarray(x0[i], float)
+        else:
+            x = rec.x0 if rec.x0 is not None else rec.measured_states(model, [0])[0]
         if np.any(np.isnan(x)):
             missing = [model.states[j] for j in np.flatnonzero(np.isnan(x))]
             raise ValueError(
                 f"{rec.name}: states {missing} are not measured outputs; give the "
                 "record's initial state x0"
             )
-        x0.append(x)
+        starts.append(x)
+        idx = gain.schedule(len(rec.t))
+        ref = rec.measured_states(model, idx)
+        ref[idx == 0] = x
+        schedule.append(idx)
+        reference.append(ref)
     lay = _layout(
         model, records, SingleShooting(), "fixed", (), np.ones(len(model.states))
     )
     return FilterProblem(
-        layout=lay, x0=jnp.asarray(np.array(x0)), noise_states=noise_states
+        layout=lay,
+        x0=jnp.asarray(np.array(starts)),
+        schedule=jnp.asarray(np.array(schedule)),
+        reference=jnp.asarray(np.array(reference)),
+        noise_states=noise_states,
     )
 
 
@@ -444,6 +528,10 @@ def fit_filter_error(
     rtol: float = 1e-6,
     max_iter: int | None = None,
     throw: bool = True,
+    gain: AbstractFilterGain = SteadyStateGain(),
+    start_fit: Mapping | None = None,
+    residuals=None,
+    x0=None,
 ) -> FilterErrorFit:
     """Maximum-likelihood filter-error estimate of `model`'s parameters and the
     process-noise intensities from one or several records (e.g. flown in
@@ -474,6 +562,18 @@ def fit_filter_error(
     - `max_iter`: iteration bound (default: the adaptive budget).
     - `throw`: raise a `RuntimeError` with the reason when the fit fails; with
       `throw=False` the result carries the code and `message` instead.
+    - `gain`: [`SteadyStateGain`][] (default, one gain from the linearisation at
+      the initial state), [`ScheduledGain`][] (a gain following the flight
+      condition), or `None`: chosen from the record by `choose_gain` at the
+      start values (what `fit --method fem` does).
+    - `start_fit`: keywords of the output-error fit that gives the start
+      (`shooting`, `initial_state`; default single shooting from the held initial
+      state); with `initial_state="estimated"` its initial states are the
+      filter's too, unless a record has its own `x0`.
+    - `residuals`: per record `(samples, outputs)`, residuals of a fit made
+      already to scale the start intensities (then no output-error fit is made:
+      the parameters start at `start`, default `model.start`); `x0` `(records,
+      states)` the initial states that fit found.
 
     **Returns:** a [`FilterErrorFit`][].
     """
@@ -486,6 +586,10 @@ def fit_filter_error(
         rtol=rtol,
         max_iter=max_iter,
         throw=throw,
+        gain=gain,
+        start_fit=start_fit,
+        residuals=residuals,
+        x0=x0,
     )
 
 
@@ -544,6 +648,10 @@ def filter_error(
     max_iter: int | None = None,
     throw: bool = True,
     progress: bool = False,
+    gain: AbstractFilterGain = SteadyStateGain(),
+    start_fit: Mapping | None = None,
+    residuals=None,
+    x0=None,
 ) -> FilterErrorFit:
     """The filter-error fit behind [`FilterError`][] and [`fit_filter_error`][]
     (arguments as [`fit_filter_error`][]'s; `progress` prints one line per
@@ -564,15 +672,33 @@ def filter_error(
     if len(set(names)) != len(names):
         raise ValueError(f"process_noise names a state twice: {names}")
     noise_states = tuple(model.states.index(s) for s in names)
-    prob = problem(model, records, noise_states)
+    first = SteadyStateGain() if gain is None else gain
     if isinstance(process_noise, Mapping):
+        prob = problem(model, records, noise_states, first, x0)
         theta0 = np.asarray(model.start if start is None else start, float)
         f0 = np.array([float(process_noise[s]) for s in names])
+    elif residuals is not None:
+        prob = problem(model, records, noise_states, first, x0)
+        theta0 = np.asarray(model.start if start is None else start, float)
+        f0 = residual_intensities(model, records, residuals, theta0, noise_states)
     else:
-        theta0, residuals = _output_error_start(model, records, start, prob)
+        theta0, residuals, x_oe = _output_error_start(
+            model, records, start, dict(start_fit or {})
+        )
+        x_start = x0 if x0 is not None else x_oe
+        prob = problem(model, records, noise_states, first, x_start)
         f0 = residual_intensities(model, records, residuals, theta0, noise_states)
     if np.any(f0 == 0):
         raise ValueError("process-noise start intensities must be non-zero")
+    if gain is None and residuals is None:
+        # start intensities given, no residuals to weigh a schedule by
+        gain = first
+    elif gain is None:
+        gain = choose_gain(
+            model, records, noise_states, np.asarray(prob.x0), theta0, f0, residuals
+        )
+        if not isinstance(gain, SteadyStateGain):
+            prob = problem(model, records, noise_states, gain, np.asarray(prob.x0))
     z0 = np.concatenate([theta0, f0])
     free = np.concatenate([model.free, np.ones(len(names), bool)])
     sol = solve_filter_error(
@@ -618,7 +744,13 @@ def filter_error(
         innovations=tuple(sol.innovations[i, :n] for i, n in enumerate(lengths)),
         outputs=tuple(sol.outputs[i, :n] for i, n in enumerate(lengths)),
         gain=sol.gain,
-        kc=sol.kc,
+        gain_times=np.asarray(
+            [
+                rec.t[0] + (rec.t[1] - rec.t[0]) * np.asarray(idx)
+                for rec, idx in zip(records, np.asarray(prob.schedule), strict=True)
+            ]
+        ),
+        kc=np.max(sol.kc, axis=1),
         constraint_active=bool(sol.active),
         jacobian=sol.jacobian,
         whitened=sol.whitened,
@@ -631,33 +763,88 @@ def filter_error(
     return out
 
 
-def _output_error_start(model, records, start, prob):
-    """Parameters and residuals to start the filter from. The residuals are those
-    of an output-error fit from `start` (default the model's) when it ends finite,
-    else of `start`'s simulation; the parameters are that fit's estimates when no
-    `start` is given, else `start` itself (a caller trying several starts keeps
-    them apart)."""
+# the steady-state gain serves a record while the weight the filter gives the
+# measurements of each state, diag(K C) (0: none, 1: all), stays within this of
+# its value at the start, wherever the gain is solved along the record
+GAIN_VARIATION = 0.1
+
+
+def gain_variation(model, prob, theta, f, residuals) -> float:
+    """The largest change of `diag(K C)` (dimensionless, 0 to 1) between the
+    steady-state gains solved at the schedule points of `prob` and its first,
+    linearised at its reference states (measured; unmeasured states held at the
+    initial state), for the intensities `f` and the innovation covariance of
+    `residuals` (per record `(samples, outputs)`)."""
+    e = np.concatenate([np.asarray(r) for r in residuals])
+    rmat = jnp.diag(jnp.asarray(np.maximum(np.mean(e**2, axis=0), 1e-300)))
+    ref = jnp.where(jnp.isnan(prob.reference), prob.x0[:, None, :], prob.reference)
+
+    @jax.jit
+    def weights(theta, f, rmat, ref):
+        def one(r):
+            k, c, _ = gain(model, prob, r, theta, f, rmat, ref[r])
+            return jnp.einsum("pij,pji->pi", k, c)
+
+        return jax.vmap(one)(jnp.arange(prob.layout.n_records))
+
+    kc = np.asarray(weights(jnp.asarray(theta), jnp.asarray(f), rmat, ref))
+    change = np.abs(kc - kc[:, :1])
+    return float(np.max(np.where(np.isfinite(change), change, np.inf)))
+
+
+def choose_gain(model, records, noise_states, x0, theta, f, residuals, points=16):
+    """[`SteadyStateGain`][] when the gains solved at `points` samples along the
+    records (initial states `x0`) stay within [`GAIN_VARIATION`][] of the first
+    (a record about one flight condition), else [`ScheduledGain`][]`(points)`."""
+    from ._filter_gain import ScheduledGain
+
+    sched = ScheduledGain(points=points)
+    trial = problem(model, records, noise_states, sched, x0)
+    if gain_variation(model, trial, theta, f, residuals) > GAIN_VARIATION:
+        return sched
+    return SteadyStateGain()
+
+
+def _output_error_start(model, records, start, options):
+    """Parameters, residuals and initial states (or None) to start the filter
+    from. The residuals are those of an output-error fit (keywords `options`,
+    e.g. multiple shooting) from `start` (default the model's) when it ends
+    finite, else of `start`'s simulation; the parameters are that fit's estimates
+    when no `start` is given, else `start` itself (a caller trying several starts
+    keeps them apart); the initial states are the fit's when it estimated them."""
     theta0 = np.asarray(model.start if start is None else start, float)
     oe = output_error(
         model.replace(start=dict(zip(model.parameters, theta0.tolist(), strict=True))),
         records,
         throw=False,
+        **options,
     )
     if np.isfinite(oe.cost) and np.all(np.isfinite(oe.params)):
         residuals = [
             rec.measured - y for rec, y in zip(records, oe.outputs, strict=True)
         ]
-        return (np.asarray(oe.params, float) if start is None else theta0), residuals
+        x_oe = (
+            np.asarray(oe.initial_states)
+            if options.get("initial_state") == "estimated"
+            and all(rec.x0 is None for rec in records)
+            else None
+        )
+        return (
+            (np.asarray(oe.params, float) if start is None else theta0),
+            residuals,
+            x_oe,
+        )
     residuals = []
-    for i, rec in enumerate(records):
-        xs = simulate(model, rec, theta0, np.asarray(prob.x0[i]))
+    for rec in records:
+        x = rec.x0 if rec.x0 is not None else rec.measured_states(model, [0])[0]
+        xs = simulate(model, rec, theta0, np.asarray(x))
         ys = jax.vmap(lambda t, x, u: model.g(t, x, u, jnp.asarray(theta0)))(
             jnp.asarray(rec.t), jnp.asarray(xs), jnp.asarray(rec.inputs)
         )
         residuals.append(
             np.nan_to_num(rec.measured - np.asarray(ys), posinf=0, neginf=0)
         )
-    return theta0, residuals
+    return theta0, residuals, None
 
 
 def _gram(jacobian):

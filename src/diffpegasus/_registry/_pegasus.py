@@ -34,6 +34,9 @@ CONTINUITY_TOL = 1e-2
 # altitude channel is the same unknown as the (estimated) initial altitude.
 ALPHA_SQUARED = ("lift_alpha_squared", "drag_alpha_squared", "moment_alpha_squared")
 NOT_IDENTIFIABLE = ("sensor_bias:h",)
+# States whose equations get process noise in `fit --method fem` and the
+# diagnosis's process-noise candidate.
+PROCESS_NOISE = ("V", "alpha", "theta", "q")
 
 
 def block_weights(step: int) -> np.ndarray:
@@ -245,6 +248,8 @@ class PegasusEntry(AbstractVehicleEntry):
             ),
             candidates=tuple(effect_parameter(e) for e in effects if e not in add),
             vehicle=self.vehicle(),
+            # turbulence drives the dynamic states; altitude is kinematic
+            process_noise=PROCESS_NOISE,
         )
         return spec, records
 

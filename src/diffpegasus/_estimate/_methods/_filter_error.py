@@ -1,10 +1,13 @@
-"""`FilterError`: maximum likelihood on the innovations of a steady-state Kalman
-filter, for records flown through turbulence (process noise)."""
+"""`FilterError`: maximum likelihood on the innovations of a Kalman filter (one
+steady-state gain, or a gain scheduled along the trajectory), for records flown
+through turbulence (process noise)."""
 
 import equinox as eqx
 
 from .._estimator import AbstractEstimator
 from .._filter_error import filter_error, FilterErrorFit
+from .._filter_gain import AbstractFilterGain, SteadyStateGain
+from ._output_error import OutputError
 
 
 class FilterError(AbstractEstimator):
@@ -22,6 +25,15 @@ class FilterError(AbstractEstimator):
       more.
     - `full_R`: estimate the full innovation covariance (default its diagonal).
     - `rtol`: converged when det(R) changes by less than this, relatively.
+    - `gain`: [`SteadyStateGain`][]`()` (default: one gain linearised at the
+      record's initial state, for flights about one trim point) or
+      [`ScheduledGain`][]`(points=16)` (the gain solved along the predicted
+      trajectory and interpolated: for a vehicle whose flight condition changes
+      through the record).
+    - `start`: the [`OutputError`][] fit that gives the start (default single
+      shooting from the held initial state; multiple shooting for long records
+      of a vehicle a simulation from one state cannot follow, with
+      `estimate_initial_state=True` its initial states start the filter).
 
     Returns a [`FilterErrorFit`][].
     """
@@ -30,6 +42,8 @@ class FilterError(AbstractEstimator):
     intensities: tuple[float, ...] | None = eqx.field(static=True, default=None)
     full_R: bool = eqx.field(static=True, default=False)
     rtol: float = eqx.field(static=True, default=1e-6)
+    gain: AbstractFilterGain = SteadyStateGain()
+    start: OutputError = OutputError()
 
     def __check_init__(self):
         if self.intensities is not None and (
@@ -60,4 +74,11 @@ class FilterError(AbstractEstimator):
             max_iter=max_iter,
             throw=throw,
             progress=progress,
+            gain=self.gain,
+            start_fit={
+                "shooting": self.start.shooting,
+                "initial_state": "estimated"
+                if self.start.estimate_initial_state
+                else "fixed",
+            },
         )
