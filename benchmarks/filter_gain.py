@@ -30,16 +30,6 @@ jax.config.update("jax_enable_x64", True)
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from diffpegasus._estimate._filter_error import (  # noqa: E402
-    fit_filter_error,
-    innovations,
-    problem,
-)
-from diffpegasus._estimate._filter_gain import (  # noqa: E402
-    ScheduledGain,
-    SteadyStateGain,
-)
-from diffpegasus._estimate._riccati import discretise  # noqa: E402
 from tests.test_filter_gain import (  # noqa: E402
     _observe,
     _rates,
@@ -50,6 +40,17 @@ from tests.test_filter_gain import (  # noqa: E402
     simulate,
     TRUE,
 )
+
+from diffpegasus._estimate._filter_error import (  # noqa: E402
+    fit_filter_error,
+    innovations,
+    problem,
+)
+from diffpegasus._estimate._filter_gain import (  # noqa: E402
+    ScheduledGain,
+    SteadyStateGain,
+)
+from diffpegasus._estimate._riccati import discretise  # noqa: E402
 
 
 def ekf_innovations(rec, z):
@@ -88,7 +89,9 @@ def ekf_innovations(rec, z):
         phi, q = discretise(a, f, DT)
         return (x1, phi @ pc @ phi.T + q), nu
 
-    _, nu = jax.lax.scan(step, (jnp.zeros(2), jnp.zeros((2, 2))), jnp.arange(len(rec.t)))
+    _, nu = jax.lax.scan(
+        step, (jnp.zeros(2), jnp.zeros((2, 2))), jnp.arange(len(rec.t))
+    )
     return nu
 
 
@@ -124,7 +127,11 @@ def main():
                 r = jnp.diag(jnp.mean(nu**2, axis=0))
             logdet.append(float(jnp.sum(jnp.log(jnp.diag(r)))))
             if jac_s is None:
-                fn = jax.jit(jax.jacfwd(lambda v, prob=prob, r=r: innovations(MODEL, prob, v, r)[0]))
+                fn = jax.jit(
+                    jax.jacfwd(
+                        lambda v, prob=prob, r=r: innovations(MODEL, prob, v, r)[0]
+                    )
+                )
                 comp_s, jac_s = timed(fn, z)
         out["filters"][name] = {
             "log_det_R_mean": float(np.mean(logdet)),
@@ -148,11 +155,18 @@ def main():
     for v in out["filters"].values():
         v["jacobian_vs_steady"] = v["jacobian_s"] / steady_j
     # full fits: steady against scheduled (8 points)
-    for name, g in (("steady", SteadyStateGain()), ("scheduled_8", ScheduledGain(points=8))):
+    for name, g in (
+        ("steady", SteadyStateGain()),
+        ("scheduled_8", ScheduledGain(points=8)),
+    ):
         est, cost = [], []
         for rec in recs:
             f = fit_filter_error(
-                MODEL, rec, process_noise={"alpha": 0.02, "q": 0.1}, gain=g, full_R=True,
+                MODEL,
+                rec,
+                process_noise={"alpha": 0.02, "q": 0.1},
+                gain=g,
+                full_R=True,
                 throw=False,
             )
             est.append(f.params)
@@ -160,7 +174,13 @@ def main():
         est = np.array(est)
         out["fits"][name] = {
             "rmse_relative": dict(
-                zip(MODEL.parameters, (np.sqrt(np.mean((est - truth) ** 2, axis=0)) / np.abs(truth)).tolist(), strict=True)
+                zip(
+                    MODEL.parameters,
+                    (
+                        np.sqrt(np.mean((est - truth) ** 2, axis=0)) / np.abs(truth)
+                    ).tolist(),
+                    strict=True,
+                )
             ),
             "log_det_R_mean": float(np.mean(cost)),
         }

@@ -98,8 +98,17 @@ def _log(folder, kind, rate, seed, planted, value):
     else:
         hidden = ["--hidden", f"{planted}={value}"] if planted else []
         _, proc, _ = _cli(
-            "simulate", "--vehicle", "hfb320", "--out", str(csv), "--seed",
-            str(seed), "--sample-rate", str(rate), "--no-plot", *hidden,
+            "simulate",
+            "--vehicle",
+            "hfb320",
+            "--out",
+            str(csv),
+            "--seed",
+            str(seed),
+            "--sample-rate",
+            str(rate),
+            "--no-plot",
+            *hidden,
         )
         if proc.returncode:
             raise RuntimeError(proc.stderr[-2000:])
@@ -117,8 +126,12 @@ def flight(folder, kind, rate, seed, planted, value):
     csv = _log(folder, kind, rate, seed, planted, value)
     diag, proc, seconds = _cli("diagnose", str(csv), "--vehicle", vehicle, "--json")
     row = {
-        "kind": kind, "rate": rate, "seed": seed, "planted": planted,
-        "value": value, "diagnose_seconds": round(seconds, 1),
+        "kind": kind,
+        "rate": rate,
+        "seed": seed,
+        "planted": planted,
+        "value": value,
+        "diagnose_seconds": round(seconds, 1),
     }
     if diag is None:
         row.update(error=proc.stderr.strip().splitlines()[-3:], right=False)
@@ -129,11 +142,24 @@ def flight(folder, kind, rate, seed, planted, value):
     row.update(
         converged=diag["fit"]["converged"],
         iterations=diag["fit"].get("iterations"),
-        threshold=rule.get("threshold", ranking[0].get("threshold") if ranking else None),
+        threshold=rule.get(
+            "threshold", ranking[0].get("threshold") if ranking else None
+        ),
         significant=significant,
         top=[
-            {"effect": _effect(r), **{k: r.get(k) for k in
-             ("statistic", "estimate", "stderr", "p_value", "hard_to_tell_from")}}
+            {
+                "effect": _effect(r),
+                **{
+                    k: r.get(k)
+                    for k in (
+                        "statistic",
+                        "estimate",
+                        "stderr",
+                        "p_value",
+                        "hard_to_tell_from",
+                    )
+                },
+            }
             for r in ranking[:3]
         ],
     )
@@ -160,7 +186,7 @@ def flight(folder, kind, rate, seed, planted, value):
             se = fit.get("stderr", {})
             row["refit"] = {k: [v, se.get(k)] for k, v in est.items()}
             if planted == top and len(est) == 1:
-                (k, v), = est.items()
+                ((k, v),) = est.items()
                 if se.get(k):
                     row["refit_z"] = (v - value) / se[k]
     return row
@@ -170,7 +196,9 @@ def demo():
     out = pathlib.Path(tempfile.mkdtemp(prefix="demo_validate_"))
     _, proc, seconds = _cli("demo", "--out", str(out))
     return {
-        "kind": "demo", "seconds": round(seconds, 1), "returncode": proc.returncode,
+        "kind": "demo",
+        "seconds": round(seconds, 1),
+        "returncode": proc.returncode,
         "stdout": proc.stdout.strip().splitlines()[-40:],
         "stderr_tail": proc.stderr.strip().splitlines()[-3:],
     }
@@ -187,13 +215,15 @@ def table():
         if r["kind"] == "demo":
             continue
         if "error" in r:
-            lines.append(f"| {r['kind']} | {r['rate']:g} | {r['planted']} | error: "
-                         f"{r['error'][-1]} | | | | no | {r['diagnose_seconds']} |")
+            lines.append(
+                f"| {r['kind']} | {r['rate']:g} | {r['planted']} | error: "
+                f"{r['error'][-1]} | | | | no | {r['diagnose_seconds']} |"
+            )
             continue
         top = r["top"][0] if r["top"] else {}
         est = ""
         if r.get("refit"):
-            (k, (v, se)), = list(r["refit"].items())[:1]
+            ((k, (v, se)),) = list(r["refit"].items())[:1]
             est = f"refit {v:.4g} +/- {se:.2g}" if se else f"refit {v:.4g}"
             if "refit_z" in r:
                 est += f" ({r['refit_z']:+.1f} se from {r['value']:g})"
@@ -221,7 +251,9 @@ def main():
     if args.table:
         print(table())
         return
-    done = {(r["kind"], r.get("rate"), r.get("seed"), r.get("planted")) for r in _load()}
+    done = {
+        (r["kind"], r.get("rate"), r.get("seed"), r.get("planted")) for r in _load()
+    }
     jobs = []
     if args.only in (None, "hfb320"):
         jobs += HFB320

@@ -671,7 +671,11 @@ def generate_turbulent(
         "seed": seed,
         "noise_sigmas": dict(NOISE) if noise else {},
         "hidden_effects": {},
-        "turbulence": {"sigma": sigma, "length_m": GUST_LENGTH, "model": "Gauss-Markov"},
+        "turbulence": {
+            "sigma": sigma,
+            "length_m": GUST_LENGTH,
+            "model": "Gauss-Markov",
+        },
         "simulator": "tests/independent_generator.py",
     }
     return channels, metadata

@@ -10,7 +10,6 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import diffpegasus as dp
 from diffpegasus._estimate._filter_error import (
     choose_gain,
     fit_filter_error,
@@ -78,8 +77,12 @@ def simulate(seed):
         k4 = f(tk + DT, xk + DT * k3, u1)
         x[k + 1] = xk + DT / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
         x[k + 1] += np.asarray(F_TRUE) * np.sqrt(DT) * rng.normal(size=2)
-    y = np.stack([np.asarray(_observe(tk, jnp.asarray(xk), jnp.asarray([u]), p))
-                  for tk, xk, u in zip(t, x, de, strict=True)])
+    y = np.stack(
+        [
+            np.asarray(_observe(tk, jnp.asarray(xk), jnp.asarray([u]), p))
+            for tk, xk, u in zip(t, x, de, strict=True)
+        ]
+    )
     y = y + rng.normal(size=y.shape) * np.asarray(NOISE)
     return Record(t, de[:, None], y, x0=np.zeros(2), name=f"seed{seed}")
 
@@ -151,5 +154,7 @@ def test_the_library_chooses_the_schedule_here_and_steady_at_trim():
     ):
         theta = np.asarray(model.start, float)
         res = [np.tile(np.asarray(NOISE), (len(rec.t), 1))]
-        g = choose_gain(model, [rec], (0, 1), np.zeros((1, 2)), theta, np.asarray(F_TRUE), res)
+        g = choose_gain(
+            model, [rec], (0, 1), np.zeros((1, 2)), theta, np.asarray(F_TRUE), res
+        )
         assert isinstance(g, kind)

@@ -331,8 +331,13 @@ def test_verdict_says_which_number_is_which():
     from diffpegasus._report._markdown import ranking_table
 
     after = dict(
-        row, effect="moment_offset", significant=False, hard_to_tell_from=[],
-        given=["sensor_bias:az"], statistic_given=5.2, threshold_given=16.3,
+        row,
+        effect="moment_offset",
+        significant=False,
+        hard_to_tell_from=[],
+        given=["sensor_bias:az"],
+        statistic_given=5.2,
+        threshold_given=16.3,
     )
     assert "given sensor_bias:az: 5.2 < 16.3" in ranking_lines([row, after])[2]
     assert "no (5.2 < 16.3 given sensor_bias:az)" in ranking_table(

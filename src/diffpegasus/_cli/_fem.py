@@ -199,8 +199,10 @@ def run_model_fem(
         if not result.converged and not isinstance(noise, dict):
             # as the diagnosis does: the output-error estimates can be far off in
             # turbulence; the model's start values are the second start
-            _say(f"filter error from the output-error estimates: {result.message}; "
-                 "trying the model's start values")
+            _say(
+                f"filter error from the output-error estimates: {result.message}; "
+                "trying the model's start values"
+            )
             second = filter_error(
                 spec.model, records, start=spec.model.start, **options
             )

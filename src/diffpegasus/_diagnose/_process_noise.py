@@ -198,11 +198,17 @@ def best_filter_error(result: Fit, process_noise, **fem_options) -> FilterErrorF
     elif options.get("gain", 0) is None:
         # one choice for both starts (see `choose_gain`), at the output-error fit
         noise_states = tuple(result.model.states.index(s) for s in process_noise)
-        x_start = x0 if x0 is not None else np.array(
-            [
-                rec.x0 if rec.x0 is not None else rec.measured_states(result.model, [0])[0]
-                for rec in result.records
-            ]
+        x_start = (
+            x0
+            if x0 is not None
+            else np.array(
+                [
+                    rec.x0
+                    if rec.x0 is not None
+                    else rec.measured_states(result.model, [0])[0]
+                    for rec in result.records
+                ]
+            )
         )
         f0 = residual_intensities(
             result.model, result.records, residuals, result.params, noise_states

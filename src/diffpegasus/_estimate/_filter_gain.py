@@ -59,7 +59,9 @@ class ScheduledGain(AbstractFilterGain):
 
     def __check_init__(self):
         if not self.points >= 2:
-            raise ValueError(f"ScheduledGain needs at least 2 points, got {self.points}")
+            raise ValueError(
+                f"ScheduledGain needs at least 2 points, got {self.points}"
+            )
 
     def schedule(self, n: int) -> np.ndarray:
         return np.round(np.linspace(0, max(n - 1, 0), self.points)).astype(int)
