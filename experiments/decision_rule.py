@@ -230,6 +230,14 @@ def refit(args):
     ew = np.asarray(st.residuals)[valid]
     offset = np.asarray(st.slope) - np.einsum("nok,no->k", rows, ew)
     sp = _spectra(jnp.asarray(rows), jnp.asarray(st.curvature), jnp.asarray(offset))
+    basis = np.asarray(st.basis)[valid]
+    basis = basis[..., np.any(basis != 0.0, axis=(0, 1))]
+    sp_refit = _spectra(
+        jnp.asarray(rows),
+        jnp.asarray(st.curvature),
+        jnp.asarray(offset),
+        jnp.asarray(basis),
+    )
     block = block_length(ew)
     w = np.sqrt(np.asarray(result.R))  # whitened -> SI
     record = result.records[0]
@@ -243,6 +251,8 @@ def refit(args):
         index = (starts[t // block] + t % block) % n
         e_star = ew[index]
         without = np.asarray(_statistics(sp, jnp.asarray(e_star)))
+        # the same residuals first refitted to first order (what `diagnose` does)
+        projected = np.asarray(_statistics(sp_refit, jnp.asarray(e_star)))
         data = Record(
             record.t, record.inputs, fitted + e_star * w[None, :], x0=record.x0
         )
@@ -255,9 +265,22 @@ def refit(args):
             throw=False,
         )
         with_refit = np.asarray(test_at(again).statistic)
-        pairs.append({"without": without.tolist(), "refit": with_refit.tolist()})
-        print(i, np.round(without, 2), np.round(with_refit, 2), flush=True)
+        pairs.append(
+            {
+                "without": without.tolist(),
+                "projected": projected.tolist(),
+                "refit": with_refit.tolist(),
+            }
+        )
+        print(
+            i,
+            round(float(without.max()), 2),
+            round(float(projected.max()), 2),
+            round(float(with_refit.max()), 2),
+            flush=True,
+        )
     a = np.array([x["without"] for x in pairs])
+    c = np.array([x["projected"] for x in pairs])
     b = np.array([x["refit"] for x in pairs])
     summary = {
         "seed": args.seed,
@@ -266,7 +289,24 @@ def refit(args):
         "block_samples": block,
         "candidates": list(spec.candidates),
         "max_without": a.max(axis=1).tolist(),
+        "max_projected": c.max(axis=1).tolist(),
         "max_refit": b.max(axis=1).tolist(),
+        "mean_max": {
+            "without": float(a.max(axis=1).mean()),
+            "projected": float(c.max(axis=1).mean()),
+            "refit": float(b.max(axis=1).mean()),
+        },
+        "p90_max": {
+            "without": float(np.quantile(a.max(axis=1), 0.9)),
+            "projected": float(np.quantile(c.max(axis=1), 0.9)),
+            "refit": float(np.quantile(b.max(axis=1), 0.9)),
+        },
+        "median_relative_difference_projected": float(
+            np.median(np.abs(c - b) / (b + 1e-9))
+        ),
+        "correlation_of_maxima_projected": float(
+            np.corrcoef(c.max(axis=1), b.max(axis=1))[0, 1]
+        ),
         "median_relative_difference": float(np.median(np.abs(a - b) / (b + 1e-9))),
         "correlation_of_maxima": float(np.corrcoef(a.max(axis=1), b.max(axis=1))[0, 1]),
         "pairs": pairs,

@@ -433,3 +433,81 @@ def test_window_terms_remove_the_secant_bias_of_the_lift_derivatives():
     assert err["linear"][cla] > 0.03, err  # the bias the campaign's 65% came from
     assert err["window"][cla] < 0.3 * err["linear"][cla], err
     assert err["window"][clde] < 0.5 * err["linear"][clde], err
+
+
+# --- the bootstrap refits each replicate as the fit refitted the log -------------
+def _segment_problem(rng):
+    # 2 outputs, 300 samples; the free unknowns a constant and a slope on each of
+    # 10 segments per output (shooting nodes' shape); 4 smooth candidates, projected
+    n, o = 300, 2
+    t = np.linspace(0.0, 1.0, n)
+    cols = []
+    for c in range(o):
+        for s in range(10):
+            sel = (t >= s / 10) & (t < (s + 1) / 10 + (s == 9))
+            for f in (np.ones(n), t - (s + 0.5) / 10):
+                x = np.zeros((n, o))
+                x[sel, c] = f[sel]
+                cols.append(x)
+    q, _ = np.linalg.qr(np.stack(cols, -1).reshape(n * o, -1))
+
+    def refit(v):
+        return v - (q @ (q.T @ v.reshape(-1))).reshape(n, o)
+
+    raw = np.stack(
+        [
+            np.stack([np.sin(2.6 * np.pi * j * t), np.cos(1.4 * np.pi * j * t)], -1)
+            for j in range(1, 5)
+        ],
+        -1,
+    )
+    rows = np.stack([refit(raw[..., j]) for j in range(4)], -1)
+    return q.reshape(n, o, -1), refit, rows
+
+
+def _whitened(rows, e):
+    # a refit estimates R again: whitened residuals have unit mean square
+    c = np.sqrt(np.mean(e**2, axis=0))
+    return rows / c[None, :, None], e / c
+
+
+def test_bootstrap_replicates_are_refitted_like_the_log():
+    """A fit takes its free unknowns' share out of the residuals it leaves, and R
+    from them; the statistic is studentised by that residual. A replicate that is
+    resampled but not refitted is studentised by a fuller residual: its null is
+    lighter than the refitted one's. Closed form here (a linear problem, white
+    noise, resampled sample by sample): the statistic of fresh noise, refitted
+    and whitened again, over 1500 draws, against the bootstrap's maxima from one
+    log. Measured (seed 0): mean of the maxima 2.60 for refitted noise, 2.55 for
+    the bootstrap with the refit, 2.30 without (95% points 6.79, 6.44, 5.95)."""
+    from diffpegasus._diagnose._calibration import (
+        _refitted,
+        _spectra,
+        calibrate,
+        statistics,
+    )
+
+    rng = np.random.default_rng(0)
+    basis, refit, rows0 = _segment_problem(rng)
+
+    def stat(e):
+        r, e = _whitened(rows0, refit(e))
+        g = np.einsum("nok,no->k", r, e)
+        return statistics(r, e, np.einsum("nok,nok->k", r, r), g).max()
+
+    fresh = np.array([stat(rng.normal(size=(300, 2))) for _ in range(1500)])
+    rows, e = _whitened(rows0, refit(rng.normal(size=(300, 2))))
+    curvature = np.einsum("nok,nok->k", rows, rows)
+    slope = np.einsum("nok,no->k", rows, e)
+    kwargs = dict(level=0.05, replicates=1500, block=1)
+    with_refit = calibrate(rows, e, curvature, slope, basis=basis, **kwargs)
+    without = calibrate(rows, e, curvature, slope, **kwargs)
+    truth = np.quantile(fresh, 0.95)
+    # the mean of 1500 maxima scatters by about 2%, their 95% point by about 5%
+    assert abs(np.mean(with_refit.maxima) - fresh.mean()) < 0.06 * fresh.mean()
+    assert abs(with_refit.threshold - truth) < 0.12 * truth, (with_refit, truth)
+    assert np.mean(without.maxima) < 0.92 * fresh.mean()
+    # the refit leaves nothing along the free unknowns' directions
+    sp = _spectra(rows, curvature, np.zeros(4), basis)
+    left = np.asarray(_refitted(sp, rng.normal(size=(300, 2))))
+    assert np.max(np.abs(np.einsum("nou,no->u", basis, left))) < 1e-10
