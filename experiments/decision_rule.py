@@ -17,6 +17,10 @@ Parts (`--part`):
   free, candidates held) and scored, against the same residuals through the fitted
   Jacobian without refitting.
 
+- `colour`: false alarms on a linear problem with a known null, by the
+  residuals' colour (AR(1) 0, 0.5, 0.9), with and without the bootstrap's
+  replicates refitted (`--replicates` data sets each).
+
 Each part appends one JSON line per flight to `experiments/results/decision_rule/
 <part>.jsonl` (resumable) and writes `<part>.summary.json`.
 
@@ -252,7 +256,7 @@ def refit(args):
         e_star = ew[index]
         without = np.asarray(_statistics(sp, jnp.asarray(e_star)))
         # the same residuals first refitted to first order (what `diagnose` does)
-        projected = np.asarray(_statistics(sp_refit, jnp.asarray(e_star)))
+        projected = np.asarray(_statistics(sp_refit, jnp.asarray(e_star), refit=True))
         data = Record(
             record.t, record.inputs, fitted + e_star * w[None, :], x0=record.x0
         )
@@ -350,9 +354,82 @@ def summarise(path):
     return summary
 
 
+def colour(args):
+    """False alarms of the rule on a linear problem with known null, by residual
+    colour: 2 outputs, 400 samples, AR(1) noise of coefficient `phi` (0, 0.5,
+    0.9), the free unknowns a constant and a slope on each of 10 segments per
+    output (the shape of shooting nodes), 5 smooth candidates projected on them.
+    Each of `--replicates` data sets is fitted (projected, whitened again), its
+    largest statistic judged against the block-bootstrap threshold at level 0.05
+    from its own residuals, with and without the replicates refitted."""
+    from diffpegasus._diagnose._calibration import calibrate, statistics
+
+    n, o, k = 400, 2, 5
+    t = np.linspace(0.0, 1.0, n)
+    cols = []
+    for c in range(o):
+        for s in range(10):
+            sel = (t >= s / 10) & (t < (s + 1) / 10 + (s == 9))
+            for f in (np.ones(n), t - (s + 0.5) / 10):
+                x = np.zeros((n, o))
+                x[sel, c] = f[sel]
+                cols.append(x)
+    q, _ = np.linalg.qr(np.stack(cols, -1).reshape(n * o, -1))
+    basis = q.reshape(n, o, -1)
+
+    def refit(v):
+        return v - (q @ (q.T @ v.reshape(-1))).reshape(n, o)
+
+    raw = np.stack(
+        [
+            np.stack(
+                [
+                    np.sin(2 * np.pi * (j + 1) * 1.3 * t),
+                    np.cos(2 * np.pi * (j + 1) * 0.7 * t),
+                ],
+                -1,
+            )
+            for j in range(k)
+        ],
+        -1,
+    )
+    rows0 = np.stack([refit(raw[..., j]) for j in range(k)], -1)
+    out = {}
+    for phi in (0.0, 0.5, 0.9):
+        rng = np.random.default_rng(args.seed)
+        alarms = {"without_refit": 0, "with_refit": 0}
+        thresholds = {"without_refit": [], "with_refit": []}
+        for m in range(args.replicates):
+            w = rng.normal(size=(n + 200, o))
+            x = np.zeros_like(w)
+            for i in range(1, len(w)):
+                x[i] = phi * x[i - 1] + w[i]
+            e = refit(x[200:])
+            c = np.sqrt(np.mean(e**2, axis=0))
+            rows, e = rows0 / c[None, :, None], e / c
+            curvature = np.einsum("nok,nok->k", rows, rows)
+            slope = np.einsum("nok,no->k", rows, e)
+            observed = statistics(rows, e, curvature, slope).max()
+            for key, b in (("without_refit", None), ("with_refit", basis)):
+                cal = calibrate(
+                    rows, e, curvature, slope, level=0.05, replicates=1000, basis=b
+                )
+                alarms[key] += bool(observed > cal.threshold)
+                thresholds[key].append(cal.threshold)
+        out[str(phi)] = {
+            "data_sets": args.replicates,
+            "level": 0.05,
+            "false_alarms": alarms,
+            "median_threshold": {k_: float(np.median(v)) for k_, v in thresholds.items()},
+            "block_samples_last": int(cal.block),
+        }
+        print(phi, out[str(phi)], flush=True)
+    (OUT / "colour.summary.json").write_text(json.dumps(out, indent=2))
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--part", choices=("pegasus", "hfb320", "refit"), required=True)
+    parser.add_argument("--part", choices=("pegasus", "hfb320", "refit", "colour"), required=True)
     parser.add_argument("--rates", type=float, nargs="+", default=[50.0])
     parser.add_argument("--clean", type=int, default=6)
     parser.add_argument("--planted", type=int, default=2)
@@ -360,7 +437,8 @@ def main():
     parser.add_argument("--replicates", type=int, default=20)
     args = parser.parse_args()
     OUT.mkdir(parents=True, exist_ok=True)
-    {"pegasus": pegasus, "hfb320": hfb320, "refit": refit}[args.part](args)
+    parts = {"pegasus": pegasus, "hfb320": hfb320, "refit": refit, "colour": colour}
+    parts[args.part](args)
 
 
 if __name__ == "__main__":

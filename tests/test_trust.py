@@ -131,12 +131,14 @@ def test_residual_noise_sigma_ignores_signal():
 
 
 # Clean flights flag nothing the model and the generator agree on. Two differences
-# between them are real and known (measured, see STRUCTURAL and gravity_shift
-# below): the generator's gravity law is an az bias the model lacks (-0.008 m/s^2),
-# and its Mach table changes faster after ignition than the baseline's six Mach
-# functions follow (a thrust-misalignment-like moment of +0.003 to +0.007 m).
+# between them were found this way (measured, see STRUCTURAL and gravity_shift
+# below): the generator's gravity was 0.008 m/s^2 stronger than the package's
+# Newton's law with the equatorial radius (an az bias), which is why the package
+# now uses standard gravity, as its own atmosphere does; and the generator's Mach
+# table changes faster after ignition than the baseline's six Mach functions
+# follow (a thrust-misalignment-like moment of +0.003 to +0.007 m).
 # Where the noise is low (1 kHz logs averaged to the model's 50 Hz) the rule
-# calibrated on the log reports them, with their sizes; nothing else may be flagged.
+# calibrated on the log may report them, with their sizes; nothing else may be flagged.
 # Seed 17 at 1 kHz: the largest of 20 clean flights (thrust-misalignment statistic
 # 102).
 @pytest.mark.parametrize(
@@ -186,14 +188,16 @@ PLANTED = [
         ],
     ),
 ]
-# The generator's gravity (9.80665 m/s^2 at 6371 km) is 0.008 m/s^2 stronger than
-# the model's (G Me / (Re + h)^2, 9.798 m/s^2 at sea level): in the w equation that
-# is a force g cos(theta) the model lacks, which an az bias absorbs. Measured (seed
-# 3, 200 Hz): clean az-bias score estimate -0.0099 +/- 0.0017 with the generator's
-# gravity, -0.0018 +/- 0.0017 with the package's patched into it; planted 0.3
-# refitted 0.2901 +/- 0.0017 and 0.2982 +/- 0.0017. So the expected refit is the
-# planted bias minus the mean gravity difference along body z, computed from the
-# two gravity laws at the log's altitude and attitude.
+# The generator's gravity is standard gravity with the inverse square of the
+# distance from a 6371 km Earth; the package's the same with the standard
+# atmosphere's 6356.766 km (8e-5 m/s^2 apart at 12 km). Before the package used
+# standard gravity (it had Newton's law with the equatorial radius, 0.008 m/s^2
+# weaker) the difference was a force g cos(theta) in the w equation that an az
+# bias absorbs. Measured then (seed 3, 200 Hz): clean az-bias score estimate
+# -0.0099 +/- 0.0017 with the generator's gravity, -0.0018 +/- 0.0017 with the
+# package's patched into it. So the expected refit is the planted bias minus the
+# mean gravity difference along body z, computed from the two gravity laws at the
+# log's altitude and attitude.
 STRUCTURAL = {
     # clean flights show a thrust-misalignment-like misfit of +0.003 to +0.0066 m:
     # the generator's table changes with Mach faster (a transonic peak, PCHIP) than
