@@ -399,7 +399,7 @@ def colour(args):
         rng = np.random.default_rng(args.seed)
         alarms = {"without_refit": 0, "with_refit": 0}
         thresholds = {"without_refit": [], "with_refit": []}
-        for m in range(args.replicates):
+        for _ in range(args.replicates):
             w = rng.normal(size=(n + 200, o))
             x = np.zeros_like(w)
             for i in range(1, len(w)):
@@ -420,7 +420,9 @@ def colour(args):
             "data_sets": args.replicates,
             "level": 0.05,
             "false_alarms": alarms,
-            "median_threshold": {k_: float(np.median(v)) for k_, v in thresholds.items()},
+            "median_threshold": {
+                k_: float(np.median(v)) for k_, v in thresholds.items()
+            },
             "block_samples_last": int(cal.block),
         }
         print(phi, out[str(phi)], flush=True)
@@ -429,7 +431,9 @@ def colour(args):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--part", choices=("pegasus", "hfb320", "refit", "colour"), required=True)
+    parser.add_argument(
+        "--part", choices=("pegasus", "hfb320", "refit", "colour"), required=True
+    )
     parser.add_argument("--rates", type=float, nargs="+", default=[50.0])
     parser.add_argument("--clean", type=int, default=6)
     parser.add_argument("--planted", type=int, default=2)

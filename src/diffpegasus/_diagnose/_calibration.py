@@ -207,9 +207,7 @@ def _statistics(sp: _Spectra, e_star, refit: bool = False):
         jnp.einsum("f,fo,fok->k", w, jnp.abs(e_f) ** 2, sp.power)
         + 2.0
         * a
-        * jnp.real(
-            jnp.einsum("f,fo,o,fok->k", w, jnp.conj(e_f), v, sp.spectrum_power)
-        )
+        * jnp.real(jnp.einsum("f,fo,o,fok->k", w, jnp.conj(e_f), v, sp.spectrum_power))
         + a**2 * jnp.einsum("f,o,fok->k", w, v**2, sp.power**2)
     )
     variance = jnp.maximum(joint, own) / (2.0 * n * n)

@@ -55,9 +55,7 @@ class DecisionRule:
     replicates: int = 2000
     seed: int = 0
 
-    def calibrate(
-        self, rows, residuals, curvature, slope, resample=None, basis=None
-    ):
+    def calibrate(self, rows, residuals, curvature, slope, resample=None, basis=None):
         """The null of a score test's parts (valid samples) from its own
         residuals (`resample`, default `residuals`, is the series resampled;
         `basis` the fit's refit operator, see [`calibrate`][])."""
