@@ -54,12 +54,6 @@ KNOWN_FAILING: dict[str, str] = {
         "of 32 samples: the strongly coloured case where the block bootstrap of "
         "the studentised statistic stays liberal (decision-rule validation page)"
     ),
-    "tests/test_discrepancy.py::test_planted_effect_is_diagnosed_and_recovered"
-    "[moment_offset-0.01]": (
-        "a planted moment offset: the first finding is thrust_misalignment, which "
-        "the diagnosis says it cannot tell from it (the test now accepts that); "
-        "the refit of moment_offset itself not yet re-measured on the one path"
-    ),
     "tests/test_trust.py::test_planted_effect_is_first_significant_and_recovered"
     "[pitch_damping--3.0-1000.0-0]": (
         "at 1 kHz the one-path diagnosis ranks the planted pitch damping's "
