@@ -175,7 +175,11 @@ def test_planted_effect_is_diagnosed_and_recovered(name, value):
     if top["effect"] != name:
         close = [c["effect"] for c in top["hard_to_tell_from"]]
         assert name in close, ranking[:3]
-    assert name in result["significant"]
+    # the first finding is the planted effect, or one the diagnosis says the data
+    # cannot tell from it (on these 30 s flights a moment offset and a thrust
+    # misalignment are both constant moments once the motor burns: the rule
+    # declares whichever scores higher)
+    assert top["significant"], ranking[:3]
     after = fit(flight(hidden), (name,), start=base)
     assert after.cost < 0.75 * base.cost
     est = after.effect_estimates()[name]

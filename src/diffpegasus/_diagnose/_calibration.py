@@ -134,9 +134,10 @@ class _Spectra(eqx.Module):
     joint_power: Float[Array, "bins k"]
     curvature: Float[Array, " k"]
     offset: Float[Array, " k"]
+    basis: Float[Array, "samples outputs unknowns"] | None
 
 
-def _spectra(rows, curvature, offset) -> _Spectra:
+def _spectra(rows, curvature, offset, basis=None) -> _Spectra:
     n = rows.shape[0]
     spectrum = jnp.fft.rfft(rows, n=2 * n, axis=0)
     weight = jnp.full(spectrum.shape[0], 2.0).at[0].set(1.0).at[-1].set(1.0)
@@ -150,45 +151,75 @@ def _spectra(rows, curvature, offset) -> _Spectra:
         jnp.sum(power, axis=1),
         curvature,
         offset,
+        basis,
     )
 
 
-def _statistics(sp: _Spectra, e_star):
+def _refitted(sp: _Spectra, e_star):
+    """The residual a linearised refit of the fit's free unknowns leaves of
+    `e_star` (unchanged without a basis)."""
+    if sp.basis is None:
+        return e_star
+    return e_star - jnp.einsum(
+        "nou,u->no", sp.basis, jnp.einsum("nou,no->u", sp.basis, e_star)
+    )
+
+
+def _statistics(sp: _Spectra, e_star, refit: bool = False):
     """Studentised score statistic of every candidate on one residual series
     `e_star` `(samples, outputs)`, exactly as [`score`][] computes it (the variance
     of [`score_variance`][] from the residuals after the candidate's own step),
     expanded in the step so that no `(bins, outputs, k)` product is formed per
     candidate: `(k,)`. `sp.offset` `(k,)` is the score's part from the fit's
-    continuity defects, which do not depend on the data."""
+    continuity defects, which do not depend on the data.
+
+    With `refit` (a bootstrap replicate), as a refit to data with these residuals
+    would see them, to first order: the free unknowns refitted (`sp.basis`), then
+    the residual variance of every output estimated again (the fit's R is the
+    mean square of its own residuals, so its whitened residuals have unit mean
+    square; a replicate's, once refitted, have less). Each output's residuals and
+    sensitivities are whitened again by it, which is a weight `1 / c` per output
+    on every product (`c` the refitted replicate's mean square there)."""
     n = e_star.shape[0]
-    slope = jnp.einsum("nok,no->k", sp.rows, e_star) + sp.offset
-    a = -slope / sp.curvature
-    e_f = jnp.fft.rfft(e_star, n=2 * n, axis=0)  # (bins, outputs)
+    if refit:
+        e_star = _refitted(sp, e_star)
+        c = jnp.mean(e_star**2, axis=0)
+        v = 1.0 / jnp.maximum(c, 1e-12 * jnp.max(c))
+    else:
+        v = jnp.ones(e_star.shape[1])
+    slope = jnp.einsum("nok,no,o->k", sp.rows, e_star, v) + sp.offset
+    # the curvature's part from the outputs is reweighted; the defects' part not
+    by_output = jnp.einsum("nok,nok->ok", sp.rows, sp.rows)
+    curvature = sp.curvature + jnp.einsum("o,ok->k", v - 1.0, by_output)
+    a = -slope / curvature
+    e_f = jnp.fft.rfft(e_star, n=2 * n, axis=0) * v[None, :]  # reweighted
     w = sp.weight
-    # joint: sum_f |sum_o conj(E) R + a sum_o |R|^2|^2
+    # joint: sum_f |sum_o v (conj(E) R + a |R|^2)|^2
     cross = jnp.einsum("fo,fok->fk", jnp.conj(e_f), sp.spectrum)
-    q = sp.joint_power
+    q = jnp.einsum("fok,o->fk", sp.power, v)
     joint = (
         jnp.einsum("f,fk->k", w, jnp.abs(cross) ** 2)
         + 2.0 * a * jnp.einsum("f,fk,fk->k", w, jnp.real(cross), q)
         + a**2 * jnp.einsum("f,fk->k", w, q**2)
     )
-    # own: sum_f sum_o |conj(E) R + a |R|^2|^2
+    # own: sum_f sum_o v^2 |conj(E) R + a |R|^2|^2
     own = (
         jnp.einsum("f,fo,fok->k", w, jnp.abs(e_f) ** 2, sp.power)
         + 2.0
         * a
-        * jnp.real(jnp.einsum("f,fo,fok->k", w, jnp.conj(e_f), sp.spectrum_power))
-        + a**2 * jnp.einsum("f,fok->k", w, sp.power**2)
+        * jnp.real(jnp.einsum("f,fo,o,fok->k", w, jnp.conj(e_f), v, sp.spectrum_power))
+        + a**2 * jnp.einsum("f,o,fok->k", w, v**2, sp.power**2)
     )
     variance = jnp.maximum(joint, own) / (2.0 * n * n)
-    return slope**2 / jnp.maximum(variance, sp.curvature)
+    return slope**2 / jnp.maximum(variance, curvature)
 
 
 @functools.partial(jax.jit, static_argnames=("replicates", "chunk"))
-def _bootstrap(rows, residuals, curvature, offset, key, block, *, replicates, chunk):
+def _bootstrap(
+    rows, residuals, curvature, offset, key, block, basis, *, replicates, chunk
+):
     n = rows.shape[0]
-    sp = _spectra(rows, curvature, offset)
+    sp = _spectra(rows, curvature, offset, basis)
     t = jnp.arange(n)
 
     def one(k):
@@ -196,7 +227,7 @@ def _bootstrap(rows, residuals, curvature, offset, key, block, *, replicates, ch
         # one program for every log of this shape)
         starts = jax.random.randint(k, (n,), 0, n)
         index = (starts[t // block] + t % block) % n
-        return jnp.max(_statistics(sp, residuals[index]))
+        return jnp.max(_statistics(sp, residuals[index], refit=True))
 
     keys = jax.random.split(key, replicates)
     return jax.lax.map(one, keys, batch_size=chunk)
@@ -233,6 +264,7 @@ def calibrate(
     key: Int[Array, ""] | None = None,
     block: int | None = None,
     resample: Float[Array, "samples outputs"] | None = None,
+    basis: Float[Array, "samples outputs unknowns"] | None = None,
 ) -> Calibration:
     """The family-wise null of a score test from its own residuals (see the module).
 
@@ -250,7 +282,13 @@ def calibrate(
     threshold); `block` (default [`block_length`][] of the series resampled);
     `resample` the series to resample (default `residuals`; the diagnosis passes
     the residuals with the strongest candidate's step taken, so that a strong
-    effect in the log does not widen its own null), centred per channel.
+    effect in the log does not widen its own null), centred per channel;
+    `basis` `(samples, outputs, unknowns)` the fit's refit operator
+    ([`ScoreTest`][]'s `basis`): each replicate's residual is first refitted
+    (to first order, `e - basis basis^T e`) as the observed one was, so its
+    statistic is studentised by the residual a refit leaves (without it the
+    null is lighter than the refitted one: a fit takes its free unknowns' share
+    out of the observed residual's variance, not out of a resampled one's).
 
     **Returns:** a [`Calibration`][].
     """
@@ -280,6 +318,7 @@ def calibrate(
         jnp.asarray(offset),
         key,
         jnp.asarray(int(block)),
+        None if basis is None else jnp.asarray(basis, float),
         replicates=int(replicates),
         chunk=8,
     )

@@ -55,9 +55,10 @@ class DecisionRule:
     replicates: int = 2000
     seed: int = 0
 
-    def calibrate(self, rows, residuals, curvature, slope, resample=None):
+    def calibrate(self, rows, residuals, curvature, slope, resample=None, basis=None):
         """The null of a score test's parts (valid samples) from its own
-        residuals (`resample`, default `residuals`, is the series resampled)."""
+        residuals (`resample`, default `residuals`, is the series resampled;
+        `basis` the fit's refit operator, see [`calibrate`][])."""
         import jax
 
         return calibrate(
@@ -69,6 +70,7 @@ class DecisionRule:
             replicates=self.replicates,
             key=jax.random.key(self.seed),
             resample=resample,
+            basis=basis,
         )
 
     def decide(
@@ -115,6 +117,11 @@ class DecisionRule:
         valid = np.asarray(test.valid, bool)
         rows = np.array(np.asarray(test.rows)[valid], float)
         resid = np.array(np.asarray(test.residuals)[valid], float)
+        basis = getattr(test, "basis", None)
+        if basis is not None:
+            basis = np.asarray(basis)[valid]
+            # held unknowns have zero columns: only the free ones are resampled
+            basis = basis[..., np.any(basis != 0.0, axis=(0, 1))]
         s = np.array(test.curvature, float)
         g = np.array(test.slope, float)
         est = np.asarray(test.estimate, float)
@@ -134,7 +141,7 @@ class DecisionRule:
             # with the strongest candidate freed: the baseline's other misfit
             # stays in, the tested signature does not widen its own null
             resample = resid - (g[top] / s[top]) * rows[..., top]
-            cal = self.calibrate(rows, resid, s, g, resample)
+            cal = self.calibrate(rows, resid, s, g, resample, basis)
             cals.append(cal)
             now = start - g / s
             given = [effects[j] for j in taken]

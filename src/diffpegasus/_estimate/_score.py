@@ -35,7 +35,10 @@ class ScoreTest(eqx.Module):
     which rows are samples (not padding of the last shooting segment); `curvature`
     `(k,)`, the information of each projected direction; `slope` `(k,)`, the
     score (the cost's derivative along each projected direction, continuity
-    defects included).
+    defects included); `basis` `(samples, outputs, unknowns)`, whitened output
+    sensitivities of the free unknowns scaled so that `e - basis (basis^T e)` is
+    the residual a linearised refit of them to residuals `e` leaves (continuity
+    defects' weight included; columns of held unknowns are zero).
     """
 
     statistic: Float[Array, " k"]
@@ -50,6 +53,7 @@ class ScoreTest(eqx.Module):
     valid: Bool[Array, " samples"]
     curvature: Float[Array, " k"]
     slope: Float[Array, " k"]
+    basis: Float[Array, "samples outputs unknowns"] | None = None
 
 
 @jax.jit
@@ -124,6 +128,11 @@ def score(model, layout, z, r, free, candidates, *, nx, p) -> ScoreTest:
     statistic = slope**2 / variance
     # per channel: mean of (e_w + step * rows)^2 relative to 1 (R is the residual
     # variance, so whitened channels have unit mean square)
+    # the refit operator: with hb = L L^T, a linearised refit of the free unknowns
+    # to residuals e removes J hb^-1 J^T e = B B^T e, B = J L^-T (free columns)
+    chol = jnp.linalg.cholesky(hb)
+    inv_t = jax.scipy.linalg.solve_triangular(chol, jnp.eye(h.shape[0]), lower=True).T
+    basis = row_jacobian(layout, jyw, inv_t * m[:, None], nx, p)
     cross = jnp.einsum("no,nok->ok", ewf, rows)
     sq = jnp.einsum("nok,nok->ok", rows, rows)
     now = jnp.sum(ewf**2, axis=0)[:, None]
@@ -143,4 +152,5 @@ def score(model, layout, z, r, free, candidates, *, nx, p) -> ScoreTest:
         valid=layout.valid.reshape(-1),
         curvature=s,
         slope=slope,
+        basis=basis,
     )

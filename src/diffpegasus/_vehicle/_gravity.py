@@ -1,16 +1,24 @@
-"""Inverse-square gravity over a flat, non-rotating Earth frame."""
+"""Gravity over a flat, non-rotating Earth frame: standard gravity at sea level,
+decreasing with the inverse square of the distance from the Earth's centre.
+
+The constants are those the standard atmosphere is defined with (see
+`_atmosphere`): standard gravity `G0` and the effective Earth radius of its
+geopotential altitude, so the atmosphere's hydrostatic pressure and the vehicle's
+weight use one gravity. Standard gravity is the effective (gravitation plus the
+Earth's rotation) value near 45 degrees of latitude; the real one at sea level lies
+between 9.780 (equator) and 9.832 m/s^2 (poles). Newton's law with the equatorial
+radius and no rotation (9.798 m/s^2) would be 0.008 m/s^2 weaker, which a
+diagnosis of a low-noise log sees as an accelerometer bias.
+"""
 
 from .._custom_types import Scalar, ScalarLike
-
-
-GRAVITATIONAL_CONSTANT = 6.67428e-11  # m^3 / (kg s^2)
-EARTH_MASS = 5.9722e24  # kg
-EARTH_RADIUS = 6_378_100.0  # m
+from ._atmosphere import G0, R_EARTH_GEOPOTENTIAL
 
 
 def gravity(h: ScalarLike) -> Scalar:
-    """Gravitational acceleration `G Me / (Re + h)^2` (m/s^2) at altitude `h` (m).
+    """Gravitational acceleration `G0 (r0 / (r0 + h))^2` (m/s^2) at geometric
+    altitude `h` (m): `G0 = 9.80665`, `r0 = 6 356 766 m` (the standard atmosphere's).
 
     It acts along the inertial +z axis (down).
     """
-    return GRAVITATIONAL_CONSTANT * EARTH_MASS / (EARTH_RADIUS + h) ** 2
+    return G0 * (R_EARTH_GEOPOTENTIAL / (R_EARTH_GEOPOTENTIAL + h)) ** 2
