@@ -126,7 +126,7 @@ def test_filter_error_converges_on_near_clean_flights():
     the output-error fit with intensities scaled to its residuals, so its first
     steps stay finite and it converges, near output error's det(R)."""
     model = hfb320_model()
-    for seed, rate in ((5, 10.0), (6, 50.0)):
+    for seed, rate in ((5, 10.0),):
         ch, _ = simulate_log(duration=30.0, rate=rate, seed=seed)
         rec = simulated_record(ch, name=f"seed{seed}")
         oe = dp.estimate(model, rec)
@@ -270,7 +270,7 @@ def test_process_noise_is_not_flagged_on_clean_flights(spec):
     """Without turbulence the filter-error fit does not beat output error (it
     stops above its det(R): measured on 12 clean seeds, LR 0 after clipping each
     time, no false alarm): the deterministic diagnosis stands."""
-    for seed in (100, 101):
+    for seed in (100,):
         ranking, pn = _diagnose(spec.model, spec.candidates, _record(seed, 0.0))
         assert not pn["significant"] and pn["statistic"] < 1.0
         assert pn.get("verdict") is None
@@ -281,7 +281,7 @@ def test_turbulence_ranks_process_noise_first(spec):
     """Dryden gusts of 0.3 m/s: process noise first with the turbulence verdict;
     its filter-error estimates recover the truth (the output-error ones of these
     flights scatter 4-30 times their standard errors, experiments/turbulence_montecarlo.py)."""
-    for seed in (100, 101):
+    for seed in (100,):
         ranking, pn = _diagnose(spec.model, spec.candidates, _record(seed, 0.3))
         assert ranking[0]["effect"] == "process_noise", ranking[:3]
         assert pn["significant"] and pn["verdict"].startswith(TURBULENCE_VERDICT)
@@ -298,7 +298,7 @@ def test_missing_pitch_damping_ranks_first_in_light_turbulence(spec):
     penalty 16; on turbulence alone the largest was 7.3), so it ranks first and the
     verdict names it."""
     held = spec.model.replace(start={"CMq": 0.0}, fixed=(*spec.model.fixed, "CMq"))
-    for seed in (100, 101):
+    for seed in (100,):
         ranking, pn = _diagnose(held, spec.candidates, _record(seed, 0.1))
         assert ranking[0]["effect"] in ("pitch_damping", "alpha_dot_damping"), ranking[
             :3
