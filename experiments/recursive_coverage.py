@@ -116,11 +116,11 @@ def simulate(n_flights, duration, rate, seed, scale=1.0):
     return t, de, clean[None] + white
 
 
-def coverage(theta, halfwidth, truth, times_idx):
+def coverage(theta, halfwidth, truth):
     """Fraction of flights whose 95% band (`theta +- halfwidth`) holds the
     truth, per checked time and parameter: `(times, p)`."""
     inside = np.abs(theta - truth[None, None, :]) <= halfwidth
-    return inside[:, times_idx, :].mean(axis=0)
+    return inside.mean(axis=0)
 
 
 def main():
@@ -188,13 +188,15 @@ def main():
     estimators = {k: v for k, v in estimators.items() if k in wanted}
     for label, est in estimators.items():
         start = time.perf_counter()
-        hist = jax.vmap(lambda hh, yy, oo, est=est: rc.replay(est, hh, yy, oo, theta0))(
-            h, y, o
-        )
+        hist = jax.vmap(
+            lambda hh, yy, oo, est=est: rc.replay(
+                est, hh, yy, oo, theta0, at=tuple(times_idx)
+            )
+        )(h, y, o)
         theta = np.asarray(hist.theta)
         elapsed = time.perf_counter() - start
-        cov_plain = coverage(theta, 1.96 * np.asarray(hist.stderr), truth, times_idx)
-        cov_corr = coverage(theta, np.asarray(hist.halfwidth), truth, times_idx)
+        cov_plain = coverage(theta, 1.96 * np.asarray(hist.stderr), truth)
+        cov_corr = coverage(theta, np.asarray(hist.halfwidth), truth)
         final = theta[:, -1, :]
         summary["methods"][label] = {
             "seconds_all_flights": elapsed,

@@ -244,3 +244,18 @@ def test_replay_command_refuses_a_bad_band_in_one_line(tmp_path):
     )  # fmt: skip
     assert res.returncode == 2
     assert res.stderr.strip().count("\n") == 0 and "0 Hz" in res.stderr
+
+
+def test_replay_at_chosen_samples_is_the_full_replay_there():
+    h, y, o = _regression(n=120, noise=0.05)
+    est = dp.RecursiveLeastSquares(forgetting=0.995, derivative=(False,), dt=DT, lags=8)
+    full = dp.replay(est, h, y, o, jnp.zeros(3))
+    at = (20, 37, 119)  # after a few samples: the first ones are near-singular
+    some = dp.replay(est, h, y, o, jnp.zeros(3), at=at)
+    np.testing.assert_allclose(some.t, np.asarray(full.t)[list(at)])
+    for name in ("theta", "stderr_corrected", "halfwidth", "dof"):
+        np.testing.assert_allclose(
+            getattr(some, name), np.asarray(getattr(full, name))[list(at)], rtol=1e-9
+        )
+    with pytest.raises(ValueError, match="increasing"):
+        dp.replay(est, h, y, o, jnp.zeros(3), at=(5, 5))

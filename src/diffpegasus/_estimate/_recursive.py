@@ -476,15 +476,16 @@ class RecursiveFourier(AbstractRecursiveEstimator):
 
 
 class RecursiveHistory(eqx.Module):
-    """Estimates at every sample of a replay: `t` `(n,)` s, `theta`, `stderr`,
-    `stderr_corrected`, `halfwidth` (of the 95% band) `(n, p)` (see
-    [`RecursiveEstimates`][])."""
+    """Estimates over a replay: `t` `(n,)` s (every sample, or the samples asked
+    for), `theta`, `stderr`, `stderr_corrected`, `halfwidth` (of the 95% band),
+    `dof` `(n, p)` (see [`RecursiveEstimates`][])."""
 
     t: Float[Array, " n"]
     theta: Float[Array, "n p"]
     stderr: Float[Array, "n p"]
     stderr_corrected: Float[Array, "n p"]
     halfwidth: Float[Array, "n p"]
+    dof: Float[Array, "n p"]
 
 
 @eqx.filter_jit
@@ -496,24 +497,53 @@ def replay(
     theta0: Float[Array, " p"],
     t0: float = 0.0,
     prior: float = 1e6,
+    at: tuple[int, ...] | None = None,
 ) -> RecursiveHistory:
     """Run `estimator` over a record's regression, sample by sample (one compiled
-    `lax.scan` of `update`), and keep the estimates after every sample.
+    `lax.scan` of `update`), and keep the estimates after every sample, or only
+    after the samples `at`.
 
     **Arguments:** the regression `h` `(n, q, p)`, `y`, `o` `(n, q)` (see the module
     docstring and [`model_regression`][]), the start `theta0` `(p,)`, the first
-    sample's time `t0` (s), the prior variance.
+    sample's time `t0` (s), the prior variance, `at`: increasing sample indices
+    (0-based) after which the estimates are wanted (`None`: every sample). With
+    `at`, only the updates run between them (the estimates' bound is most of the
+    cost of a sample), so a Monte Carlo `vmap`s cheaply over flights.
 
     **Returns:** a [`RecursiveHistory`][].
     """
+    state = estimator.init(theta0, prior)
+    n = h.shape[0]
 
-    def step(state, sample):
-        state = estimator.update(state, *sample)
-        est = estimator.estimates(state)
-        return state, (est.theta, est.stderr, est.stderr_corrected, est.halfwidth)
+    def unpack(est):
+        return (est.theta, est.stderr, est.stderr_corrected, est.halfwidth, est.dof)
 
-    _, out = jax.lax.scan(step, estimator.init(theta0, prior), (h, y, o))
-    t = t0 + jnp.arange(h.shape[0]) * estimator.dt
+    if at is None:
+
+        def step(state, sample):
+            state = estimator.update(state, *sample)
+            return state, unpack(estimator.estimates(state))
+
+        _, out = jax.lax.scan(step, state, (h, y, o))
+        t = t0 + jnp.arange(n) * estimator.dt
+        return RecursiveHistory(t, *out)
+
+    idx = [int(k) for k in at]
+    if any(b <= a for a, b in zip(idx, idx[1:], strict=False)) or not (
+        0 <= idx[0] and idx[-1] < n
+    ):
+        raise ValueError(f"`at` must be increasing sample indices in [0, {n}), got {at}")
+
+    def only(state, sample):
+        return estimator.update(state, *sample), None
+
+    outs, begin = [], 0
+    for k in idx:
+        state, _ = jax.lax.scan(only, state, (h[begin : k + 1], y[begin : k + 1], o[begin : k + 1]))
+        outs.append(unpack(estimator.estimates(state)))
+        begin = k + 1
+    out = [jnp.stack(parts) for parts in zip(*outs, strict=True)]
+    t = t0 + jnp.asarray(idx, float) * estimator.dt
     return RecursiveHistory(t, *out)
 
 
