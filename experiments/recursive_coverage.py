@@ -155,7 +155,8 @@ def main():
     y = jnp.stack([r.y for r in regs])
     o = jnp.stack([r.o for r in regs])
     theta0 = jnp.asarray(np.asarray(MODEL.start)[list(regs[0].index)])
-    check_times = [10.0, 15.0, 20.0, 25.0, args.duration]
+    check_times = [c for c in (10.0, 15.0, 20.0, 25.0) if c < args.duration]
+    check_times.append(args.duration)
     times_idx = [int(round((c - t[0]) / dt)) for c in check_times]
     freqs = tuple(float(f) for f in np.arange(0.1, BAND + 0.01, 0.04))
     estimators = {

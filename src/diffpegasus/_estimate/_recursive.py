@@ -532,14 +532,18 @@ def replay(
     if any(b <= a for a, b in zip(idx, idx[1:], strict=False)) or not (
         0 <= idx[0] and idx[-1] < n
     ):
-        raise ValueError(f"`at` must be increasing sample indices in [0, {n}), got {at}")
+        raise ValueError(
+            f"`at` must be increasing sample indices in [0, {n}), got {at}"
+        )
 
     def only(state, sample):
         return estimator.update(state, *sample), None
 
     outs, begin = [], 0
     for k in idx:
-        state, _ = jax.lax.scan(only, state, (h[begin : k + 1], y[begin : k + 1], o[begin : k + 1]))
+        state, _ = jax.lax.scan(
+            only, state, (h[begin : k + 1], y[begin : k + 1], o[begin : k + 1])
+        )
         outs.append(unpack(estimator.estimates(state)))
         begin = k + 1
     out = [jnp.stack(parts) for parts in zip(*outs, strict=True)]
