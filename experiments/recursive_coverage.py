@@ -24,6 +24,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import scipy.linalg
+import scipy.stats
 
 import diffpegasus as dp
 from diffpegasus._estimate import _recursive as rc
@@ -238,6 +239,32 @@ def main():
                 f", scatter/mean band {final[:, k].std() / sd_c[:, k].mean():.3f}"
                 f", coverage at {check_times} s: {np.round(cov_corr[:, k], 3).tolist()}"
             )
+        # the band's own noise: its degrees of freedom over the flights (a
+        # chi-square variance with v dof has variance 2 mean^2 / v) against the
+        # estimator's own estimate `dof`, and the coverage a Student-t band at
+        # the estimated dof would have
+        var_c = np.asarray(hist.stderr_corrected) ** 2
+        dof_seen = 2 * var_c.mean(axis=0) ** 2 / var_c.var(axis=0)  # (times, p)
+        dof_est = np.asarray(hist.dof).mean(axis=0)
+        t_band = np.asarray(hist.stderr_corrected) * scipy.stats.t.ppf(
+            0.975, np.maximum(np.asarray(hist.dof), 1.0)
+        )
+        cov_t = coverage(theta, t_band, truth)
+        for k, n in enumerate(names):
+            print(
+                f"  {n}: band dof over the flights {np.round(dof_seen[:, k], 1).tolist()}"
+                f", estimated {np.round(dof_est[:, k], 1).tolist()}"
+                f", coverage with t at the estimated dof {np.round(cov_t[:, k], 3).tolist()}"
+            )
+        summary["methods"][label]["band_dof_over_flights"] = {
+            n: dof_seen[:, k].tolist() for k, n in enumerate(names)
+        }
+        summary["methods"][label]["band_dof_estimated_mean"] = {
+            n: dof_est[:, k].tolist() for k, n in enumerate(names)
+        }
+        summary["methods"][label]["coverage_student_t_estimated_dof"] = {
+            n: cov_t[:, k].tolist() for k, n in enumerate(names)
+        }
         summary["methods"][label]["bias_over_scatter"] = {
             n: float((final[:, k].mean() - truth[k]) / final[:, k].std())
             for k, n in enumerate(names)
