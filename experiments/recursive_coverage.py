@@ -38,6 +38,7 @@ NOISE = {"az": 0.05, "w": 0.02, "q": 0.002}  # 1 sigma, SI units
 COLOUR_TIME = 0.3  # s, correlation time of the az noise
 BAND = 1.5  # Hz: the upper end of the recursive Fourier transform's frequencies
 RLS_BAND = 2.0  # Hz: least squares' low-pass of the state equations
+CHUNK = 25  # flights per compiled batch
 
 
 def rates(t, x, u, p):
@@ -190,11 +191,20 @@ def main():
     estimators = {k: v for k, v in estimators.items() if k in wanted}
     for label, est in estimators.items():
         start = time.perf_counter()
-        hist = jax.vmap(
-            lambda hh, yy, oo, est=est: rc.replay(
-                est, hh, yy, oo, theta0, at=tuple(times_idx)
+        batched = jax.jit(
+            jax.vmap(
+                lambda hh, yy, oo, est=est: rc.replay(
+                    est, hh, yy, oo, theta0, at=tuple(times_idx)
+                )
             )
-        )(h, y, o)
+        )
+        # flights in chunks of CHUNK (one compiled program; a vmap over all 200
+        # at once stalled the CPU runtime)
+        parts = [
+            batched(h[i : i + CHUNK], y[i : i + CHUNK], o[i : i + CHUNK])
+            for i in range(0, args.flights, CHUNK)
+        ]
+        hist = jax.tree.map(lambda *a: jnp.concatenate(a), *parts)
         theta = np.asarray(hist.theta)
         elapsed = time.perf_counter() - start
         cov_plain = coverage(theta, 1.96 * np.asarray(hist.stderr), truth)
