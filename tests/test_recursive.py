@@ -261,3 +261,29 @@ def test_replay_at_chosen_samples_is_the_full_replay_there():
         )
     with pytest.raises(ValueError, match="increasing"):
         dp.replay(est, h, y, o, jnp.zeros(3), at=(5, 5))
+
+
+def test_bands_fourier_student_t_at_its_dof_least_squares_normal():
+    import scipy.stats
+
+    h, y, o = _regression(n=200, noise=0.05)
+    rft = dp.RecursiveFourier(
+        frequencies=tuple(np.arange(0.1, 1.51, 0.1).tolist()),
+        forgetting=1.0,
+        derivative=(False,),
+        dt=DT,
+    )
+    rls = dp.RecursiveLeastSquares(forgetting=1.0, derivative=(False,), dt=DT, lags=8)
+    a = dp.replay(rft, h, y, o, jnp.zeros(3), at=(199,))
+    b = dp.replay(rls, h, y, o, jnp.zeros(3), at=(199,))
+    dof = np.asarray(a.dof[0])
+    # measured 2.3, 4.9, 2.9: this regression's power sits at a few frequencies
+    assert np.all((dof > 1.5) & (dof < 16))  # at most the 15 frequencies
+    # the Cornish-Fisher quantile against scipy's: 2% low at 2.3 dof (measured),
+    # 0.1% at 4.9
+    np.testing.assert_allclose(
+        a.halfwidth[0] / a.stderr_corrected[0],
+        scipy.stats.t.ppf(0.975, dof),
+        rtol=0.025,
+    )
+    np.testing.assert_allclose(b.halfwidth[0] / b.stderr_corrected[0], 1.959964)
