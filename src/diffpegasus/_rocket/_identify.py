@@ -176,7 +176,9 @@ def measured_thrust_scale(record, rocket, motor_time: float | None = None) -> fl
     return float(np.clip(impulse / max(total, 1e-9), 0.5, 1.5))
 
 
-def measured_motor_time(record, rocket, start: float, search: float = 0.5) -> float:
+def measured_motor_time(
+    record, rocket, start: float, search: float = 0.5, *, filtered: bool = False
+) -> float:
     """s, the log time of the thrust curve's zero that the accelerometer reads (an
     equation-error start): the shift, within `search` s of `start`, at which the
     catalogue thrust over the mass (propellant burned with the impulse) best fits
@@ -185,9 +187,11 @@ def measured_motor_time(record, rocket, start: float, search: float = 0.5) -> fl
     ignition ramp and the burnout tail are a few samples wide, so a start off by
     one ramp (a liftoff time taken from a coarse event, an ignition delay) leaves
     the output-error fit in a local minimum; this search has none to fall in.
-    `start` unchanged without an accelerometer over the boost, or for a rocket held
-    down after ignition (its specific force does not follow the thrust)."""
-    if record.inputs.shape[1] < 3 or rocket.holddown > 0:
+    `start` unchanged without an accelerometer over the boost, for a `filtered`
+    one (a flight computer's smoothed channel: its timing is the filter's; Camoes's
+    reads 0.28 s late), or for a rocket held down after ignition (its specific
+    force does not follow the thrust)."""
+    if record.inputs.shape[1] < 3 or rocket.holddown > 0 or filtered:
         return start
     has = record.inputs[:, 2] > 0
     t, f = record.t[has], record.measured[has, 1]
@@ -271,7 +275,10 @@ def prepare(rocket: Rocket, log, *, knots: DragKnots | None = None) -> Problem:
         knots = knots_for(record, rocket, temperature)
     flight = Flight(rocket, knots, pressure)
     start = default_start(rocket, knots, temperature)
-    start["motor_time"] = measured_motor_time(record, rocket, start["motor_time"])
+    accel = log.channels.get("accel_axial")
+    start["motor_time"] = measured_motor_time(
+        record, rocket, start["motor_time"], filtered=bool(getattr(accel, "filtered", 0))
+    )
     start["thrust_scale"] = measured_thrust_scale(record, rocket, start["motor_time"])
     return Problem(rocket, flight, record, outputs, start)
 
