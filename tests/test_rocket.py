@@ -253,3 +253,20 @@ def test_motor_time_start_from_the_accelerometer(name):
     event = default_start(rocket, DragKnots((0.1,)), 288.15)["motor_time"]
     assert abs(event) > 0.04
     assert abs(measured_motor_time(record, rocket, event)) < 0.02
+
+
+def test_log_past_a_cut_is_missing_not_read():
+    """The prediction's record: past the cut no channel is flagged and no reading is
+    left (a reading held against the model's zero output is a residual no parameter
+    moves); before it, the record is untouched."""
+    from diffpegasus._rocket._data import ascent_record
+    from diffpegasus._rocket._identify import record_until
+
+    record, _ = ascent_record(sim_log("planted"))
+    cut = record_until(record, 5.0)
+    late = record.t > 5.0
+    assert late.any() and (~late).any()
+    assert not cut.inputs[late, 1:].any() and not cut.measured[late].any()
+    np.testing.assert_array_equal(cut.measured[~late], record.measured[~late])
+    np.testing.assert_array_equal(cut.inputs[~late], record.inputs[~late])
+    np.testing.assert_array_equal(cut.inputs[:, 0], record.inputs[:, 0])

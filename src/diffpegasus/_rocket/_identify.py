@@ -277,7 +277,10 @@ def prepare(rocket: Rocket, log, *, knots: DragKnots | None = None) -> Problem:
     start = default_start(rocket, knots, temperature)
     accel = log.channels.get("accel_axial")
     start["motor_time"] = measured_motor_time(
-        record, rocket, start["motor_time"], filtered=bool(getattr(accel, "filtered", 0))
+        record,
+        rocket,
+        start["motor_time"],
+        filtered=bool(getattr(accel, "filtered", 0)),
     )
     start["thrust_scale"] = measured_thrust_scale(record, rocket, start["motor_time"])
     return Problem(rocket, flight, record, outputs, start)
@@ -291,6 +294,18 @@ def altitude_only(problem: Problem) -> Problem:
         rec.t, rec.inputs[:, :2], rec.measured[:, :1], x0=rec.x0, name=rec.name
     )
     return dataclasses.replace(problem, record=record, outputs=problem.outputs[:1])
+
+
+def record_until(record, until: float):
+    """`record` with its samples after `until` (s) missing, as a channel's gaps are:
+    no flag and no reading. The length is kept (the fit shares the compiled
+    program). A reading left past the cut would be a residual no parameter moves:
+    it swamped R, and the fit of NDRT's first 5 s stopped where it started (its
+    predicted apogee 11% low)."""
+    inputs = record.inputs.copy()
+    inputs[record.t > until, 1:] = 0.0
+    measured = np.where(inputs[:, 1:] > 0, record.measured, 0.0)
+    return type(record)(record.t, inputs, measured, x0=record.x0, name=record.name)
 
 
 def fit_rocket(
@@ -350,13 +365,7 @@ def fit_rocket(
     estimated += tuple(free)
     record = problem.record
     if until is not None:
-        # past the cut as a missing sample: no flag and no reading (a reading left
-        # there is a residual no parameter moves; it swamped R, and the fit of
-        # NDRT's first 5 s stopped where it started, its apogee 11% low)
-        inputs = record.inputs.copy()
-        inputs[record.t > until, 1:] = 0.0
-        measured = np.where(inputs[:, 1:] > 0, record.measured, 0.0)
-        record = type(record)(record.t, inputs, measured, x0=record.x0, name=record.name)
+        record = record_until(record, until)
 
     def run(start_values, names):
         model = rocket_model(problem.flight, problem.outputs, start_values, names)
