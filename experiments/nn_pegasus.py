@@ -1,6 +1,6 @@
 """Thesis chapter 4: neural model plus least squares on simulated Pegasus flights.
 
-Trains the coefficient network (7 inputs, 10 tanh units, 3 outputs; Levenberg-
+Trains the coefficient network (default inputs, 10 tanh units, 3 outputs; Levenberg-
 Marquardt, 70/15/15 split, early stopping) on three training flights (pulse, 3-2-1-1
 and multisine excitation, seeds 11-13) and evaluates it on the held-out reference
 flight (seed 1): training curves (thesis Fig 4.2), network coefficients against the

@@ -19,8 +19,11 @@ from ._estimate._lse import (
 )
 from ._estimate._nn import (
     CoefficientNetwork as CoefficientNetwork,
+    DEFAULT_INPUTS as DEFAULT_INPUTS,
     estimate_nn as estimate_nn,
+    LOAD_INPUTS as LOAD_INPUTS,
     load_network as load_network,
+    NN_INPUTS as NN_INPUTS,
     save_network as save_network,
     train_network as train_network,
 )

@@ -9,6 +9,7 @@ __getattr__, __dir__, __all__ = attach(
     __name__,
     {
         "_coefficients": (
+            "aerodynamic_loads",
             "MeasuredCoefficients",
             "reconstruct_coefficients",
         ),
@@ -83,9 +84,12 @@ __getattr__, __dir__, __all__ = attach(
         ),
         "_nn": (
             "CoefficientNetwork",
+            "DEFAULT_INPUTS",
             "estimate_nn",
+            "LOAD_INPUTS",
             "load_network",
             "MinMax",
+            "NN_INPUTS",
             "save_network",
             "train_network",
         ),

@@ -22,26 +22,40 @@ class MeasuredCoefficients(eqx.Module):
     CM: Float[Array, " n"]
 
 
+def aerodynamic_loads(
+    channels: dict[str, Float[Array, " n"]],
+) -> tuple[Float[Array, " n"], Float[Array, " n"], Float[Array, " n"]]:
+    """The measured aerodynamic loads per sample: body-axis forces `X = m ax - T`,
+    `Z = m az` (N; accelerometers measure specific force at the CG, so gravity does
+    not appear) and the pitching moment about the cp station,
+    `M = Iyy qdot + Iyy_dot q - (xcp - xcg) m az` (N m), which removes the moment of
+    the normal force acting at the cp from the moment about the CG.
+
+    **Arguments:** `channels` with `ax, az, q, qdot, thrust, mass, Iyy, Iyy_dot, xcg,
+    xcp`.
+    """
+    c = channels
+    fz = c["mass"] * c["az"]
+    fx = c["mass"] * c["ax"] - c["thrust"]
+    moment = c["Iyy"] * c["qdot"] + c["Iyy_dot"] * c["q"] - (c["xcp"] - c["xcg"]) * fz
+    return fx, fz, jnp.asarray(moment)
+
+
 def reconstruct_coefficients(
     channels: dict[str, Float[Array, " n"]], s_ref: float, c_ref: float
 ) -> MeasuredCoefficients:
     """Reconstruct the aerodynamic coefficients from a flight log's channels.
 
-    - `CX = (m ax - T) / (qbar S)`, `CZ = m az / (qbar S)` (accelerometers measure
-      specific force at the CG, so gravity does not appear);
-    - `CM = (Iyy qdot + Iyy_dot q - (xcp - xcg) m az) / (qbar S c)`, removing the
-      moment of the normal force acting at the cp;
-    - `CL`, `CD` by rotating `CX`, `CZ` through the measured alpha.
+    `CX = X / (qbar S)`, `CZ = Z / (qbar S)`, `CM = M / (qbar S c)` about the cp
+    station from the [`aerodynamic_loads`][]; `CL`, `CD` by rotating `CX`, `CZ`
+    through the measured alpha.
 
     **Arguments:** `channels` with `ax, az, q, qdot, alpha, qbar, thrust, mass, Iyy,
     Iyy_dot, xcg, xcp`; reference area `s_ref` (m^2) and length `c_ref` (m).
     """
-    c = channels
-    qs = c["qbar"] * s_ref
-    fz = c["mass"] * c["az"]
-    cx = (c["mass"] * c["ax"] - c["thrust"]) / qs
-    cz = fz / qs
-    moment = c["Iyy"] * c["qdot"] + c["Iyy_dot"] * c["q"] - (c["xcp"] - c["xcg"]) * fz
+    fx, fz, moment = aerodynamic_loads(channels)
+    qs = channels["qbar"] * s_ref
+    cx, cz = fx / qs, fz / qs
     cm = moment / (qs * c_ref)
-    cl, cd = wind_axis(cx, cz, c["alpha"])
+    cl, cd = wind_axis(cx, cz, channels["alpha"])
     return MeasuredCoefficients(CX=cx, CZ=cz, CL=cl, CD=cd, CM=jnp.asarray(cm))

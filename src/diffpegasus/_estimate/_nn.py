@@ -1,7 +1,11 @@
 """Neural model plus least squares (thesis chapter 4).
 
-An equinox MLP maps the measured `[ax, az, qdot, q, V, alpha, de]` to `[CL, CD, CM]`
-(one hidden layer of 10 tanh units by default), with min-max normalisation of inputs
+An equinox MLP maps measured quantities to `[CL, CD, CM]` (one hidden layer of 10
+tanh units by default): by default the measured aerodynamic loads (the thesis's
+accelerations `ax, az, qdot` times the log's mass and inertia, less its thrust, the
+moment moved to the cp station with the log's CG) and `[q, V, alpha, de, qbar]`; the
+thesis's `[ax, az, qdot, q, V, alpha, de]` with `inputs=NN_INPUTS`. Min-max
+normalisation of inputs
 and outputs to [0, 1] kept inside the model. It is trained by Levenberg-Marquardt
 ([`train_levenberg_marquardt`][]) on flights whose coefficients are reconstructed from
 the measurements (what a user has), split 70/15/15 at random into training,
@@ -22,7 +26,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._log._format import FlightLog
-from ._coefficients import reconstruct_coefficients
+from ._coefficients import aerodynamic_loads, reconstruct_coefficients
 from ._lse import window_truth, windowed_least_squares
 from ._result import Estimates
 from ._training import train_levenberg_marquardt, TrainingHistory
@@ -30,10 +34,17 @@ from ._windows import WindowLayout
 
 
 NN_INPUTS = ("ax", "az", "qdot", "q", "V", "alpha", "de")  # thesis eq 4.1
-# The default adds the measured dynamic pressure: the targets are forces and moments
-# divided by qbar S, so without it the network can only infer qbar from the training
-# flights' trajectory, wrong for any other one (see docs/validation/thesis.md).
-DEFAULT_INPUTS = (*NN_INPUTS, "qbar")
+# Inputs computed from a log's channels rather than read from it: the measured
+# aerodynamic loads (N, N, N m; see `aerodynamic_loads`), the thesis's accelerations
+# times the flight's own mass and inertia, less its thrust, the moment moved from its
+# own CG to the cp station.
+LOAD_INPUTS = ("X_aero", "Z_aero", "M_cp")
+# The thesis's set with its accelerations replaced by the loads, plus the measured
+# dynamic pressure: the targets are these loads over qbar S (and c). Mass, thrust,
+# inertia and CG differ from flight to flight but are functions of time on every
+# training flight, so a network given accelerations can only apply the training
+# flights' values to them (see docs/validation/thesis.md).
+DEFAULT_INPUTS = ("X_aero", "Z_aero", "M_cp", "q", "V", "alpha", "de", "qbar")
 NN_OUTPUTS = ("CL", "CD", "CM")
 
 
@@ -101,7 +112,15 @@ def _moment_to_cp(out, channels, c_ref):
 def network_inputs(
     channels: dict[str, Array], names: tuple[str, ...] = NN_INPUTS
 ) -> Float[Array, "n k"]:
-    return jnp.stack([jnp.asarray(channels[c]) for c in names], axis=-1)
+    """The input matrix `(n, len(names))`: each name a channel of the log or one of
+    `LOAD_INPUTS`."""
+    loads = {}
+    if any(n in LOAD_INPUTS for n in names):
+        ch = {k: jnp.asarray(v) for k, v in channels.items()}
+        loads = dict(zip(LOAD_INPUTS, aerodynamic_loads(ch), strict=True))
+    return jnp.stack(
+        [loads[c] if c in loads else jnp.asarray(channels[c]) for c in names], axis=-1
+    )
 
 
 def network_targets(
