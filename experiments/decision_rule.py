@@ -68,7 +68,7 @@ def _row(result, planted, extra):
         **extra,
         "threshold": result["rule"]["threshold"],
         "false_alarm_level": result["rule"]["false_alarm_level"],
-        "block_samples": result["rule"]["block_samples"],
+        "null_order": result["rule"]["null_order"],
         "significant": result["significant"],
         "largest": [
             {k: r[k] for k in ("effect", "statistic", "p_value", "estimate")}
@@ -423,7 +423,7 @@ def colour(args):
             "median_threshold": {
                 k_: float(np.median(v)) for k_, v in thresholds.items()
             },
-            "block_samples_last": int(cal.block),
+            "null_order_last": int(cal.order),
         }
         print(phi, out[str(phi)], flush=True)
     (OUT / "colour.summary.json").write_text(json.dumps(out, indent=2))

@@ -302,7 +302,7 @@ def _rows(statistic, estimate, threshold=40.0):
         threshold=threshold,
         false_alarm_level=0.01,
         null_replicates=2000,
-        block_samples=12,
+        null_order=12,
     )
 
 
