@@ -1,11 +1,15 @@
-"""Where the validation data of `shared/data/` lives.
-
-The repository is checked out beside a `shared/` folder; `DIFFPEGASUS_SHARED` (the
-path of that folder) overrides the search.
+"""What the experiments and the tests share: where the validation data of
+`shared/data/` lives (the repository is checked out beside a `shared/` folder;
+`DIFFPEGASUS_SHARED`, the path of that folder, overrides the search), and the
+simulated flights both use.
 """
 
 import os
 import pathlib
+
+import numpy as np
+import scipy.linalg
+import scipy.signal
 
 
 def shared_data(relative: str) -> pathlib.Path:
@@ -22,3 +26,48 @@ def shared_data(relative: str) -> pathlib.Path:
         if c.exists():
             return c
     return here.parents[2] / "shared" / "data" / relative
+
+
+# ATTAS-like lateral manoeuvres: the book's derivatives (1/s, 1/rad), simulated
+# independently of the package (matrix exponential, inputs linear between samples)
+ATTAS = dict(
+    Lp=-2.5, Lr=0.6, Lda=-8.0, Ldr=0.6, Lbeta=-6.0,
+    Np=-0.1, Nr=-0.4, Nda=-0.3, Ndr=-2.0, Nbeta=2.2,
+    Yp=0.4, Yr=1.5, Yda=-0.5, Ydr=4.0, Ybeta=-20.0,
+)  # fmt: skip
+ATTAS_NOISE = np.array([0.02, 0.01, 0.05, 0.002, 0.002])  # pdot, rdot, ay, p, r
+
+
+def attas_like(seed=3, duration=25.0, rate=25.0):
+    """Aileron and rudder doublets; the sideslip a first-order (1.2 s) response to
+    the rudder; outputs pdot, rdot, ay, p, r with white noise ([`ATTAS_NOISE`][]).
+
+    **Returns:** `t` `(n,)` s, inputs `(n, 3)` (aileron, rudder, sideslip; rad),
+    outputs `(n, 5)`.
+    """
+    dt = 1.0 / rate
+    t = np.arange(0.0, duration + 0.5 * dt, dt)
+
+    def doublet(start, width, amp):
+        return amp * (((t >= start) & (t < start + width)) * 1.0
+                      - ((t >= start + width) & (t < start + 2 * width)))  # fmt: skip
+
+    da = doublet(1.0, 1.0, 0.03) + doublet(12.0, 0.6, -0.02)
+    dr = doublet(5.0, 1.5, 0.03) + doublet(17.0, 0.8, 0.02)
+    beta = scipy.signal.lfilter([dt / 1.2], [1, dt / 1.2 - 1], -0.5 * dr)
+    u = np.column_stack([da, dr, beta])
+    p = ATTAS
+    a = np.array([[p["Lp"], p["Lr"]], [p["Np"], p["Nr"]]])
+    b = np.array([[p["Lda"], p["Ldr"], p["Lbeta"]], [p["Nda"], p["Ndr"], p["Nbeta"]]])
+    f = np.zeros((8, 8))
+    f[:2, :2], f[:2, 2:5], f[2:5, 5:8] = a, b, np.eye(3)
+    e = scipy.linalg.expm(f * dt)
+    phi, g1, g2 = e[:2, :2], e[:2, 2:5], e[:2, 5:8] / dt
+    x = np.zeros((len(t), 2))
+    for k in range(len(t) - 1):
+        x[k + 1] = phi @ x[k] + (g1 - g2) @ u[k] + g2 @ u[k + 1]
+    c = np.array([[p["Yp"], p["Yr"]]])
+    dy = np.array([[p["Yda"], p["Ydr"], p["Ybeta"]]])
+    y = np.column_stack([x @ a.T + u @ b.T, x @ c.T + u @ dy.T, x])
+    y = y + np.random.default_rng(seed).normal(size=y.shape) * ATTAS_NOISE
+    return t, u, y

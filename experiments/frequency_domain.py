@@ -18,51 +18,12 @@ import pathlib
 import time
 
 import numpy as np
-import scipy.linalg
-import scipy.signal
-from _shared import shared_data
+from _shared import attas_like, shared_data
 
 import diffpegasus as dp
 
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-ATTAS = dict(
-    Lp=-2.5, Lr=0.6, Lda=-8.0, Ldr=0.6, Lbeta=-6.0,
-    Np=-0.1, Nr=-0.4, Nda=-0.3, Ndr=-2.0, Nbeta=2.2,
-    Yp=0.4, Yr=1.5, Yda=-0.5, Ydr=4.0, Ybeta=-20.0,
-)  # fmt: skip
-ATTAS_NOISE = np.array([0.02, 0.01, 0.05, 0.002, 0.002])  # pdot, rdot, ay, p, r
-
-
-def attas_like(seed=3, duration=25.0, rate=25.0):
-    """Aileron and rudder doublets; the sideslip a first-order response to the
-    rudder; outputs pdot, rdot, ay, p, r with white noise."""
-    dt = 1.0 / rate
-    t = np.arange(0.0, duration + 0.5 * dt, dt)
-
-    def doublet(start, width, amp):
-        return amp * (((t >= start) & (t < start + width)) * 1.0
-                      - ((t >= start + width) & (t < start + 2 * width)))  # fmt: skip
-
-    da = doublet(1.0, 1.0, 0.03) + doublet(12.0, 0.6, -0.02)
-    dr = doublet(5.0, 1.5, 0.03) + doublet(17.0, 0.8, 0.02)
-    beta = scipy.signal.lfilter([dt / 1.2], [1, dt / 1.2 - 1], -0.5 * dr)
-    u = np.column_stack([da, dr, beta])
-    p = ATTAS
-    a = np.array([[p["Lp"], p["Lr"]], [p["Np"], p["Nr"]]])
-    b = np.array([[p["Lda"], p["Ldr"], p["Lbeta"]], [p["Nda"], p["Ndr"], p["Nbeta"]]])
-    f = np.zeros((8, 8))
-    f[:2, :2], f[:2, 2:5], f[2:5, 5:8] = a, b, np.eye(3)
-    e = scipy.linalg.expm(f * dt)
-    phi, g1, g2 = e[:2, :2], e[:2, 2:5], e[:2, 5:8] / dt
-    x = np.zeros((len(t), 2))
-    for k in range(len(t) - 1):
-        x[k + 1] = phi @ x[k] + (g1 - g2) @ u[k] + g2 @ u[k + 1]
-    c = np.array([[p["Yp"], p["Yr"]]])
-    dy = np.array([[p["Yda"], p["Ydr"], p["Ybeta"]]])
-    y = np.column_stack([x @ a.T + u @ b.T, x @ c.T + u @ dy.T, x])
-    y = y + np.random.default_rng(seed).normal(size=y.shape) * ATTAS_NOISE
-    return dp.Record(t, u, y, x0=np.zeros(2), name="ATTAS-like (simulated)")
 
 
 def compare(model, record, band, out, units, shooting=None):
@@ -127,7 +88,7 @@ def main():
         )  # fmt: skip
     model = dp.lateral.lateral_model(state_biases=False, output_biases=False)
     summary["attas_like"] = compare(
-        model, attas_like(), (0.0, 3.0), args.out / "attas_like",
+        model, dp.Record(*attas_like(), x0=np.zeros(2), name="ATTAS-like (simulated)"), (0.0, 3.0), args.out / "attas_like",
         {"pdot": "rad/s^2", "rdot": "rad/s^2", "ay": "m/s^2", "p": "rad/s", "r": "rad/s"},
     )  # fmt: skip
     args.out.mkdir(parents=True, exist_ok=True)

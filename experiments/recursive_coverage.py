@@ -24,6 +24,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import scipy.linalg
+import scipy.stats
 
 import diffpegasus as dp
 from diffpegasus._estimate import _recursive as rc
@@ -37,6 +38,7 @@ NOISE = {"az": 0.05, "w": 0.02, "q": 0.002}  # 1 sigma, SI units
 COLOUR_TIME = 0.3  # s, correlation time of the az noise
 BAND = 1.5  # Hz: the upper end of the recursive Fourier transform's frequencies
 RLS_BAND = 2.0  # Hz: least squares' low-pass of the state equations
+CHUNK = 25  # flights per compiled batch
 
 
 def rates(t, x, u, p):
@@ -116,11 +118,11 @@ def simulate(n_flights, duration, rate, seed, scale=1.0):
     return t, de, clean[None] + white
 
 
-def coverage(theta, halfwidth, truth, times_idx):
+def coverage(theta, halfwidth, truth):
     """Fraction of flights whose 95% band (`theta +- halfwidth`) holds the
     truth, per checked time and parameter: `(times, p)`."""
     inside = np.abs(theta - truth[None, None, :]) <= halfwidth
-    return inside[:, times_idx, :].mean(axis=0)
+    return inside.mean(axis=0)
 
 
 def main():
@@ -155,7 +157,8 @@ def main():
     y = jnp.stack([r.y for r in regs])
     o = jnp.stack([r.o for r in regs])
     theta0 = jnp.asarray(np.asarray(MODEL.start)[list(regs[0].index)])
-    check_times = [10.0, 15.0, 20.0, 25.0, args.duration]
+    check_times = [c for c in (10.0, 15.0, 20.0, 25.0) if c < args.duration]
+    check_times.append(args.duration)
     times_idx = [int(round((c - t[0]) / dt)) for c in check_times]
     freqs = tuple(float(f) for f in np.arange(0.1, BAND + 0.01, 0.04))
     estimators = {
@@ -188,13 +191,24 @@ def main():
     estimators = {k: v for k, v in estimators.items() if k in wanted}
     for label, est in estimators.items():
         start = time.perf_counter()
-        hist = jax.vmap(lambda hh, yy, oo, est=est: rc.replay(est, hh, yy, oo, theta0))(
-            h, y, o
+        batched = jax.jit(
+            jax.vmap(
+                lambda hh, yy, oo, est=est: rc.replay(
+                    est, hh, yy, oo, theta0, at=tuple(times_idx)
+                )
+            )
         )
+        # flights in chunks of CHUNK (one compiled program; a vmap over all 200
+        # at once stalled the CPU runtime)
+        parts = [
+            batched(h[i : i + CHUNK], y[i : i + CHUNK], o[i : i + CHUNK])
+            for i in range(0, args.flights, CHUNK)
+        ]
+        hist = jax.tree.map(lambda *a: jnp.concatenate(a), *parts)
         theta = np.asarray(hist.theta)
         elapsed = time.perf_counter() - start
-        cov_plain = coverage(theta, 1.96 * np.asarray(hist.stderr), truth, times_idx)
-        cov_corr = coverage(theta, np.asarray(hist.halfwidth), truth, times_idx)
+        cov_plain = coverage(theta, 1.96 * np.asarray(hist.stderr), truth)
+        cov_corr = coverage(theta, np.asarray(hist.halfwidth), truth)
         final = theta[:, -1, :]
         summary["methods"][label] = {
             "seconds_all_flights": elapsed,
@@ -235,6 +249,32 @@ def main():
                 f", scatter/mean band {final[:, k].std() / sd_c[:, k].mean():.3f}"
                 f", coverage at {check_times} s: {np.round(cov_corr[:, k], 3).tolist()}"
             )
+        # the band's own noise: its degrees of freedom over the flights (a
+        # chi-square variance with v dof has variance 2 mean^2 / v) against the
+        # estimator's own estimate `dof`, and the coverage a Student-t band at
+        # the estimated dof would have
+        var_c = np.asarray(hist.stderr_corrected) ** 2
+        dof_seen = 2 * var_c.mean(axis=0) ** 2 / var_c.var(axis=0)  # (times, p)
+        dof_est = np.asarray(hist.dof).mean(axis=0)
+        t_band = np.asarray(hist.stderr_corrected) * scipy.stats.t.ppf(
+            0.975, np.maximum(np.asarray(hist.dof), 1.0)
+        )
+        cov_t = coverage(theta, t_band, truth)
+        for k, n in enumerate(names):
+            print(
+                f"  {n}: band dof over the flights {np.round(dof_seen[:, k], 1).tolist()}"
+                f", estimated {np.round(dof_est[:, k], 1).tolist()}"
+                f", coverage with t at the estimated dof {np.round(cov_t[:, k], 3).tolist()}"
+            )
+        summary["methods"][label]["band_dof_over_flights"] = {
+            n: dof_seen[:, k].tolist() for k, n in enumerate(names)
+        }
+        summary["methods"][label]["band_dof_estimated_mean"] = {
+            n: dof_est[:, k].tolist() for k, n in enumerate(names)
+        }
+        summary["methods"][label]["coverage_student_t_estimated_dof"] = {
+            n: cov_t[:, k].tolist() for k, n in enumerate(names)
+        }
         summary["methods"][label]["bias_over_scatter"] = {
             n: float((final[:, k].mean() - truth[k]) / final[:, k].std())
             for k, n in enumerate(names)

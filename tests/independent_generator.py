@@ -336,11 +336,21 @@ def generate(
     if unknown:
         raise ValueError(f"unknown effects {sorted(unknown)}; known {EFFECTS}")
     times, levels = elevator_schedule(seed, duration)
-    flight = _Flight(times, levels, effects)
+    channels = _fly(
+        _Flight(times, levels, effects), seed, sample_rate, duration, 1e-10, 1e-9
+    )
+    channels["az"] = channels["az"] + effects.get("sensor_bias:az", 0.0)
+    _add_noise(channels, seed, sample_rate, noise)
+    return channels, _metadata(seed, sample_rate, noise, hidden_effects=effects)
+
+
+def _fly(flight, seed, sample_rate, duration, rtol, atol) -> dict[str, np.ndarray]:
+    """The noiseless channels of `flight` from the seed's drop state: integrated
+    piece by piece between the surface's steps (a true step: the solver never
+    straddles it), sampled at `sample_rate` (Hz) for `duration` (s)."""
+    times, levels = flight.times, flight.levels
     n = int(round(duration * sample_rate)) + 1
     t = np.arange(n) / sample_rate
-    # integrate piece by piece between the surface's steps (a true step: the
-    # solver never straddles it)
     edges = np.unique(np.clip(times + flight.tau, 0.0, duration))
     edges = np.concatenate([[0.0], edges[(edges > 0) & (edges < duration)], [duration]])
     x = drop_state(seed)
@@ -354,8 +364,8 @@ def generate(
             (a, b),
             x,
             method="DOP853",
-            rtol=1e-10,
-            atol=1e-9,
+            rtol=rtol,
+            atol=atol,
             args=(de,),
             dense_output=True,
         )
@@ -368,22 +378,30 @@ def generate(
     _, out = flight.evaluate(t, states.T, de_surface)
     channels = {"t": t, "de": _step_value(t, times, levels)}
     channels.update({k: np.asarray(v, float) * np.ones(n) for k, v in out.items()})
-    channels["az"] = channels["az"] + effects.get("sensor_bias:az", 0.0)
+    return channels
+
+
+def _add_noise(channels, seed, sample_rate, noise):
+    """White measurement noise of [`NOISE`][]'s sigmas, in place (a seed and rate's
+    own draws)."""
     if noise:
+        n = channels["t"].shape[0]
         rng = np.random.default_rng([seed, int(round(sample_rate))])
         for name, sigma in NOISE.items():
             channels[name] = channels[name] + sigma * rng.normal(size=n)
-    metadata = {
+
+
+def _metadata(seed, sample_rate, noise, **extra) -> dict:
+    return {
         "S_ref": S_REF,
         "c_ref": C_REF,
         "vehicle": "pegasus-like (independent generator)",
         "sample_rate_hz": float(sample_rate),
         "seed": seed,
         "noise_sigmas": dict(NOISE) if noise else {},
-        "hidden_effects": effects,
+        **extra,
         "simulator": "tests/independent_generator.py",
     }
-    return channels, metadata
 
 
 def write(path, channels: dict[str, np.ndarray], metadata: dict) -> pathlib.Path:
@@ -631,54 +649,12 @@ def generate_turbulent(
     x = drop_state(seed)
     gusts = gust_field(seed, duration, sigma, float(np.hypot(x[0], x[1])))
     flight = _GustyFlight(times, levels, {}, gusts)
-    n = int(round(duration * sample_rate)) + 1
-    t = np.arange(n) / sample_rate
-    edges = np.unique(np.clip(times, 0.0, duration))
-    edges = np.concatenate([[0.0], edges[(edges > 0) & (edges < duration)], [duration]])
-    states = np.empty((n, 7))
-    de_surface = np.empty(n)
-    for a, b in zip(edges[:-1], edges[1:], strict=True):
-        de = _step_value(0.5 * (a + b), times, levels)
-        sel = (t >= a) & ((t < b) | ((b == duration) & (t <= b)))
-        sol = solve_ivp(
-            flight.rhs,
-            (a, b),
-            x,
-            method="DOP853",
-            rtol=1e-9,
-            atol=1e-8,
-            args=(de,),
-            dense_output=True,
-        )
-        if not sol.success:
-            raise RuntimeError(f"integration failed at t = {a}: {sol.message}")
-        if sel.any():
-            states[sel] = sol.sol(t[sel]).T
-            de_surface[sel] = de
-        x = sol.y[:, -1]
-    _, out = flight.evaluate(t, states.T, de_surface)
-    channels = {"t": t, "de": _step_value(t, times, levels)}
-    channels.update({k: np.asarray(v, float) * np.ones(n) for k, v in out.items()})
-    if noise:
-        rng = np.random.default_rng([seed, int(round(sample_rate))])
-        for name, s in NOISE.items():
-            channels[name] = channels[name] + s * rng.normal(size=n)
-    metadata = {
-        "S_ref": S_REF,
-        "c_ref": C_REF,
-        "vehicle": "pegasus-like (independent generator)",
-        "sample_rate_hz": float(sample_rate),
-        "seed": seed,
-        "noise_sigmas": dict(NOISE) if noise else {},
-        "hidden_effects": {},
-        "turbulence": {
-            "sigma": sigma,
-            "length_m": GUST_LENGTH,
-            "model": "Gauss-Markov",
-        },
-        "simulator": "tests/independent_generator.py",
-    }
-    return channels, metadata
+    channels = _fly(flight, seed, sample_rate, duration, 1e-9, 1e-8)
+    _add_noise(channels, seed, sample_rate, noise)
+    turbulence = {"sigma": sigma, "length_m": GUST_LENGTH, "model": "Gauss-Markov"}
+    return channels, _metadata(
+        seed, sample_rate, noise, hidden_effects={}, turbulence=turbulence
+    )
 
 
 def make_turbulent_log(path, seed=0, sample_rate=1000.0, duration=30.0, sigma=1.5):

@@ -227,7 +227,10 @@ def test_cli_diagnose_and_fit_json_on_a_log_without_sidecar(tmp_path):
     path = dp.write_log(tmp_path / "f.csv", flight(("sensor_bias:az=0.2",)))
     path.with_suffix(".json").unlink()  # any source: no sidecar, Pegasus defaults
     res = runner.invoke(
-        app, ["diagnose", str(path), "--json", "--out", str(tmp_path / "d")]
+        app,
+        # process noise (two filter-error fits) is the subject of test_fem_pegasus
+        ["diagnose", str(path), "--json", "--out", str(tmp_path / "d")]
+        + ["--process-noise", "none"],
     )
     assert res.exit_code == 0, res.output
     out = json.loads(res.stdout.strip().splitlines()[-1])

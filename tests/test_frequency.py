@@ -18,7 +18,11 @@ from diffpegasus._estimate._fourier import frequency_grid
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "experiments"))
-from _shared import shared_data  # noqa: E402
+from _shared import (  # noqa: E402
+    ATTAS as TRUTH,  # noqa: E402
+    attas_like,
+    shared_data,
+)
 
 
 def _require(path):
@@ -113,49 +117,10 @@ def test_unstable_aircraft_without_integration(tmp_path):
     assert all(p.stat().st_size > 10_000 for p in paths)
 
 
-# ATTAS-like lateral manoeuvres: the book's derivatives, simulated independently
-TRUTH = dict(
-    Lp=-2.5, Lr=0.6, Lda=-8.0, Ldr=0.6, Lbeta=-6.0,
-    Np=-0.1, Nr=-0.4, Nda=-0.3, Ndr=-2.0, Nbeta=2.2,
-    Yp=0.4, Yr=1.5, Yda=-0.5, Ydr=4.0, Ybeta=-20.0,
-)  # fmt: skip
-SIGMA = np.array([0.02, 0.01, 0.05, 0.002, 0.002])  # pdot, rdot, ay, p, r
-
-
-def _lateral_flight(seed, duration=25.0, rate=25.0):
-    dt = 1.0 / rate
-    t = np.arange(0.0, duration + 0.5 * dt, dt)
-
-    def doublet(start, width, amp):
-        return amp * (((t >= start) & (t < start + width)) * 1.0
-                      - ((t >= start + width) & (t < start + 2 * width)))  # fmt: skip
-
-    da = doublet(1.0, 1.0, 0.03) + doublet(12.0, 0.6, -0.02)
-    dr = doublet(5.0, 1.5, 0.03) + doublet(17.0, 0.8, 0.02)
-    # a sideslip history driven by the rudder (first-order, 1.2 s)
-    beta = scipy.signal.lfilter([dt / 1.2], [1, dt / 1.2 - 1], -0.5 * dr)
-    u = np.column_stack([da, dr, beta])
-    p = TRUTH
-    a = np.array([[p["Lp"], p["Lr"]], [p["Np"], p["Nr"]]])
-    b = np.array([[p["Lda"], p["Ldr"], p["Lbeta"]], [p["Nda"], p["Ndr"], p["Nbeta"]]])
-    f = np.zeros((8, 8))
-    f[:2, :2], f[:2, 2:5], f[2:5, 5:8] = a, b, np.eye(3)
-    e = scipy.linalg.expm(f * dt)
-    phi, g1, g2 = e[:2, :2], e[:2, 2:5], e[:2, 5:8] / dt
-    x = np.zeros((len(t), 2))
-    for k in range(len(t) - 1):
-        x[k + 1] = phi @ x[k] + (g1 - g2) @ u[k] + g2 @ u[k + 1]
-    c = np.array([[p["Yp"], p["Yr"]]])
-    dy = np.array([[p["Yda"], p["Ydr"], p["Ybeta"]]])
-    y = np.column_stack([x @ a.T + u @ b.T, x @ c.T + u @ dy.T, x])
-    y = y + np.random.default_rng(seed).normal(size=y.shape) * SIGMA
-    return t, u, y
-
-
 @pytest.mark.slow  # one time-domain and one frequency-domain compile
 def test_attas_like_lateral_manoeuvres_agree_with_the_time_domain():
     model = dp.lateral.lateral_model(state_biases=False, output_biases=False)
-    t, u, y = _lateral_flight(seed=3)
+    t, u, y = attas_like(seed=3)
     rec = dp.Record(t, u, y, x0=np.zeros(2))
     td = dp.fit(model, rec)
     fd = dp.estimate(model, rec, dp.FrequencyOutputError(band=(0.0, 3.0)))

@@ -115,6 +115,42 @@ def test_derivative_rows_are_differenced():
     np.testing.assert_allclose(hist.theta[-1], [a, b], rtol=1e-6)
 
 
+def _hfb320_path():
+    path = shared_data("hfb320/hfb320_1_10.asc")
+    if not path.exists():
+        pytest.skip(f"validation data not found at {path} (set DIFFPEGASUS_SHARED)")
+    return path
+
+
+def _flight(name, model_file, x0=False):
+    """A validation record, its regression and the start values of its parameters
+    (skips when the data are not there)."""
+    path = shared_data(name)
+    if not path.exists():
+        pytest.skip(f"validation data not found at {path} (set DIFFPEGASUS_SHARED)")
+    spec = dp.load_model_file(ROOT / "examples" / model_file)
+    kw = {"x0": spec.x0} if x0 else {}
+    rec = dp.load_record(spec.model, path, spec.columns, **kw)
+    reg = dp.model_regression(spec.model, rec)
+    start = np.asarray(spec.model.start)[list(reg.index)]
+    return rec, reg, start
+
+
+def _estimator(which, reg, dt, band, step):
+    """Least squares over all data, or the recursive Fourier transform at `step`
+    Hz spacing over `(0.1, band)` Hz."""
+    if which == "rls":
+        return dp.RecursiveLeastSquares(
+            forgetting=1.0, derivative=reg.derivative, dt=dt
+        )
+    return dp.RecursiveFourier(
+        frequencies=tuple(np.arange(0.1, band + 0.01, step).tolist()),
+        forgetting=1.0,
+        derivative=reg.derivative,
+        dt=dt,
+    )
+
+
 def _short_period_period(a_matrix):
     lam = np.linalg.eigvals(a_matrix)
     return 2 * np.pi / np.max(np.abs(lam.imag))
@@ -132,24 +168,8 @@ def _converged(hist, onset, period, names):
 
 @pytest.mark.parametrize("which", ["rls", "rft"])
 def test_hfb320_converges_within_one_short_period_cycle(which):
-    path = shared_data("hfb320/hfb320_1_10.asc")
-    if not path.exists():
-        pytest.skip(f"validation data not found at {path} (set DIFFPEGASUS_SHARED)")
-    spec = dp.load_model_file(ROOT / "examples" / "hfb320_linear.py")
-    rec = dp.load_record(spec.model, path, spec.columns)
-    reg = dp.model_regression(spec.model, rec)
-    start = np.asarray(spec.model.start)[list(reg.index)]
-    if which == "rls":
-        est = dp.RecursiveLeastSquares(
-            forgetting=1.0, derivative=reg.derivative, dt=rec.dt
-        )
-    else:
-        est = dp.RecursiveFourier(
-            frequencies=tuple(np.arange(0.1, 1.51, 0.04).tolist()),
-            forgetting=1.0,
-            derivative=reg.derivative,
-            dt=rec.dt,
-        )
+    rec, reg, start = _flight("hfb320/hfb320_1_10.asc", "hfb320_linear.py")
+    est = _estimator(which, reg, rec.dt, 1.5, 0.04)
     hist = dp.replay(est, reg.h, reg.y, reg.o, jnp.asarray(start), float(rec.t[0]))
     p = dict(zip(reg.parameters, np.asarray(hist.theta[-1]), strict=True))
     period = _short_period_period(np.array([[p["Za"], 1.0], [p["Ma"], p["Mq"]]]))
@@ -167,24 +187,10 @@ def test_hfb320_converges_within_one_short_period_cycle(which):
 
 @pytest.mark.parametrize("which", ["rls", "rft"])
 def test_unstable_aircraft_converges_within_one_short_period_cycle(which):
-    path = shared_data("unstable_aircraft/unStabAC_sim.asc")
-    if not path.exists():
-        pytest.skip(f"validation data not found at {path} (set DIFFPEGASUS_SHARED)")
-    spec = dp.load_model_file(ROOT / "examples" / "unstable_aircraft.py")
-    rec = dp.load_record(spec.model, path, spec.columns, x0=spec.x0)
-    reg = dp.model_regression(spec.model, rec)
-    start = np.asarray(spec.model.start)[list(reg.index)]
-    if which == "rls":
-        est = dp.RecursiveLeastSquares(
-            forgetting=1.0, derivative=reg.derivative, dt=rec.dt
-        )
-    else:
-        est = dp.RecursiveFourier(
-            frequencies=tuple(np.arange(0.1, 2.01, 0.08).tolist()),
-            forgetting=1.0,
-            derivative=reg.derivative,
-            dt=rec.dt,
-        )
+    rec, reg, start = _flight(
+        "unstable_aircraft/unStabAC_sim.asc", "unstable_aircraft.py", x0=True
+    )
+    est = _estimator(which, reg, rec.dt, 2.0, 0.08)
     hist = dp.replay(est, reg.h, reg.y, reg.o, jnp.asarray(start), float(rec.t[0]))
     p = dict(zip(reg.parameters, np.asarray(hist.theta[-1]), strict=True))
     a = np.array([[p["Zw"], 44.5695 - 1.4768], [p["Mw"], p["Mq"]]])
@@ -203,9 +209,7 @@ def test_unstable_aircraft_converges_within_one_short_period_cycle(which):
 
 
 def test_replay_command_writes_the_figure_and_the_estimates(tmp_path):
-    path = shared_data("hfb320/hfb320_1_10.asc")
-    if not path.exists():
-        pytest.skip(f"validation data not found at {path} (set DIFFPEGASUS_SHARED)")
+    path = _hfb320_path()
     out = tmp_path / "replay"
     res = subprocess.run(
         [
@@ -234,9 +238,7 @@ def test_replay_command_writes_the_figure_and_the_estimates(tmp_path):
 
 
 def test_replay_command_refuses_a_bad_band_in_one_line(tmp_path):
-    path = shared_data("hfb320/hfb320_1_10.asc")
-    if not path.exists():
-        pytest.skip(f"validation data not found at {path} (set DIFFPEGASUS_SHARED)")
+    path = _hfb320_path()
     res = subprocess.run(
         [sys.executable, "-m", "diffpegasus", "replay", str(path), "--model",
          str(ROOT / "examples" / "hfb320_linear.py"), "--band", "0,1.5"],
@@ -244,3 +246,44 @@ def test_replay_command_refuses_a_bad_band_in_one_line(tmp_path):
     )  # fmt: skip
     assert res.returncode == 2
     assert res.stderr.strip().count("\n") == 0 and "0 Hz" in res.stderr
+
+
+def test_replay_at_chosen_samples_is_the_full_replay_there():
+    h, y, o = _regression(n=120, noise=0.05)
+    est = dp.RecursiveLeastSquares(forgetting=0.995, derivative=(False,), dt=DT, lags=8)
+    full = dp.replay(est, h, y, o, jnp.zeros(3))
+    at = (20, 37, 119)  # after a few samples: the first ones are near-singular
+    some = dp.replay(est, h, y, o, jnp.zeros(3), at=at)
+    np.testing.assert_allclose(some.t, np.asarray(full.t)[list(at)])
+    for name in ("theta", "stderr_corrected", "halfwidth", "dof"):
+        np.testing.assert_allclose(
+            getattr(some, name), np.asarray(getattr(full, name))[list(at)], rtol=1e-9
+        )
+    with pytest.raises(ValueError, match="increasing"):
+        dp.replay(est, h, y, o, jnp.zeros(3), at=(5, 5))
+
+
+def test_bands_fourier_student_t_at_its_dof_least_squares_normal():
+    import scipy.stats
+
+    h, y, o = _regression(n=200, noise=0.05)
+    rft = dp.RecursiveFourier(
+        frequencies=tuple(np.arange(0.1, 1.51, 0.1).tolist()),
+        forgetting=1.0,
+        derivative=(False,),
+        dt=DT,
+    )
+    rls = dp.RecursiveLeastSquares(forgetting=1.0, derivative=(False,), dt=DT, lags=8)
+    a = dp.replay(rft, h, y, o, jnp.zeros(3), at=(199,))
+    b = dp.replay(rls, h, y, o, jnp.zeros(3), at=(199,))
+    dof = np.asarray(a.dof[0])
+    # measured 2.3, 4.9, 2.9: this regression's power sits at a few frequencies
+    assert np.all((dof > 1.5) & (dof < 16))  # at most the 15 frequencies
+    # the Cornish-Fisher quantile against scipy's: 2% low at 2.3 dof (measured),
+    # 0.1% at 4.9
+    np.testing.assert_allclose(
+        a.halfwidth[0] / a.stderr_corrected[0],
+        scipy.stats.t.ppf(0.975, dof),
+        rtol=0.025,
+    )
+    np.testing.assert_allclose(b.halfwidth[0] / b.stderr_corrected[0], 1.959964)

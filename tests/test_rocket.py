@@ -182,7 +182,8 @@ def test_dynamics_against_rocketpy():
     rocket = dr.read_rocket(SIM / "clean" / "rocket.toml")
     log = sim_log("clean")
     problem = dr.prepare(rocket, log)
-    flown = dr.simulate_flight(problem)
+    # RocketPy's own thrust, lit at its (the log's) time 0: not the estimated starts
+    flown = dr.simulate_flight(problem, start={"thrust_scale": 1.0, "motor_time": 0.0})
     a = np.loadtxt(SIM / "clean" / "log.csv", delimiter=",", skiprows=1)
     top = float(np.max(a[:, 1]))
     model = np.interp(a[:, 0], flown.t, flown.baro)
@@ -235,3 +236,38 @@ def test_accelerometer_coverage_decides_which_length_scale_is_trusted():
     assert not accel_covers_ascent(
         Record(record.t, inputs[:, :2], record.measured[:, :1])
     )
+
+
+@pytest.mark.parametrize("name", ["clean", "planted"])
+def test_motor_time_start_from_the_accelerometer(name):
+    """RocketPy lights the motor at its time 0, the log's time 0, while the log's
+    liftoff event says 0 too: the start from the event puts the thrust curve's zero
+    0.05 s early (catalogue thrust above the weight at its 0.05 s point), a local
+    minimum the fit stayed in. The accelerometer's alignment finds it within one
+    50 Hz sample (measured -0.015 s on both flights)."""
+    from diffpegasus._rocket._data import ascent_record
+    from diffpegasus._rocket._identify import default_start, measured_motor_time
+    from diffpegasus._vehicle._rocket import DragKnots
+
+    rocket = dr.read_rocket(SIM / name / "rocket.toml")
+    record, _ = ascent_record(sim_log(name))
+    event = default_start(rocket, DragKnots((0.1,)), 288.15)["motor_time"]
+    assert abs(event) > 0.04
+    assert abs(measured_motor_time(record, rocket, event)) < 0.02
+
+
+def test_log_past_a_cut_is_missing_not_read():
+    """The prediction's record: past the cut no channel is flagged and no reading is
+    left (a reading held against the model's zero output is a residual no parameter
+    moves); before it, the record is untouched."""
+    from diffpegasus._rocket._data import ascent_record
+    from diffpegasus._rocket._identify import record_until
+
+    record, _ = ascent_record(sim_log("planted"))
+    cut = record_until(record, 5.0)
+    late = record.t > 5.0
+    assert late.any() and (~late).any()
+    assert not cut.inputs[late, 1:].any() and not cut.measured[late].any()
+    np.testing.assert_array_equal(cut.measured[~late], record.measured[~late])
+    np.testing.assert_array_equal(cut.inputs[~late], record.inputs[~late])
+    np.testing.assert_array_equal(cut.inputs[:, 0], record.inputs[:, 0])

@@ -139,12 +139,12 @@ def top_speed(record, rocket) -> float:
     return best / sin
 
 
-def measured_thrust_scale(record, rocket) -> float:
+def measured_thrust_scale(record, rocket, motor_time: float | None = None) -> float:
     """The thrust scale the accelerometer reads (an equation-error start): the
     impulse `sum m f dt` over the samples with the motor burning (specific force
     above the gravity component along the rail, mass falling with the catalogue
     impulse) over the catalogue impulse at the same samples (the motor lit so that
-    it lifts off at 0); 1 without an accelerometer. Drag makes
+    it lifts off at 0, or at `motor_time`); 1 without an accelerometer. Drag makes
     it read a few per cent low; the fit takes it from there."""
     if record.inputs.shape[1] < 3 or record.inputs[:, 2].sum() < 10:
         return 1.0
@@ -155,7 +155,9 @@ def measured_thrust_scale(record, rocket) -> float:
     if burning.sum() < 5:
         return 1.0
     tc, fc, burned = rocket.motor.tables()
-    start = default_start(rocket, DragKnots((0.1,)), 288.15)["motor_time"]
+    start = motor_time
+    if start is None:
+        start = default_start(rocket, DragKnots((0.1,)), 288.15)["motor_time"]
     catalogue = np.interp(t - start, tc, fc, left=0.0, right=0.0)
     mass = rocket.loaded_mass - rocket.motor.propellant_mass * np.interp(
         t - start, tc, burned, left=0.0, right=1.0
@@ -172,6 +174,45 @@ def measured_thrust_scale(record, rocket) -> float:
     impulse = float(np.sum(((mass * f + drag) * dt)[burning]))
     total = float(np.sum((catalogue * dt)[burning]))
     return float(np.clip(impulse / max(total, 1e-9), 0.5, 1.5))
+
+
+def measured_motor_time(
+    record, rocket, start: float, search: float = 0.5, *, filtered: bool = False
+) -> float:
+    """s, the log time of the thrust curve's zero that the accelerometer reads (an
+    equation-error start): the shift, within `search` s of `start`, at which the
+    catalogue thrust over the mass (propellant burned with the impulse) best fits
+    the measured specific force by least squares with a free scale and offset, over
+    the samples from the log's start to a second after the shifted burnout. The
+    ignition ramp and the burnout tail are a few samples wide, so a start off by
+    one ramp (a liftoff time taken from a coarse event, an ignition delay) leaves
+    the output-error fit in a local minimum; this search has none to fall in.
+    `start` unchanged without an accelerometer over the boost, for a `filtered`
+    one (a flight computer's smoothed channel: its timing is the filter's; Camoes's
+    reads 0.28 s late), or for a rocket held down after ignition (its specific
+    force does not follow the thrust)."""
+    if record.inputs.shape[1] < 3 or rocket.holddown > 0 or filtered:
+        return start
+    has = record.inputs[:, 2] > 0
+    t, f = record.t[has], record.measured[has, 1]
+    tc, fc, burned = rocket.motor.tables()
+    if t.size < 20 or t[0] > start + tc[-1] or t[-1] < start + tc[-1]:
+        return start
+    step = max(float(np.min(np.diff(t))) / 4, 1e-4)
+    best, shift = np.inf, start
+    for s in np.arange(start - search, start + search + step / 2, step):
+        w = t <= s + tc[-1] + 1.0
+        tm = t[w] - s
+        mass = rocket.loaded_mass - rocket.motor.propellant_mass * np.interp(
+            tm, tc, burned, left=0.0, right=1.0
+        )
+        x = np.interp(tm, tc, fc, left=0.0, right=0.0) / mass
+        a = np.column_stack([x, np.ones_like(x)])
+        coef, *_ = np.linalg.lstsq(a, f[w], rcond=None)
+        sse = float(np.mean((a @ coef - f[w]) ** 2))
+        if sse < best:
+            best, shift = sse, float(s)
+    return shift
 
 
 def accel_covers_ascent(record, share: float = 0.9) -> bool:
@@ -234,7 +275,14 @@ def prepare(rocket: Rocket, log, *, knots: DragKnots | None = None) -> Problem:
         knots = knots_for(record, rocket, temperature)
     flight = Flight(rocket, knots, pressure)
     start = default_start(rocket, knots, temperature)
-    start["thrust_scale"] = measured_thrust_scale(record, rocket)
+    accel = log.channels.get("accel_axial")
+    start["motor_time"] = measured_motor_time(
+        record,
+        rocket,
+        start["motor_time"],
+        filtered=bool(getattr(accel, "filtered", 0)),
+    )
+    start["thrust_scale"] = measured_thrust_scale(record, rocket, start["motor_time"])
     return Problem(rocket, flight, record, outputs, start)
 
 
@@ -246,6 +294,18 @@ def altitude_only(problem: Problem) -> Problem:
         rec.t, rec.inputs[:, :2], rec.measured[:, :1], x0=rec.x0, name=rec.name
     )
     return dataclasses.replace(problem, record=record, outputs=problem.outputs[:1])
+
+
+def record_until(record, until: float):
+    """`record` with its samples after `until` (s) missing, as a channel's gaps are:
+    no flag and no reading. The length is kept (the fit shares the compiled
+    program). A reading left past the cut would be a residual no parameter moves:
+    it swamped R, and the fit of NDRT's first 5 s stopped where it started (its
+    predicted apogee 11% low)."""
+    inputs = record.inputs.copy()
+    inputs[record.t > until, 1:] = 0.0
+    measured = np.where(inputs[:, 1:] > 0, record.measured, 0.0)
+    return type(record)(record.t, inputs, measured, x0=record.x0, name=record.name)
 
 
 def fit_rocket(
@@ -305,11 +365,7 @@ def fit_rocket(
     estimated += tuple(free)
     record = problem.record
     if until is not None:
-        inputs = record.inputs.copy()
-        inputs[record.t > until, 1:] = 0.0
-        record = type(record)(
-            record.t, inputs, record.measured, x0=record.x0, name=record.name
-        )
+        record = record_until(record, until)
 
     def run(start_values, names):
         model = rocket_model(problem.flight, problem.outputs, start_values, names)
