@@ -7,8 +7,8 @@ Parts (`--part`):
 - `pegasus`: Pegasus-like flights, 30 s from drop, at `--rates` (Hz), clean
   (`--clean` seeds) and with each planted effect of `PLANTED` (`--planted` seeds):
   the discrepancy workflow's baseline fit (run to convergence) and
-  `diagnose`: the threshold from the log, its block length, what is significant,
-  the largest statistics, the planted effect's statistic and p-value.
+  `diagnose`: the threshold from the log, the order of its null's
+  autoregression, what is significant, the largest statistics, the planted effect's statistic and p-value.
 - `hfb320`: HFB-320 flights at `--rates` (Hz), clean and with a planted az bias,
   through `diagnose --vehicle hfb320` (the engine's path, the same rule).
 - `refit`: is the efficient score on resampled residuals at the fitted Jacobian
@@ -68,7 +68,7 @@ def _row(result, planted, extra):
         **extra,
         "threshold": result["rule"]["threshold"],
         "false_alarm_level": result["rule"]["false_alarm_level"],
-        "block_samples": result["rule"]["block_samples"],
+        "null_order": result["rule"]["null_order"],
         "significant": result["significant"],
         "largest": [
             {k: r[k] for k in ("effect", "statistic", "p_value", "estimate")}
@@ -360,7 +360,7 @@ def colour(args):
     0.9), the free unknowns a constant and a slope on each of 10 segments per
     output (the shape of shooting nodes), 5 smooth candidates projected on them.
     Each of `--replicates` data sets is fitted (projected, whitened again), its
-    largest statistic judged against the block-bootstrap threshold at level 0.05
+    largest statistic judged against the (sieve-)bootstrap threshold at level 0.05
     from its own residuals, with and without the replicates refitted."""
     from diffpegasus._diagnose._calibration import calibrate, statistics
 
@@ -423,7 +423,7 @@ def colour(args):
             "median_threshold": {
                 k_: float(np.median(v)) for k_, v in thresholds.items()
             },
-            "block_samples_last": int(cal.block),
+            "null_order_last": int(cal.order),
         }
         print(phi, out[str(phi)], flush=True)
     (OUT / "colour.summary.json").write_text(json.dumps(out, indent=2))

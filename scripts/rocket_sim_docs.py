@@ -58,7 +58,7 @@ def main():
         f"Coverage over both flights: {100 * d['coverage']:.0f}%.",
         "",
         "Rounds 1 and later are score statistics against the threshold this log's "
-        "own residuals give (block bootstrap, 1% family-wise); round 0 are Wald "
+        "own residuals give (sieve bootstrap, 1% family-wise); round 0 are Wald "
         "statistics of estimated parameters. The planted wind along the rail's "
         "heading is 6.4 m/s (6 m/s east, 3 m/s south on a rail heading 133 deg); its "
         "cross part (1.9 m/s) moves altitude and axial acceleration only to second "

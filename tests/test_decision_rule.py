@@ -47,7 +47,7 @@ def test_bootstrap_null_of_white_gaussian_scores_is_the_chi_square_maximum():
             rows, e, *_test(rows, e), level=0.05, replicates=1000, key=jax.random.key(i)
         )
         found.append(cal.threshold)
-        assert cal.block <= 3  # white: (almost) no blocks
+        assert cal.order <= 3  # white: (almost) no autoregression
     assert np.mean(found) == pytest.approx(exact, rel=0.12), found
 
 

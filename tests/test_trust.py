@@ -302,7 +302,7 @@ def _rows(statistic, estimate, threshold=40.0):
         threshold=threshold,
         false_alarm_level=0.01,
         null_replicates=2000,
-        block_samples=12,
+        null_order=12,
     )
 
 
@@ -496,7 +496,7 @@ def test_bootstrap_replicates_are_refitted_like_the_log():
     rows, e = _whitened(rows0, refit(rng.normal(size=(300, 2))))
     curvature = np.einsum("nok,nok->k", rows, rows)
     slope = np.einsum("nok,no->k", rows, e)
-    kwargs = dict(level=0.05, replicates=1500, block=1)
+    kwargs = dict(level=0.05, replicates=1500, order=0)
     with_refit = calibrate(rows, e, curvature, slope, basis=basis, **kwargs)
     without = calibrate(rows, e, curvature, slope, **kwargs)
     truth = np.quantile(fresh, 0.95)

@@ -22,7 +22,7 @@ def score_candidates(
 ):
     """The ranking of held parameters `candidates` at the fit `result`, decided by
     the same rule as the Pegasus workflow's diagnosis ([`DecisionRule`][]): a
-    threshold from the fit's own residuals (block bootstrap) holding the
+    threshold from the fit's own residuals (sieve bootstrap) holding the
     family-wise false-alarm level `level`.
 
     Each row: `parameter`, `effect` (the library effect's name, the part before the dot,

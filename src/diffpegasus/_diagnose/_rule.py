@@ -5,8 +5,8 @@ Pegasus workflow ([`diffpegasus.discrepancy.diagnose`][]).
 A candidate is **significant** when its score statistic (1 degree of freedom,
 variance with the residuals' colour and their covariance between outputs) exceeds
 a **threshold taken from the log itself**: the `1 - significance` point of the
-largest statistic over all candidates when the fit's residuals are
-block-resampled ([`calibrate`][]), so it holds the family-wise false-alarm level
+largest statistic over all candidates when residuals are drawn from the
+autoregression fitted to the fit's residuals (a sieve bootstrap, [`calibrate`][]), so it holds the family-wise false-alarm level
 `significance` for the whole diagnosis whatever the residuals' colour, their
 correlation between outputs, how many candidates there are and how alike they
 are. No constant is tuned on any simulator. Effects are found one at a time: the
@@ -110,7 +110,7 @@ class DecisionRule:
         `statistic` and `p_value` (family-wise) at the fit as given, `estimate`,
         `stderr`, `significant`, `resolution_limit`, `lead` (a negative delay),
         `hard_to_tell_from` (`[{"effect", "correlation"}]`), `threshold`,
-        `false_alarm_level`, `null_replicates`, `block_samples` (the first step's
+        `false_alarm_level`, `null_replicates`, `null_order` (the first step's
         calibration); after a finding, `given` (the effects found before) with
         `statistic_given` and `threshold_given` (where it was last judged).
         """
@@ -205,7 +205,7 @@ class DecisionRule:
                 "threshold": first.threshold,
                 "false_alarm_level": first.level,
                 "null_replicates": int(first.maxima.shape[0]),
-                "block_samples": first.block,
+                "null_order": first.order,
             }
             if i in judged and judged[i][2]:
                 row["given"] = judged[i][2]
@@ -224,7 +224,7 @@ class DecisionRule:
 
 def rule_summary(ranking: list[dict]) -> dict:
     """The rule a ranking was decided by, as JSON: `{"text", "threshold",
-    "false_alarm_level", "replicates", "block_samples", "method"}` (from its rows,
+    "false_alarm_level", "replicates", "null_order", "method"}` (from its rows,
     as [`DecisionRule.decide`][] makes them)."""
     if not ranking:
         return {"text": "no candidate was tested"}
@@ -233,9 +233,9 @@ def rule_summary(ranking: list[dict]) -> dict:
         "text": (
             f"significant: score statistic above {r['threshold']:.3g}, the "
             f"{100 * (1 - r['false_alarm_level']):g}% point of the largest statistic "
-            f"over all candidates in {r['null_replicates']} block-bootstrap "
-            f"replicates of this fit's residuals (blocks of {r['block_samples']} "
-            f"samples): a false-alarm level of {r['false_alarm_level']:g} for the "
+            f"over all candidates in {r['null_replicates']} sieve-bootstrap "
+            f"replicates of this fit's residuals (an autoregression of order "
+            f"{r['null_order']} fitted to them): a false-alarm level of {r['false_alarm_level']:g} for the "
             "whole diagnosis; an actuator delay also needs at least half a log "
             "sample, a lead never is; the cost fall is the share of the misfit, "
             "reported, not decided on"
@@ -243,9 +243,10 @@ def rule_summary(ranking: list[dict]) -> dict:
         "threshold": r["threshold"],
         "false_alarm_level": r["false_alarm_level"],
         "replicates": r["null_replicates"],
-        "block_samples": r["block_samples"],
-        "method": "parametric bootstrap: block-resampled residuals through the "
-        "efficient score at the fitted Jacobian, max over candidates",
+        "null_order": r["null_order"],
+        "method": "parametric bootstrap: residuals from the autoregression fitted "
+        "to the fit's residuals (sieve), through the efficient score at the "
+        "fitted Jacobian, max over candidates",
     }
 
 

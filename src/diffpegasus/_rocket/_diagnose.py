@@ -5,7 +5,7 @@ Each candidate is one of the model's parameters held at "absent" in the base fit
 At the fit, every candidate held is scored at once on the one path
 ([`score_candidates`][]: the score test with the free unknowns re-adjusted, its
 statistic's variance from the residuals' colour), against a threshold taken from this
-log (the largest statistic over all candidates in block-bootstrap replicates of the
+log (the largest statistic over all candidates in sieve-bootstrap replicates of the
 fit's own residuals, at a family-wise false-alarm level), no constant. The first
 finding joins the model, the flight is refitted from there, and the rest are scored
 again (at most `rounds` findings). The base fit's thrust scale is tested against 1 and
