@@ -350,6 +350,18 @@ def test_verdict_says_which_number_is_which():
     none = verdict([dict(row, significant=False, statistic=30.0)], 0.01)
     assert none.startswith("no candidate effect is significant")
     assert "below the threshold 40" in none
+    # a sub-sample delay above the threshold is never the "strongest" that failed
+    # to pass; one that passed alone but not given another says where it failed
+    none = verdict(
+        [
+            dict(delay, significant=False, statistic=388.0, p_value=0.0005),
+            dict(after, statistic=52.0, statistic_given=12.2, threshold_given=12.5),
+        ],
+        0.01,
+    )
+    assert "the strongest, moment_offset, has statistic 52" in none
+    assert "above the threshold 40 from this log's residuals alone" in none
+    assert "given sensor_bias:az 12.2, below the threshold 12.5 there" in none
     rule = rule_summary([row])
     assert rule["threshold"] == 40.0 and rule["false_alarm_level"] == 0.01
     assert "false-alarm level of 0.01" in rule["text"]

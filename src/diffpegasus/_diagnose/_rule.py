@@ -266,13 +266,24 @@ def verdict(ranking: list[dict], resolution: float) -> str:
     threshold = ranking[0]["threshold"]
     significant = [r for r in ranking if r["significant"]]
     if not significant:
-        strongest = max(ranking, key=lambda r: r["statistic"])
+        # a lead or a sub-sample delay is never a finding (said below): the
+        # strongest candidate that could have been one is the one to report
+        possible = [r for r in ranking if not (r["lead"] or r["resolution_limit"])]
+        strongest = max(possible or ranking, key=lambda r: r["statistic"])
+        if strongest["statistic"] > threshold and strongest.get("given"):
+            where = (
+                f"above the threshold {threshold:.3g} from this log's residuals "
+                f"alone, but given {', '.join(strongest['given'])} "
+                f"{strongest['statistic_given']:.3g}, below the threshold "
+                f"{strongest['threshold_given']:.3g} there"
+            )
+        else:
+            where = f"below the threshold {threshold:.3g} from this log's residuals"
         message = (
             "no candidate effect is significant: the model explains the data as "
             "well as any single library effect would (the strongest, "
             f"{strongest['effect']}, has statistic {strongest['statistic']:.3g}, "
-            f"below the threshold {threshold:.3g} from this log's residuals; "
-            f"family-wise p {strongest['p_value']:.2g})"
+            f"{where}; family-wise p {strongest['p_value']:.2g})"
         )
     else:
         parts = []
