@@ -268,7 +268,9 @@ def verdict(ranking: list[dict], resolution: float) -> str:
     if not significant:
         # a lead or a sub-sample delay is never a finding (said below): the
         # strongest candidate that could have been one is the one to report
-        possible = [r for r in ranking if not (r["lead"] or r["resolution_limit"])]
+        possible = [
+            r for r in ranking if not (r.get("lead") or r.get("resolution_limit"))
+        ]
         strongest = max(possible or ranking, key=lambda r: r["statistic"])
         if strongest["statistic"] > threshold and strongest.get("given"):
             where = (
