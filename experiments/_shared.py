@@ -71,3 +71,27 @@ def attas_like(seed=3, duration=25.0, rate=25.0):
     y = np.column_stack([x @ a.T + u @ b.T, x @ c.T + u @ dy.T, x])
     y = y + np.random.default_rng(seed).normal(size=y.shape) * ATTAS_NOISE
     return t, u, y
+
+
+def segment_projection(n: int, outputs: int, segments: int = 10):
+    """A linear problem shaped like a multiple-shooting fit's free unknowns: a
+    constant and a slope on each of `segments` equal segments of each output, over
+    `n` samples. Returns `(t, basis, refit)`: `t` `(n,)` on [0, 1]; `basis` `(n,
+    outputs, unknowns)` orthonormal (as a score test's refit operator); `refit(v)`
+    the residual `(n, outputs)` a least-squares fit of those unknowns leaves of
+    `v`."""
+    t = np.linspace(0.0, 1.0, n)
+    cols = []
+    for c in range(outputs):
+        for s in range(segments):
+            sel = (t >= s / segments) & (t < (s + 1) / segments + (s == segments - 1))
+            for f in (np.ones(n), t - (s + 0.5) / segments):
+                x = np.zeros((n, outputs))
+                x[sel, c] = f[sel]
+                cols.append(x)
+    q, _ = np.linalg.qr(np.stack(cols, -1).reshape(n * outputs, -1))
+
+    def refit(v):
+        return v - (q @ (q.T @ v.reshape(-1))).reshape(n, outputs)
+
+    return t, q.reshape(n, outputs, -1), refit

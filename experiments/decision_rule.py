@@ -362,23 +362,12 @@ def colour(args):
     Each of `--replicates` data sets is fitted (projected, whitened again), its
     largest statistic judged against the (sieve-)bootstrap threshold at level 0.05
     from its own residuals, with and without the replicates refitted."""
+    from _shared import segment_projection
+
     from diffpegasus._diagnose._calibration import calibrate, statistics
 
     n, o, k = 400, 2, 5
-    t = np.linspace(0.0, 1.0, n)
-    cols = []
-    for c in range(o):
-        for s in range(10):
-            sel = (t >= s / 10) & (t < (s + 1) / 10 + (s == 9))
-            for f in (np.ones(n), t - (s + 0.5) / 10):
-                x = np.zeros((n, o))
-                x[sel, c] = f[sel]
-                cols.append(x)
-    q, _ = np.linalg.qr(np.stack(cols, -1).reshape(n * o, -1))
-    basis = q.reshape(n, o, -1)
-
-    def refit(v):
-        return v - (q @ (q.T @ v.reshape(-1))).reshape(n, o)
+    t, basis, refit = segment_projection(n, o)
 
     raw = np.stack(
         [

@@ -10,6 +10,7 @@ has the shape of `test_discrepancy.py`'s and the compiled fit is shared.
 import ast
 import functools
 import pathlib
+import sys
 
 import numpy as np
 import pytest
@@ -20,6 +21,10 @@ from diffpegasus._registry._pegasus import block_means, block_weights
 from diffpegasus.discrepancy import diagnose, fit_log, fit_metrics, vehicle_entry
 
 from . import independent_generator as gen
+
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "experiments"))
+from _shared import segment_projection  # noqa: E402
 
 
 ENTRY = vehicle_entry("pegasus")
@@ -449,20 +454,7 @@ def _segment_problem(rng):
     # 2 outputs, 300 samples; the free unknowns a constant and a slope on each of
     # 10 segments per output (shooting nodes' shape); 4 smooth candidates, projected
     n, o = 300, 2
-    t = np.linspace(0.0, 1.0, n)
-    cols = []
-    for c in range(o):
-        for s in range(10):
-            sel = (t >= s / 10) & (t < (s + 1) / 10 + (s == 9))
-            for f in (np.ones(n), t - (s + 0.5) / 10):
-                x = np.zeros((n, o))
-                x[sel, c] = f[sel]
-                cols.append(x)
-    q, _ = np.linalg.qr(np.stack(cols, -1).reshape(n * o, -1))
-
-    def refit(v):
-        return v - (q @ (q.T @ v.reshape(-1))).reshape(n, o)
-
+    t, basis, refit = segment_projection(n, o)
     raw = np.stack(
         [
             np.stack([np.sin(2.6 * np.pi * j * t), np.cos(1.4 * np.pi * j * t)], -1)
@@ -471,7 +463,7 @@ def _segment_problem(rng):
         -1,
     )
     rows = np.stack([refit(raw[..., j]) for j in range(4)], -1)
-    return q.reshape(n, o, -1), refit, rows
+    return basis, refit, rows
 
 
 def _whitened(rows, e):
