@@ -174,10 +174,11 @@ def test_hfb320_converges_within_one_short_period_cycle(which):
     p = dict(zip(reg.parameters, np.asarray(hist.theta[-1]), strict=True))
     period = _short_period_period(np.array([[p["Za"], 1.0], [p["Ma"], p["Mq"]]]))
     onset = rec.t[np.argmax(np.abs(np.diff(rec.inputs[:, 0])) > 1e-3)]
-    # the pitching-moment derivatives; the recursive Fourier transform also has Za
-    # within its band after one cycle; least squares' Za after 1.5 cycles
-    # (measured z = 2.5 at one cycle, 0.94 at 1.5; 0.28 at 1.5 with the state
-    # equations low-passed at 1.5 Hz)
+    # the pitching-moment derivatives (least squares measured 0.22, 0.34, 0.55);
+    # the recursive Fourier transform also has Za within its band after one
+    # cycle (0.18); least squares' Za after 1.5 cycles (measured z = 1.35 at one
+    # cycle, 0.31 at 1.5: Za shares the equation with ZV and Z0 while the speed
+    # barely moves)
     sp = ["Za", "Ma", "Mq", "Mde"] if which == "rft" else ["Ma", "Mq", "Mde"]
     idx = [reg.parameters.index(n) for n in sp]
     report, z = _converged(hist, onset, period, reg.parameters)
