@@ -74,8 +74,9 @@ class RecursiveState(eqx.Module):
     rows); `filt` `(2, q, p + 1)` the low-pass state of the differenced rows;
     `block_z` `(levels, p + p^2)` the running block sums of the scores `[a, vec G]`,
     `block_g` `(levels, p^2)` of `w_i^2 vec G_i`, `pairs` `(levels, d, d)` the
-    forgetting-weighted outer products of the completed block sums; `spread` how the
-    information is spread over the blocks; `fh` `(f, q, p)`, `fy` `(f, q)` the running transforms,
+    forgetting-weighted outer products of the completed block sums, and `spread` how
+    the information is spread over the blocks, both as of the samples `block_t`
+    `(levels,)` (the forgetting since then applied when they are read); `fh` `(f, q, p)`, `fy` `(f, q)` the running transforms,
     `phasor`, `rotation` `(f,)`.
     """
 
@@ -89,6 +90,7 @@ class RecursiveState(eqx.Module):
     prev_o: Float[Array, " q"]
     block_z: Float[Array, "levels d"]
     block_g: Float[Array, "levels pp"]
+    block_t: Int[Array, " levels"]
     pairs: Float[Array, "levels d d"]
     fh: Complex[Array, "f q p"]
     fy: Complex[Array, "f q"]
@@ -237,6 +239,7 @@ def _empty_state(p, q, levels, frequencies, dt, theta0, prior, scores):
         prev_o=jnp.zeros(q),
         block_z=jnp.zeros((levels, d)),
         block_g=jnp.zeros((levels, pp)),
+        block_t=jnp.zeros(levels, int),
         pairs=jnp.zeros((levels, d, d)),
         fh=jnp.zeros((len(f), q, p), rotation.dtype),
         fy=jnp.zeros((len(f), q), rotation.dtype),
@@ -351,19 +354,31 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
         g = z[p:]
         # the block ladder: level j sums blocks of 2^j samples (forgetting-
         # weighted); a completed block's sum enters the pair sums and the
-        # partial sums restart
+        # partial sums restart. The levels completing at a sample are a prefix
+        # (those whose length divides the count), about two per sample: only
+        # they are touched, their sums brought up to date by the forgetting
+        # since they last were (`last`)
         size = 2 ** jnp.arange(self.levels)
         bz = lam * state.block_z + z[None]
         bg = lam**2 * state.block_g + g[None]
         done = ((state.count + 1) % size) == 0
-        pairs = lam**2 * state.pairs + done[:, None, None] * jnp.einsum(
-            "ld,le->lde", bz, bz
+        k = state.count
+
+        def complete(j, carry):
+            pairs, g2, g4, last = carry
+            f = jnp.power(lam, (k - last[j]).astype(float))
+            pairs = pairs.at[j].set(f**2 * pairs[j] + jnp.outer(bz[j], bz[j]))
+            g2 = g2.at[j].set(f**2 * g2[j] + bg[j])
+            g4 = g4.at[j].set(f**4 * g4[j] + jnp.outer(bg[j], bg[j]))
+            return pairs, g2, g4, last.at[j].set(k)
+
+        pairs, g2, g4, last = jax.lax.fori_loop(
+            0,
+            jnp.sum(done),
+            complete,
+            (state.pairs, state.spread.g2, state.spread.g4, state.block_t),
         )
-        spread = _Spread(
-            lam**2 * state.spread.g2 + done[:, None] * bg,
-            lam**4 * state.spread.g4
-            + done[:, None, None] * jnp.einsum("la,lb->lab", bg, bg),
-        )
+        spread = _Spread(g2, g4)
         block_z = jnp.where(done[:, None], 0.0, bz)
         block_g = jnp.where(done[:, None], 0.0, bg)
         return eqx.tree_at(
@@ -375,12 +390,19 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
                 s.rows,
                 s.block_z,
                 s.block_g,
+                s.block_t,
                 s.pairs,
                 s.spread,
             ),
             state,
-            (theta, info, rhs, r, rows, block_z, block_g, pairs, spread),
+            (theta, info, rhs, r, rows, block_z, block_g, last, pairs, spread),
         )
+
+    def _since(self, state):
+        """Per level, the forgetting `lam^(k - block_t)` from when the level's
+        sums were last brought up to date to the last sample absorbed, `k`."""
+        age = jnp.maximum(state.count - 1 - state.block_t, 0)
+        return jnp.power(self.forgetting, age.astype(float))
 
     def _blocks(self, state, pm):
         """The effective number of independent blocks `(levels, p)` behind each
@@ -388,8 +410,11 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
         variance counted as `(sum c)^2 / sum c^2` (the partial blocks
         included)."""
         p = state.theta.shape[0]
-        g2 = state.spread.g2 + state.block_g
-        g4 = state.spread.g4 + jnp.einsum("la,lb->lab", state.block_g, state.block_g)
+        f2 = self._since(state)[:, None] ** 2
+        g2 = f2 * state.spread.g2 + state.block_g
+        g4 = f2[..., None] ** 2 * state.spread.g4 + jnp.einsum(
+            "la,lb->lab", state.block_g, state.block_g
+        )
         pp = jnp.einsum("ab,ac->abc", pm, pm).reshape(p, p * p)  # rows a: P_ab P_ac
         total = jnp.einsum("ak,lk->la", pp, g2)
         square = jnp.einsum("ai,lij,aj->la", pp, g4, pp)
@@ -401,7 +426,7 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
         -kron(I, theta^T)] z`."""
         p = state.theta.shape[0]
         bz = state.block_z[level]
-        m = state.pairs[level] + jnp.outer(bz, bz)
+        m = self._since(state)[level] ** 2 * state.pairs[level] + jnp.outer(bz, bz)
         t = jnp.concatenate([jnp.eye(p), -jnp.kron(jnp.eye(p), state.theta[None])], 1)
         return _fitted_sandwich(pm, t @ m @ t.T, m[p:, p:], p)
 
