@@ -146,16 +146,13 @@ def main():
     histories = {}
     grid = np.arange(len(t))
     sel = after[grid]
-    tg = t[grid]
     for label, est in estimators.items():
         start = time.perf_counter()
         hist = dp.replay(est, reg.h, reg.y, reg.o, np.zeros(9), float(t[0]))
         theta = np.asarray(hist.theta)[:, cols]
         elapsed = time.perf_counter() - start
-        sd = np.asarray(hist.stderr_corrected)[:, cols]
         sd_white = np.asarray(hist.stderr)[:, cols]
-        # the estimator's own 95% band (Student-t at its dof for the Fourier
-        # transform, 1.96 corrected standard errors for least squares)
+        # the estimator's own 95% band (Student-t at its dof)
         half = np.asarray(hist.halfwidth)[:, cols]
         histories[label] = (theta, half)
         err = (theta - truth)[after]
@@ -203,9 +200,7 @@ def main():
             },
             "coverage_95_with_lag_bias_bound": {
                 n: float(
-                    np.mean(
-                        np.abs(thg - truth[grid])[sel, j] <= (hg + bias)[sel, j]
-                    )
+                    np.mean(np.abs(thg - truth[grid])[sel, j] <= (hg + bias)[sel, j])
                 )
                 for j, n in enumerate(DERIVATIVES)
             },
