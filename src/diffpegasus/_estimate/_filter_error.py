@@ -799,6 +799,18 @@ def filter_error(
 GAIN_VARIATION = 0.1
 
 
+@functools.partial(jax.jit, static_argnames=("model",))
+def _kc_at_points(model, prob, theta, f, rmat, ref):
+    """`diag(K C)` `(records, points, states)` at the schedule points of `prob`
+    (one compiled program per model and shape, shared by every call)."""
+
+    def one(r):
+        k, c, _ = gain(model, prob, r, theta, f, rmat, ref[r])
+        return jnp.einsum("pij,pji->pi", k, c)
+
+    return jax.vmap(one)(jnp.arange(prob.layout.n_records))
+
+
 def gain_variation(model, prob, theta, f, residuals) -> float:
     """The largest change of `diag(K C)` (dimensionless, 0 to 1) between the
     steady-state gains solved at the schedule points of `prob` and its first,
@@ -808,16 +820,9 @@ def gain_variation(model, prob, theta, f, residuals) -> float:
     e = np.concatenate([np.asarray(r) for r in residuals])
     rmat = jnp.diag(jnp.asarray(np.maximum(np.mean(e**2, axis=0), 1e-300)))
     ref = jnp.where(jnp.isnan(prob.reference), prob.x0[:, None, :], prob.reference)
-
-    @jax.jit
-    def weights(theta, f, rmat, ref):
-        def one(r):
-            k, c, _ = gain(model, prob, r, theta, f, rmat, ref[r])
-            return jnp.einsum("pij,pji->pi", k, c)
-
-        return jax.vmap(one)(jnp.arange(prob.layout.n_records))
-
-    kc = np.asarray(weights(jnp.asarray(theta), jnp.asarray(f), rmat, ref))
+    kc = np.asarray(
+        _kc_at_points(model, prob, jnp.asarray(theta), jnp.asarray(f), rmat, ref)
+    )
     change = np.abs(kc - kc[:, :1])
     return float(np.max(np.where(np.isfinite(change), change, np.inf)))
 
