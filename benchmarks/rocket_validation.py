@@ -6,8 +6,7 @@ Writes benchmarks/results/rocket_validation.json (or `--out NAME`.json). Run:
 `python benchmarks/rocket_validation.py [--no-diagnose] [--flights DIR] [--free a,b]
 [--out NAME]`: `--flights` a folder of such flights (`python
 scripts/make_rocket_fixtures.py --validation DIR` writes more), `--free` the effects
-estimated besides the drag and thrust (default the fit's: barometer lag and
-static-pressure error).
+estimated besides the drag and thrust (default the fit's, `default_free`).
 """
 
 import json
@@ -43,8 +42,6 @@ def sim_log(folder):
 def main():
     import diffpegasus.rocket as dr
 
-    from diffpegasus._rocket._identify import SENSOR_FREE
-
     args = sys.argv[1:]
 
     def option(name, default):
@@ -52,9 +49,9 @@ def main():
 
     do_diagnose = "--no-diagnose" not in args
     flights = pathlib.Path(option("--flights", SIM))
-    free = option("--free", ",".join(SENSOR_FREE))
-    free = tuple(f for f in free.split(",") if f)
-    out = {"free": list(free)}
+    free = option("--free", None)
+    free = None if free is None else tuple(f for f in free.split(",") if f)
+    out = {}
     for folder in sorted(p for p in flights.iterdir() if p.is_dir()):
         truth = tomllib.loads((folder / "rocket.toml").read_text())["truth"]
         rocket = dr.read_rocket(folder / "rocket.toml")
