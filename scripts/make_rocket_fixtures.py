@@ -89,6 +89,7 @@ CURVE_B = [(0.0, 0.40), (0.25, 0.38), (0.5, 0.41), (0.7, 0.44), (0.85, 0.55), (1
 CURVE_C = [(0.0, 0.70), (0.3, 0.58), (0.6, 0.52), (0.75, 0.53), (0.9, 0.62), (1.2, 0.78)]
 VALIDATION = {
     "clean-s3-20hz": dict(FLIGHTS["clean"], seed=3, rate=20.0),
+    "clean-smooth": dict(FLIGHTS["clean"], smooth_pressure=True),
     "curve-b-s4": dict(FLIGHTS["clean"], drag=CURVE_B, seed=4),
     "curve-c-s5-20hz": dict(FLIGHTS["clean"], drag=CURVE_C, noise=(1.0, 0.5), seed=5, rate=20.0),
     "wind-s6": dict(FLIGHTS["clean"], drag=CURVE_B, wind=(-5.0, 5.0), seed=6),
