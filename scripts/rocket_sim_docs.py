@@ -80,6 +80,9 @@ def main():
         "python scripts/make_rocket_fixtures.py --validation flights",
         "python benchmarks/rocket_validation.py --no-diagnose --flights flights "
         "--out rocket_validation_more",
+        "mkdir a b && cp -r flights/clean-s3-20hz a && cp -r flights/sensors-s8 b",
+        "python benchmarks/rocket_validation.py --flights a --out rocket_diagnose_a",
+        "python benchmarks/rocket_validation.py --flights b --out rocket_diagnose_b",
         "python scripts/rocket_sim_docs.py",
         "```",
         "",
@@ -166,7 +169,7 @@ def main():
     ]
     if diag:
         lines += [
-            "Further flights (the same command on a folder holding only them):",
+            "Further flights (`rocket_diagnose_a` and `_b` above):",
             "",
             "| flight | planted | named |",
             "|---|---|---|",
