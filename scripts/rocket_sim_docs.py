@@ -106,8 +106,8 @@ def main():
         "at Mach 0.7 on the clean curve. The fixtures' `drag.csv` now holds the "
         "spline every 0.01 Mach (the curve flown, within 1.2e-4); comparing with "
         "the lines had put the clean flight's CD 2 to 3% low.",
-        "- **RocketPy's standard atmosphere** is a spline through 100 points 808 m "
-        "apart: the barometric altitude computed from its pressure leaves the "
+        "- **RocketPy's standard atmosphere** is a table interpolated between 100 "
+        "points 808 m apart: the barometric altitude computed from its pressure leaves the "
         "hydrostatic profile by up to 3.1 m (-0.4 m at 300 m above this pad, +1.9 "
         "at 600, +3.1 at 900, +1.9 at 1500, +0.9 at 3000), six times the altitude "
         "noise. No smooth atmosphere follows it: the fit bends the day's "
@@ -124,9 +124,12 @@ def main():
         "",
         "## Bands",
         "",
-        "CD's band is the knots' coloured-residual covariance (Morelli and Klein's "
-        "correction of the Cramer-Rao bound by the residuals' autocovariance), "
-        "carried through the knots' interpolation. Held at zero, a wind the log "
+        "CD's band is the knots' coloured-residual standard errors (Morelli and "
+        "Klein's correction of the Cramer-Rao bound by the residuals' "
+        "autocovariance) with the estimates' correlations, carried through the "
+        "knots' interpolation; taking the correlations from the coloured-residual "
+        "(sandwich) covariance too changes no point's verdict (clean 20 Hz flight: "
+        "10 of 20 either way; the plain Cramer-Rao band: 8). Held at zero, a wind the log "
         "cannot rule out went into CD at low Mach, where it is a large share of the "
         "airspeed (planted flight: 56% low at Mach 0.15, 13 of 20 points covered); "
         "the fit now estimates the wind along the rail where an accelerometer "
@@ -179,7 +182,23 @@ def main():
                 f"| {name} | {r['planted_text']} | "
                 f"{', '.join(r.get('named', [])) or 'nothing'} |"
             )
-        lines.append("")
+        lines += [
+            "",
+            "Measured on this run: the clean 20 Hz flight names the thrust scale "
+            "(1.0015, Wald 10.7 against 6.6): the base fit, holding the sensors and "
+            "the wind, puts 0.15% of thrust where RocketPy's atmosphere table and "
+            "gravity differ from the model's, and the coloured-residual standard "
+            "error (0.0005) does not carry that. The flight with only the sensor "
+            "effects planted names nothing: the static-pressure error is estimated "
+            "right (0.047 for 0.04) and would remove 36% of det(R), yet scores 5.4 "
+            "against 55.6, the residuals' colour (mostly the effects' own slow "
+            "signatures) counted as noise; on the committed planted flight, with "
+            "the thrust scale also planted, the same candidate scores 1298 against "
+            "72. Over the four flights diagnosed: 2 of 6 planted effects named (the "
+            "thrust scale and the static error of the planted flight), one false "
+            "alarm on the 2 clean flights.",
+            "",
+        ]
     for name in ("clean", "planted"):
         r = d.get(name, {})
         named = ", ".join(r.get("named", [])) or "nothing"
