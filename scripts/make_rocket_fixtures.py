@@ -85,16 +85,36 @@ FLIGHTS = {
 
 # More flights for the validation benchmark (not committed; written where asked):
 # other seeds and drag curves, each effect alone, and 20 Hz logs.
-CURVE_B = [(0.0, 0.40), (0.25, 0.38), (0.5, 0.41), (0.7, 0.44), (0.85, 0.55), (1.2, 0.75)]
-CURVE_C = [(0.0, 0.70), (0.3, 0.58), (0.6, 0.52), (0.75, 0.53), (0.9, 0.62), (1.2, 0.78)]
+CURVE_B = [
+    (0.0, 0.40),
+    (0.25, 0.38),
+    (0.5, 0.41),
+    (0.7, 0.44),
+    (0.85, 0.55),
+    (1.2, 0.75),
+]
+CURVE_C = [
+    (0.0, 0.70),
+    (0.3, 0.58),
+    (0.6, 0.52),
+    (0.75, 0.53),
+    (0.9, 0.62),
+    (1.2, 0.78),
+]
 VALIDATION = {
     "clean-s3-20hz": dict(FLIGHTS["clean"], seed=3, rate=20.0),
     "clean-smooth": dict(FLIGHTS["clean"], smooth_pressure=True),
     "curve-b-s4": dict(FLIGHTS["clean"], drag=CURVE_B, seed=4),
-    "curve-c-s5-20hz": dict(FLIGHTS["clean"], drag=CURVE_C, noise=(1.0, 0.5), seed=5, rate=20.0),
+    "curve-c-s5-20hz": dict(
+        FLIGHTS["clean"], drag=CURVE_C, noise=(1.0, 0.5), seed=5, rate=20.0
+    ),
     "wind-s6": dict(FLIGHTS["clean"], drag=CURVE_B, wind=(-5.0, 5.0), seed=6),
-    "thrust-s7-20hz": dict(FLIGHTS["clean"], drag=CURVE_C, scale=1.05, seed=7, rate=20.0),
-    "sensors-s8": dict(FLIGHTS["clean"], lag=0.15, static=0.04, noise=(1.0, 0.5), seed=8),
+    "thrust-s7-20hz": dict(
+        FLIGHTS["clean"], drag=CURVE_C, scale=1.05, seed=7, rate=20.0
+    ),
+    "sensors-s8": dict(
+        FLIGHTS["clean"], lag=0.15, static=0.04, noise=(1.0, 0.5), seed=8
+    ),
     "planted-s9-20hz": dict(FLIGHTS["planted"], seed=9, rate=20.0),
 }
 
@@ -121,9 +141,7 @@ def flight(name, spec, out=OUT):
         # over 0-80 km (808 m apart): up to 3 m of barometric altitude off the
         # hydrostatic profile between them; the exact profile every 10 m instead
         heights = np.arange(-100.0, 8000.0, 10.0)
-        pressure = np.column_stack(
-            [heights, [_isa_pressure(h) for h in heights]]
-        )
+        pressure = np.column_stack([heights, [_isa_pressure(h) for h in heights]])
     env.set_atmospheric_model(
         type="custom_atmosphere",
         pressure=pressure,
@@ -156,7 +174,10 @@ def flight(name, spec, out=OUT):
     mach = np.round(np.arange(0.0, 1.2001, 0.01), 2)
     flown_cd = np.array([float(rocket.power_off_drag(m)) for m in mach])
     np.savetxt(
-        folder / "drag.csv", np.column_stack([mach, flown_cd]), delimiter=",", fmt="%.5f"
+        folder / "drag.csv",
+        np.column_stack([mach, flown_cd]),
+        delimiter=",",
+        fmt="%.5f",
     )
     rocket.add_motor(motor, position=0.0)
     rocket.add_nose(length=0.52, kind="von karman", position=2.72)

@@ -44,7 +44,9 @@ def main():
             if isinstance(r, dict):
                 t = r["planted_effects"]
                 parts = [
-                    f"thrust scale {t['thrust_scale']}" if t["thrust_scale"] != 1 else "",
+                    f"thrust scale {t['thrust_scale']}"
+                    if t["thrust_scale"] != 1
+                    else "",
                     f"wind along {t['wind_along_m_s']:.1f} m/s"
                     if abs(t["wind_along_m_s"]) > 0
                     else "",
