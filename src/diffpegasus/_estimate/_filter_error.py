@@ -48,7 +48,14 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from .._model import Model, Record
-from ._engine import _input_at, coloured_information, explain, Layout, MAX_ITER, RESULTS
+from ._engine import (
+    _input_at,
+    coloured_information,
+    explain,
+    iteration_bound,
+    Layout,
+    RESULTS,
+)
 from ._estimator import AbstractFit
 from ._filter_gain import AbstractFilterGain, SteadyStateGain
 from ._fit import layout as _layout, output_error, simulate, SingleShooting
@@ -737,7 +744,7 @@ def filter_error(
         jnp.asarray(z0),
         jnp.asarray(free),
         rtol=rtol,
-        max_iter=jnp.asarray(MAX_ITER if max_iter is None else int(max_iter)),
+        max_iter=jnp.asarray(iteration_bound(max_iter)),
         full=bool(full_R),
         progress=bool(progress),
     )
