@@ -28,6 +28,7 @@ if not os.environ.get("JAX_COMPILATION_CACHE_DIR") and not os.environ.get(
     os.environ["JAX_COMPILATION_CACHE_DIR"] = _CREATED_CACHE
 
 import jax  # noqa: E402
+import pytest  # noqa: E402
 
 from diffpegasus._cache import enable_cache  # noqa: E402
 
@@ -35,6 +36,27 @@ from diffpegasus._cache import enable_cache  # noqa: E402
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_rank_promotion", "raise")
 enable_cache()
+
+
+def pytest_configure(config):
+    # Under pytest-xdist (`-n 2`) the tests of one `xdist_group` run on one worker:
+    # tests that share compiled programs and cached flights (the launch vehicle's
+    # workflow, its filter-error diagnosis) trace and compile them once instead of
+    # once per worker (the persistent cache only helps a worker that comes second).
+    # `load` is what `-n` alone means; a `--dist` the user chose otherwise is kept.
+    if getattr(config.option, "numprocesses", None) and (
+        getattr(config.option, "dist", "no") == "load"
+    ):
+        config.option.dist = "loadgroup"
+    # a worker parses the command line again (`-n 2`: "load"): told by the controller
+    if getattr(config, "workerinput", {}).get("diffpegasus_loadgroup"):
+        config.option.loadgroup = True
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_configure_node(node):
+    # pytest-xdist's hook: the controller's choice of `loadgroup` for its workers
+    node.workerinput["diffpegasus_loadgroup"] = node.config.option.dist == "loadgroup"
 
 
 def pytest_unconfigure(config):
@@ -79,6 +101,24 @@ def pytest_collection_modifyitems(config, items):
         reason = KNOWN_FAILING.get(item.nodeid)
         if reason:
             item.add_marker(pytest.mark.xfail(reason=reason, strict=False))
+    # a worker names each grouped test `nodeid@group`, which is how the controller's
+    # `loadgroup` scheduling finds its group (pytest-xdist does this itself only when
+    # `--dist loadgroup` is on the command line the workers parse, and through
+    # `item._nodeid`, which pytest 9 no longer reads: its node ids are `item._id`)
+    if getattr(config, "workerinput", {}).get("diffpegasus_loadgroup"):
+        for item in items:
+            groups = sorted({str(m.args[0]) for m in item.iter_markers("xdist_group")})
+            if groups and item.nodeid.rfind("@") <= item.nodeid.rfind("]"):
+                _rename(item, f"{item.nodeid}@{'_'.join(groups)}")
+
+
+def _rename(item, nodeid: str) -> None:
+    try:
+        from _pytest.nodeid import NodeId
+    except ImportError:  # pytest < 9: the id is the string itself
+        item._nodeid = nodeid
+    else:
+        item._id = NodeId.parse(nodeid)
 
 
 def pytest_runtest_teardown(item, nextitem):
