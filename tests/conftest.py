@@ -28,7 +28,6 @@ if not os.environ.get("JAX_COMPILATION_CACHE_DIR") and not os.environ.get(
     os.environ["JAX_COMPILATION_CACHE_DIR"] = _CREATED_CACHE
 
 import jax  # noqa: E402
-import pytest  # noqa: E402
 
 from diffpegasus._cache import enable_cache  # noqa: E402
 
@@ -39,24 +38,16 @@ enable_cache()
 
 
 def pytest_configure(config):
-    # Under pytest-xdist (`-n 2`) the tests of one `xdist_group` run on one worker:
-    # tests that share compiled programs and cached flights (the launch vehicle's
-    # workflow, its filter-error diagnosis) trace and compile them once instead of
-    # once per worker (the persistent cache only helps a worker that comes second).
+    # Under pytest-xdist (`-n 2`) each test file runs on one worker (`loadfile`): its
+    # tests share module fixtures (a generated flight, a campaign, a fit) and
+    # compiled programs (the launch vehicle's fit, score test and bootstrap), which
+    # `load`'s test-by-test distribution would build on both workers (the persistent
+    # cache only spares XLA's part, and only to a worker that comes second).
     # `load` is what `-n` alone means; a `--dist` the user chose otherwise is kept.
     if getattr(config.option, "numprocesses", None) and (
         getattr(config.option, "dist", "no") == "load"
     ):
-        config.option.dist = "loadgroup"
-    # a worker parses the command line again (`-n 2`: "load"): told by the controller
-    if getattr(config, "workerinput", {}).get("diffpegasus_loadgroup"):
-        config.option.loadgroup = True
-
-
-@pytest.hookimpl(optionalhook=True)
-def pytest_configure_node(node):
-    # pytest-xdist's hook: the controller's choice of `loadgroup` for its workers
-    node.workerinput["diffpegasus_loadgroup"] = node.config.option.dist == "loadgroup"
+        config.option.dist = "loadfile"
 
 
 def pytest_unconfigure(config):
@@ -101,33 +92,3 @@ def pytest_collection_modifyitems(config, items):
         reason = KNOWN_FAILING.get(item.nodeid)
         if reason:
             item.add_marker(pytest.mark.xfail(reason=reason, strict=False))
-    # a worker names each grouped test `nodeid@group`, which is how the controller's
-    # `loadgroup` scheduling finds its group (pytest-xdist does this itself only when
-    # `--dist loadgroup` is on the command line the workers parse, and through
-    # `item._nodeid`, which pytest 9 no longer reads: its node ids are `item._id`)
-    if getattr(config, "workerinput", {}).get("diffpegasus_loadgroup"):
-        for item in items:
-            groups = sorted({str(m.args[0]) for m in item.iter_markers("xdist_group")})
-            if groups and item.nodeid.rfind("@") <= item.nodeid.rfind("]"):
-                _rename(item, f"{item.nodeid}@{'_'.join(groups)}")
-
-
-def _rename(item, nodeid: str) -> None:
-    try:
-        from _pytest.nodeid import NodeId
-    except ImportError:  # pytest < 9: the id is the string itself
-        item._nodeid = nodeid
-    else:
-        item._id = NodeId.parse(nodeid)
-
-
-def pytest_runtest_teardown(item, nextitem):
-    # A pytest-xdist worker lives through hundreds of tests: the compiled programs
-    # of a finished test file are dropped (the persistent cache on disk keeps them)
-    # so a worker's memory does not grow through the run (a worker grown to 7 GB
-    # crashed near the end of one full run).
-    if nextitem is None or nextitem.path != item.path:
-        import gc
-
-        jax.clear_caches()
-        gc.collect()

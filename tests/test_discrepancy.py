@@ -29,12 +29,6 @@ from diffpegasus.discrepancy import diagnose, fit_log, vehicle_entry
 sys.path.insert(0, str(pathlib.Path(__file__).parents[1] / "experiments"))
 
 
-# one pytest-xdist worker runs this file's tests: they share the launch vehicle's
-# compiled 50 Hz fit, score test and bootstrap, which two workers would each trace
-# and compile (conftest.py); test_trust.py's Pegasus tests are a group of their own,
-# so the two files' diagnoses run side by side on the two workers
-pytestmark = pytest.mark.xdist_group("pegasus_workflow")
-
 ENTRY = vehicle_entry("pegasus")
 
 

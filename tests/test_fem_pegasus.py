@@ -16,10 +16,6 @@ from diffpegasus._cli import app
 from .independent_generator import make_log, make_turbulent_log
 
 
-# both flights' diagnoses on one pytest-xdist worker: they share the module's flights
-# and the compiled filter-error fit (about a minute of compilation per worker)
-pytestmark = pytest.mark.xdist_group("pegasus_filter_error")
-
 SETTINGS = ("--knots", "4", "--rate", "25")
 
 

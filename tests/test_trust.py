@@ -148,7 +148,6 @@ def test_residual_noise_sigma_ignores_signal():
 # 102). One more flight at 50 Hz proves the point here (seed 3 at 1 kHz repeats it,
 # a validation test); the false-alarm rate over many clean flights is measured by
 # experiments/decision_rule.py.
-@pytest.mark.xdist_group("pegasus_independent")
 @pytest.mark.parametrize(
     "seed,rate",
     [pytest.param(3, 1000.0, marks=pytest.mark.validation), (3, 50.0), (17, 1000.0)],
@@ -239,7 +238,6 @@ def gravity_shift(lg: dp.FlightLog) -> float:
 TIED = {"pitch_damping": {"alpha_dot_damping"}}
 
 
-@pytest.mark.xdist_group("pegasus_independent")
 @pytest.mark.parametrize("name,value,rate,seed", PLANTED)
 def test_planted_effect_is_first_significant_and_recovered(name, value, rate, seed):
     base, result = baseline(seed, rate, (name, value))
