@@ -66,16 +66,20 @@ def _flight(hidden=(), seed=5):
     return dp.pegasus.flight_to_log(dp.pegasus.simulate(config, jax.random.key(seed)))
 
 
+def _fitted(entry, log, add=(), start=None):
+    out = fit_log(entry, log, add, start=start)
+    out.cost  # noqa: B018  (the fit's arrays made concrete inside the step)
+    return out
+
+
 def main():
     entry = vehicle_entry("pegasus")
     rows = []
 
-    def step(label, fn):
+    def step(label, fn, *args, **kwargs):
         seconds, counts = dict(_SECONDS), dict(_COUNTS)
         cpu, wall = _cpu(), time.time()
-        out = fn()
-        # diagnose returns plain numbers; a fit's arrays are made concrete by its
-        # cost, so the step's CPU includes its run
+        out = fn(*args, **kwargs)
         row = {"step": label, "cpu_s": round(_cpu() - cpu, 2)}
         row["wall_s"] = round(time.time() - wall, 2)
         for name in _EVENTS.values():
@@ -90,15 +94,11 @@ def main():
         ("q bias", ("sensor_bias:q=0.002",), "sensor_bias:q"),
         ("pitch damping", ("pitch_damping=-10.0",), "pitch_damping"),
     ):
-        log = step(f"simulate {label}", lambda: _flight(hidden))
-        base = step(f"fit {label}", lambda: fit_log(entry, log))
-        base.cost  # noqa: B018
-        step(f"diagnose {label}", lambda: diagnose(base))
+        log = step(f"simulate {label}", _flight, hidden)
+        base = step(f"fit {label}", _fitted, entry, log)
+        step(f"diagnose {label}", diagnose, base)
         if effect is not None:
-            step(
-                f"refit {label} + {effect}",
-                lambda: fit_log(entry, log, (effect,), start=base).cost,
-            )
+            step(f"refit {label} + {effect}", _fitted, entry, log, (effect,), base)
     out = pathlib.Path(__file__).parent / "results" / "suite_programs.json"
     out.write_text(json.dumps({"load_after": os.getloadavg(), "steps": rows}, indent=2))
 
