@@ -6,6 +6,9 @@ process noise and simulated here in numpy. A steady-state gain linearised at the
 start filters the end of the record with the gain of a vehicle twenty times
 slower; the gain scheduled along the trajectory follows it."""
 
+import functools
+
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -51,10 +54,13 @@ def _observe(t, x, u, p):
 MODEL = Model(("alpha", "q"), ("de",), ("alpha", "q", "az"), TRUE, _rates, _observe)
 
 
+@functools.cache
 def simulate(seed):
     """RK4 at the sample step (the model's own right-hand side, inputs linear
     between samples) plus process noise `F sqrt(dt) w` after each step, plus
-    white measurement noise."""
+    white measurement noise. The right-hand side and the outputs are compiled
+    once (called op by op, the 2,000 calls of a record cost ~5 CPU-s); a seed's
+    record is made once per process and shared by the tests (nothing mutates it)."""
     rng = np.random.default_rng(seed)
     t = DT * np.arange(N)
     de = np.zeros(N)
@@ -63,8 +69,10 @@ def simulate(seed):
         de[(t >= start + 0.5) & (t < start + 1.0)] = -0.05
     p = {k: jnp.asarray(v) for k, v in TRUE.items()}
 
+    rates = jax.jit(_rates)
+
     def f(tk, x, u):
-        return np.asarray(_rates(tk, jnp.asarray(x), jnp.asarray([u]), p))
+        return np.asarray(rates(tk, jnp.asarray(x), jnp.asarray([u]), p))
 
     x = np.zeros((N, 2))
     for k in range(N - 1):
@@ -77,11 +85,10 @@ def simulate(seed):
         k4 = f(tk + DT, xk + DT * k3, u1)
         x[k + 1] = xk + DT / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
         x[k + 1] += np.asarray(F_TRUE) * np.sqrt(DT) * rng.normal(size=2)
-    y = np.stack(
-        [
-            np.asarray(_observe(tk, jnp.asarray(xk), jnp.asarray([u]), p))
-            for tk, xk, u in zip(t, x, de, strict=True)
-        ]
+    y = np.asarray(
+        jax.jit(jax.vmap(_observe, in_axes=(0, 0, 0, None)))(
+            jnp.asarray(t), jnp.asarray(x), jnp.asarray(de[:, None]), p
+        )
     )
     y = y + rng.normal(size=y.shape) * np.asarray(NOISE)
     return Record(t, de[:, None], y, x0=np.zeros(2), name=f"seed{seed}")
