@@ -18,8 +18,8 @@ Parts (`--part`):
   Jacobian without refitting.
 
 - `colour`: false alarms on a linear problem with a known null, by the
-  residuals' colour (AR(1) 0, 0.5, 0.9), with and without the bootstrap's
-  replicates refitted (`--replicates` data sets each).
+  residuals' colour (AR(1) `--phi`, default 0, 0.5, 0.9; `--replicates` data
+  sets each), at the rule's threshold and at the chi-square maximum.
 
 Each part appends one JSON line per flight to `experiments/results/decision_rule/
 <part>.jsonl` (resumable) and writes `<part>.summary.json`.
@@ -198,9 +198,10 @@ def refit(args):
     """Refit versus the efficient score at the fitted Jacobian, per replicate."""
     import jax
     import jax.numpy as jnp
+    from _shared import block_length
 
     from diffpegasus._cli._runners import _fit_spec
-    from diffpegasus._diagnose._calibration import _spectra, _statistics, block_length
+    from diffpegasus._diagnose._calibration import _spectra, _statistics
     from diffpegasus._estimate._fit import fit as engine_fit
     from diffpegasus._estimate._model import Record
     from diffpegasus._estimate._score import score
@@ -254,9 +255,11 @@ def refit(args):
         t = np.arange(n)
         index = (starts[t // block] + t % block) % n
         e_star = ew[index]
-        without = np.asarray(_statistics(sp, jnp.asarray(e_star)))
+        without = np.asarray(_statistics(sp, jnp.asarray(e_star))[0])
         # the same residuals first refitted to first order (what `diagnose` does)
-        projected = np.asarray(_statistics(sp_refit, jnp.asarray(e_star), refit=True))
+        projected = np.asarray(
+            _statistics(sp_refit, jnp.asarray(e_star), refit=True)[0]
+        )
         data = Record(
             record.t, record.inputs, fitted + e_star * w[None, :], x0=record.x0
         )
@@ -360,11 +363,11 @@ def colour(args):
     0.9), the free unknowns a constant and a slope on each of 10 segments per
     output (the shape of shooting nodes), 5 smooth candidates projected on them.
     Each of `--replicates` data sets is fitted (projected, whitened again), its
-    largest statistic judged against the (sieve-)bootstrap threshold at level 0.05
-    from its own residuals, with and without the replicates refitted."""
-    from _shared import segment_projection
-
+    largest statistic judged against the rule's threshold at level 0.05 from its
+    own residuals, and against the maximum of `k` chi-square(1) (what a pivotal
+    statistic's null would be)."""
     import scipy.stats
+    from _shared import segment_projection
 
     from diffpegasus._diagnose._calibration import calibrate, statistics
 

@@ -4,6 +4,8 @@ an AR(1) series), its family-wise false-alarm level on coloured residuals, and t
 rule's verdicts on a synthetic score test (delays: resolution, leads)."""
 
 import functools
+import pathlib
+import sys
 import types
 
 import jax
@@ -11,8 +13,12 @@ import numpy as np
 import pytest
 import scipy.stats
 
-from diffpegasus._diagnose._calibration import block_length, calibrate, statistics
+from diffpegasus._diagnose._calibration import calibrate, statistics
 from diffpegasus._diagnose._rule import DecisionRule
+
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "experiments"))
+from _shared import block_length  # noqa: E402
 
 
 def _ar1(rng, n, channels, phi):

@@ -40,58 +40,6 @@ import numpy as np
 from jaxtyping import Array, Float, Int
 
 
-def _flat_top(x):
-    # the trapezoidal flat-top lag window of Politis and White (2004)
-    x = np.abs(x)
-    return np.where(x <= 0.5, 1.0, np.where(x <= 1.0, 2.0 * (1.0 - x), 0.0))
-
-
-def block_length(residuals: np.ndarray) -> int:
-    """Circular-block length, in samples, for a bootstrap of `residuals` `(samples,
-    channels)`: Politis and White's (2004, corrected 2009) automatic choice for each
-    channel, the largest over channels (all channels are resampled with the same
-    blocks), at least 1 and at most their `min(3 sqrt(n), n / 3)`.
-
-    Per channel: the first lag `m` after which `K = max(5, sqrt(log10 n))`
-    autocorrelations in a row are below `2 sqrt(log10 n / n)`; the flat-top window
-    to `2m` gives `G = sum lambda(k/2m) |k| gamma(k)` and the spectral density at zero
-    `g = sum lambda(k/2m) gamma(k)`; the circular-block length is
-    `(2 G^2 / D)^(1/3) n^(1/3)` with `D = 4/3 g^2`.
-    """
-    e = np.asarray(residuals, float)
-    n = e.shape[0]
-    e = e - e.mean(axis=0)
-    spectrum = np.abs(np.fft.rfft(e, n=2 * n, axis=0)) ** 2
-    gamma = np.fft.irfft(spectrum, axis=0)[:n] / n
-    k_run = max(5, int(np.ceil(np.sqrt(np.log10(n)))))
-    bound = 2.0 * np.sqrt(np.log10(n) / n)
-    longest = 1.0
-    for c in range(e.shape[1]):
-        g = gamma[:, c]
-        if not g[0] > 0:
-            continue
-        rho = np.abs(g / g[0])
-        small = rho[1:] < bound
-        m = n // 3
-        for lag in range(len(small) - k_run):
-            if small[lag : lag + k_run].all():
-                m = lag
-                break
-        big_m = min(2 * max(m, 1), n - 1)
-        lags = np.arange(-big_m, big_m + 1)
-        w = _flat_top(lags / big_m)
-        gk = g[np.abs(lags)]
-        big_g = np.sum(w * np.abs(lags) * gk)
-        g0 = np.sum(w * gk)
-        if g0 <= 0:
-            continue
-        d = (4.0 / 3.0) * g0**2
-        length = (2.0 * big_g**2 / d) ** (1.0 / 3.0) * n ** (1.0 / 3.0)
-        longest = max(longest, float(length))
-    most = int(np.ceil(min(3.0 * np.sqrt(n), n / 3.0)))
-    return int(np.clip(np.ceil(longest), 1, max(1, most)))
-
-
 class Sieve(eqx.Module):
     """A vector autoregression of a residual series, the null's generator: `order`
     lags, chosen by Schwarz's criterion; `coefficients` `(order, channels,
