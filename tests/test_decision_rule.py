@@ -189,13 +189,14 @@ def test_long_run_variance_of_an_ar1_series_matches_the_closed_form():
 
 
 def test_refitted_sieve_recovers_the_colour_a_fit_took_out():
+    # (an experiment's alternative null, kept for the validation page's comparison)
     # a fit of a level and a slope per segment of 40 samples takes the slow part
     # of AR(0.9) noise with it: the autoregression of what is left reads about
     # 0.75 (measured, mean of 30 records); moved until its own refitted replicates
     # read the same, it reads the noise's 0.9 (measured 0.898 +/- 0.038 over 10)
-    from _shared import segment_projection
+    from _shared import refitted_sieve, segment_projection
 
-    from diffpegasus._diagnose._calibration import refitted_sieve, sieve
+    from diffpegasus._diagnose._calibration import sieve
 
     n, outputs = 400, 2
     _, basis, refit = segment_projection(n, outputs)

@@ -116,107 +116,6 @@ def sieve(
     return Sieve(order=int(top), coefficients=a, innovations=u - u.mean(axis=0))
 
 
-def _yule_walker(e: np.ndarray, orders: np.ndarray) -> np.ndarray:
-    """Each channel's autoregression of `e` `(samples, channels)` at its own
-    order, by Yule-Walker: `(max order, channels)`, zero beyond a channel's
-    order."""
-    import scipy.linalg
-
-    n, c = e.shape
-    e = e - e.mean(axis=0)
-    top = int(max(orders.max(initial=0), 0))
-    out = np.zeros((top, c))
-    if top == 0:
-        return out
-    gamma = np.fft.irfft(np.abs(np.fft.rfft(e, n=2 * n, axis=0)) ** 2, axis=0)
-    for ch, p in enumerate(orders):
-        g = gamma[: p + 1, ch]
-        if p > 0 and g[0] > 0:
-            out[:p, ch] = scipy.linalg.solve_toeplitz(g[:p], g[1 : p + 1])
-    return out
-
-
-def _stable(a: np.ndarray) -> bool:
-    # every channel's filter 1 - sum a_j z^j with its roots outside the unit circle
-    for col in a.T:
-        if np.any(col != 0.0):
-            roots = np.roots(np.concatenate([-col[::-1], [1.0]]))
-            if np.any(np.abs(roots) <= 1.0 + 1e-6):
-                return False
-    return True
-
-
-def refitted_sieve(
-    fitted: Sieve,
-    basis: np.ndarray,
-    *,
-    draws: int = 16,
-    rounds: int = 6,
-    seed: int = 0,
-) -> Sieve:
-    """The autoregression whose series, **once refitted** as the fit's residuals
-    were (`e - basis basis^T e`), has the autoregression `fitted` found in them.
-
-    A fit takes its free unknowns' share out of its residuals (for shooting
-    nodes, a level and a slope per segment): the colour that share carried is
-    gone from the residuals, so an autoregression fitted to them is whiter than
-    the noise (an AR(1) of 0.9 reads 0.75 from a fit of a level and a slope per
-    40 samples), and a replicate drawn from it and refitted again whiter still
-    (0.63): its null is too light. Here the coefficients are moved until the
-    replicates, refitted, read what the log's residuals read (indirect
-    inference: each round, `draws` series filtered from the innovations, refitted,
-    Yule-Walker at each channel's order; the coefficients moved by the
-    difference, halved while the filter is not stable). The innovations stay
-    those of `fitted` (each replicate is whitened again after its refit: their
-    scale does not matter)."""
-    a_obs = np.einsum("jcc->jc", np.asarray(fitted.coefficients))
-    if a_obs.shape[0] == 0:
-        return fitted
-    orders = np.array(
-        [
-            (np.flatnonzero(a_obs[:, ch])[-1] + 1) if np.any(a_obs[:, ch]) else 0
-            for ch in range(a_obs.shape[1])
-        ]
-    )
-    basis = np.asarray(basis, float)
-    n = basis.shape[0]
-    u = np.asarray(fitted.innovations)
-    rng = np.random.default_rng(seed)
-    a = a_obs.copy()
-
-    def read(a):
-        filt = Sieve(order=fitted.order, coefficients=_diag(a), innovations=u)
-        h = filt.transfer(n)
-        found = []
-        for _ in range(draws):
-            w = np.fft.rfft(u[rng.integers(0, u.shape[0], n)], axis=0)
-            e = np.fft.irfft(np.einsum("fab,fb->fa", h, w), n=n, axis=0)
-            e = e - np.einsum("nou,u->no", basis, np.einsum("nou,no->u", basis, e))
-            found.append(_yule_walker(e, orders))
-        return np.mean(found, axis=0)
-
-    for _ in range(rounds):
-        step = a_obs - read(a)
-        while True:
-            trial = a + step
-            if _stable(trial):
-                break
-            step = 0.5 * step
-            if np.max(np.abs(step)) < 1e-6:
-                trial = a
-                break
-        a = trial
-    return Sieve(order=fitted.order, coefficients=_diag(a), innovations=u)
-
-
-def _diag(a: np.ndarray) -> np.ndarray:
-    # (order, channels) -> (order, channels, channels), each channel its own filter
-    out = np.zeros((a.shape[0], a.shape[1], a.shape[1]))
-    idx = np.arange(a.shape[1])
-    out[:, idx, idx] = a
-    return out
-
-
 class Calibration(eqx.Module):
     """The null distribution of the largest score statistic over the candidates.
 
@@ -436,8 +335,6 @@ def calibrate(
     # and hide itself
     resample = resample - resample.mean(axis=0)
     fitted = sieve(resample, order=order)
-    if basis is not None:
-        fitted = refitted_sieve(fitted, basis)
     n = rows.shape[0]
     if key is None:
         key = jax.random.key(0)
