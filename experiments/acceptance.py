@@ -13,6 +13,7 @@ and every result is appended to `experiments/results/acceptance.json` as soon as
 is known (a rerun skips the flights already there), so a partial run survives.
 
     nice python experiments/acceptance.py [--only pegasus|hfb320|demo] [--max N]
+        [--rates 50 200] [--out FILE]
 """
 
 import argparse
@@ -243,11 +244,19 @@ def table():
 
 
 def main():
+    global OUT
     p = argparse.ArgumentParser()
     p.add_argument("--table", action="store_true", help="print the table and exit")
     p.add_argument("--only", choices=["pegasus", "hfb320", "demo"], default=None)
     p.add_argument("--max", type=int, default=None, help="flights at most this run")
+    p.add_argument(
+        "--rates", type=float, nargs="+", default=None, help="only flights at these"
+    )
+    p.add_argument(
+        "--out", type=pathlib.Path, default=None, help="results file (appended)"
+    )
     args = p.parse_args()
+    OUT = args.out or OUT
     if args.table:
         print(table())
         return
@@ -262,7 +271,7 @@ def main():
     folder = pathlib.Path(tempfile.mkdtemp(prefix="acceptance_"))
     count = 0
     for job in jobs:
-        if job[:4] in done:
+        if job[:4] in done or (args.rates and job[1] not in args.rates):
             continue
         if args.max is not None and count >= args.max:
             break

@@ -16,9 +16,14 @@ Jacobian, vmapped over replicates:
   is kept) and filtered again: the residuals' colour is kept at every lag, where
   a block bootstrap keeps it only within a block (and so gives a null too light
   for strongly coloured residuals: measured in the validation page);
-- each replicate's statistic is **studentised** exactly as the observed one (its
-  variance from the replicate's own residuals after its own step,
-  [`score_variance`][]), so the null holds whatever the residuals' scale;
+- each replicate's statistic is **studentised** exactly as the observed one: the
+  long-run variance of the per-sample score (all outputs added at a sample) by a
+  Bartlett lag window whose bandwidth Andrews' rule takes from that series itself
+  ([`long_run_variance`][]), from the replicate's own residuals after its own
+  step, so the null holds whatever the residuals' scale and the bandwidth's
+  scatter is in it too. A lag window, not the sum over all lags the score test
+  reports ([`score_variance`][]): the all-lag sum scatters from record to record
+  by an amount no resampling reproduces (measured in the validation page);
 - the family-wise null is the **maximum** over all candidates of each replicate,
   so a candidate's p-value (Westfall and Young's single-step max-T) is the share of
   replicates whose largest statistic reaches its own, and the threshold at level
