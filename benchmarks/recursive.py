@@ -57,7 +57,7 @@ def time_calls(fn, n):
     return best
 
 
-def case(q, p, lags, n=2000):
+def case(q, p, levels, n=2000):
     rng = np.random.default_rng(0)
     h = rng.normal(size=(q, p))
     y = rng.normal(size=q)
@@ -65,7 +65,7 @@ def case(q, p, lags, n=2000):
     out = {"equations": q, "parameters": p}
     estimators = {
         "rls": dp.RecursiveLeastSquares(
-            forgetting=0.999, derivative=(False,) * q, dt=0.01, lags=lags
+            forgetting=0.999, derivative=(False,) * q, dt=0.01, levels=levels
         ),
         "rft": dp.RecursiveFourier(
             frequencies=tuple(np.arange(0.1, 1.51, 0.04).tolist()),
@@ -114,8 +114,8 @@ def main():
         "jax": jax.__version__,
         "machine": platform.machine(),
         "load_average_1min": os.getloadavg()[0],
-        "launch_vehicle": case(3, 9, lags=64),
-        "short_period": case(3, 5, lags=64),
+        "launch_vehicle": case(3, 9, levels=12),
+        "short_period": case(3, 5, levels=12),
     }
     out = pathlib.Path(__file__).resolve().parent / "results" / "recursive.json"
     out.parent.mkdir(exist_ok=True)

@@ -44,7 +44,9 @@ class Campaign:
     multiple of the device count to shard); flight `t_final` (s) and `sample_rate`
     (Hz); OEM `decimate`, `window` and `node_interval` (s); `ignition` (s, windows
     before it do not count); `nn_epochs` for training the network; `max_iter`,
-    the iteration bound of each OEM fit.
+    an iteration bound of each OEM fit (default `None`: each runs to convergence,
+    within the engine's adaptive budget; a chunk's fits are batched, so it takes
+    as long as its slowest flight).
     """
 
     samples: int = 100
@@ -59,7 +61,7 @@ class Campaign:
     ignition: float = 5.0
     min_qbar: float = 2000.0
     nn_epochs: int = 1000
-    max_iter: int = 30
+    max_iter: int | None = None
 
     def __post_init__(self):
         unknown = [m for m in self.methods if m not in METHODS]

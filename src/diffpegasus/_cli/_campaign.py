@@ -13,6 +13,7 @@ from ._common import (
     at_least_one,
     finite,
     FIT,
+    MaxIterOption,
     OUTPUT,
     positive,
 )
@@ -69,15 +70,7 @@ def montecarlo(
             rich_help_panel=FIT,
         ),
     ] = 1000,
-    max_iter: Annotated[
-        int,
-        typer.Option(
-            help="Iteration bound of each flight's OEM fit (windows of a fit that "
-            "stops short count as not converged)",
-            callback=at_least_one,
-            rich_help_panel=FIT,
-        ),
-    ] = 30,
+    max_iter: MaxIterOption = None,
     processes: Annotated[
         int,
         typer.Option(
@@ -134,8 +127,9 @@ def montecarlo(
             f"--duration={duration!r}",
             f"--sample-rate={sample_rate!r}",
             f"--nn-epochs={nn_epochs}",
-            f"--max-iter={max_iter}",
         ]
+        if max_iter is not None:
+            args.append(f"--max-iter={max_iter}")
         try:
             launch_local(["montecarlo", *args], processes)
         except (ValueError, OSError) as e:

@@ -20,6 +20,7 @@ from ._common import (
     FIT,
     FIT_FAILED,
     JsonOption,
+    MaxIterOption,
     MODEL,
     OutOption,
     OUTPUT,
@@ -230,15 +231,7 @@ def estimate_oem_command(
             rich_help_panel=DATA,
         ),
     ] = 2000.0,
-    max_iter: Annotated[
-        int,
-        typer.Option(
-            help="Iteration bound of each fit (a window that stops short is flagged "
-            "as not converged and gets no estimate)",
-            callback=at_least_one,
-            rich_help_panel=FIT,
-        ),
-    ] = 30,
+    max_iter: MaxIterOption = None,
     units: UnitsOption = "deg",
     out: OutOption = None,
     as_json: JsonOption = False,

@@ -19,7 +19,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from .._cache import kept_call
-from ._engine import Layout, RESULTS, solve
+from ._engine import Layout, MAX_ITER, RESULTS, solve
 from ._oem import OEMProblem, theil_inequality
 from ._score import score, ScoreTest
 
@@ -145,7 +145,7 @@ def fit_global_oem(
     free: Bool[Array, " params"] | None = None,
     *,
     rtol: float = 1e-5,
-    max_iter: int = 40,
+    max_iter: int | None = None,
 ) -> GlobalFit:
     """Output error with one parameter set for the record: multiple shooting (all
     node states estimated) when `problem.node_interval` is set, else single
@@ -154,7 +154,9 @@ def fit_global_oem(
     **Arguments:** `problem` with `window=None` (and `state_scale` for multiple
     shooting); `theta0` `(params,)` starting (and fixed) values; `nodes0`
     `(segments, states)` starting node states; `free` which parameters to estimate
-    (an array: changing it does not recompile; default `problem.free`).
+    (an array: changing it does not recompile; default `problem.free`); `rtol` the
+    relative change of det(R) that ends the iteration; `max_iter` an iteration bound
+    (default `None`: to convergence, within the engine's adaptive budget).
 
     **Returns:** a [`GlobalFit`][]. Pure and jitted; `jax.vmap` batches it.
     """
@@ -174,7 +176,7 @@ def fit_global_oem(
     # model functions are values of the package, e.g. the discrepancy model's)
     return kept_call(
         _fit,
-        {"max_iter": max_iter},
+        {"max_iter": MAX_ITER if max_iter is None else int(max_iter)},
         {
             "problem": problem,
             "theta0": theta0,

@@ -96,7 +96,7 @@ from .._vehicle._gravity import gravity
 from .._vehicle._parts import Geometry
 from .._vehicle._pegasus._aerodynamics import body_axis, load_database
 from .._vehicle._pegasus._vehicle import C_REF, S_REF
-from ._engine import Layout, RESULTS, segment_solve, solve
+from ._engine import Layout, MAX_ITER, RESULTS, segment_solve, solve
 from ._lse import estimate_lse, window_truth
 from ._result import Estimates
 from ._windowed_oem import (
@@ -611,7 +611,7 @@ def estimate_oem(
     parameters: str = "hybrid",
     min_qbar: float = 2000.0,
     rtol: float = 1e-5,
-    max_iter: int = 30,
+    max_iter: int | None = None,
     geometry: Geometry | None = None,
 ) -> Estimates:
     """Output-error estimates of the six derivatives per window.
@@ -642,6 +642,9 @@ def estimate_oem(
     - `min_qbar` (multiple shooting): windows whose mean measured dynamic pressure is
       below this (Pa) are not fitted and get no estimate (high in the climb the
       aerodynamic forces vanish into the noise and nothing can be identified).
+    - `rtol`: the relative change of det(R) that ends a fit; `max_iter`: an
+      iteration bound (default `None`: each fit runs to convergence, within the
+      engine's adaptive budget, and says so if it does not).
     - `geometry`: the vehicle's reference area and length (a `Geometry`; default
       the Pegasus vehicle's, 13.5 m^2 and 2.48 m). The log's metadata is not read
       for them.
@@ -684,7 +687,7 @@ def estimate_oem(
             setup.theta0,
             jnp.asarray(states[0]),
             jnp.asarray(rtol, float),
-            max_iter=max_iter,
+            max_iter=MAX_ITER if max_iter is None else int(max_iter),
         )
         flags = {"converged": ok, "iterations": its}
         cov = jax.vmap(jnp.diag)(body_sd**2)  # the sequential fits give no correlation
@@ -707,7 +710,7 @@ def estimate_oem(
 
 
 @functools.partial(jax.jit, static_argnames=("model", "windows", "max_iter"))
-def _sequential_single(model, data, windows, theta0, x0, rtol, max_iter=30):
+def _sequential_single(model, data, windows, theta0, x0, rtol, max_iter):
     """The thesis's single shooting: window by window, each a one-segment fit on
     the engine from the previous window's simulated end state (held). A padded
     last window is fitted to the record's last sample repeated, as the thesis's

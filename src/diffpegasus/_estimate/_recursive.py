@@ -25,19 +25,23 @@ Two estimators share the contract ([`AbstractRecursiveEstimator`][]: `init`,
 **Error bounds** (Grauer & Morelli's point: recursive bounds must account for
 coloured residuals to match the scatter). For least squares with forgetting the
 estimate's error is `P sum_i w_i s_i`, `w_i = lam^(k-i)`, `s_i` the sample's score,
-so its covariance is the sandwich `P (sum_ij w_i w_j E[s_i s_j^T]) P`. Each score is
-kept as `a_i - G_i theta`, so the pair sums over lags up to `lags` samples are
-evaluated with the current estimate; the fitted residuals' first-order loss
-`sum_pairs G_i V G_j` is solved for; `stderr` keeps lag 0 only. The 95% band
-(`halfwidth`) is 1.96 `stderr_corrected` for least squares; for the recursive
-Fourier transform the Student-t quantile at the bound's effective degrees of
-freedom (the effective number of independent frequencies) times it. With `bandwidth`, the differenced state equations are
-low-passed on both sides, so that their noise (whose power grows with frequency)
-does not swamp the band of the dynamics. For the recursive Fourier transform the
-residual transforms at different frequencies are nearly independent, so the bound
-is the per-frequency sandwich of the batch method ([`frequency_equation_error`][]),
-with the scores of frequencies closer than the memory resolves (`1 / T`) summed
-first.
+so its covariance is the sandwich `P (sum_ij w_i w_j E[s_i s_j^T]) P`. Least squares
+estimates the middle by batch means: the scores summed over blocks of `2^j` samples
+(a ladder `j = 0 ... levels - 1`, every block length at once), the outer products of
+the block sums summed; block sums longer than the residuals' correlation are
+independent. Each score is kept as `a_i - G_i theta`, so the block sums are
+evaluated with the current estimate; the fitted residuals' first-order loss `sum_b
+G_b V G_b` is solved for. `stderr` is the bound of single samples (white residuals);
+`stderr_corrected` the one from the longest blocks that leave at least three
+(effectively, counted from how the information is spread over them), and the 95%
+band (`halfwidth`) the Student-t quantile at their number less one times it. For the
+recursive Fourier transform the residual transforms at different frequencies are
+nearly independent, so the bound is the per-frequency sandwich of the batch method
+([`frequency_equation_error`][]), with the scores of frequencies closer than the
+memory resolves (`1 / T`) summed first, and the band the Student-t quantile at the
+effective number of independent frequencies. With `bandwidth`, the differenced
+state equations are low-passed on both sides, so that their noise (whose power
+grows with frequency) does not swamp the band of the dynamics.
 """
 
 import abc
@@ -50,11 +54,12 @@ from jaxtyping import Array, Bool, Complex, Float, Int
 
 
 class _Spread(eqx.Module):
-    """Forgetting-weighted sums of `vec G_i` (weights `w_i^2`) and of `vec G_i
-    vec G_i^T` (`w_i^4`): how the data are spread over the memory."""
+    """Per block length, forgetting-weighted sums over the blocks of `vec C_b`
+    and of `vec C_b vec C_b^T`, `C_b = sum_(i in b) w_i^2 G_i`: how the data are
+    spread over the blocks of the memory."""
 
-    g2: Float[Array, " pp"]
-    g4: Float[Array, "pp pp"]
+    g2: Float[Array, "levels pp"]
+    g4: Float[Array, "levels pp pp"]
 
 
 class RecursiveState(eqx.Module):
@@ -67,9 +72,11 @@ class RecursiveState(eqx.Module):
     equation and `rows` `(q, p + 2, p + 2)` the sums it comes from; `count` samples
     absorbed; `prev_h`, `prev_y`, `prev_o`: the previous sample (for derivative
     rows); `filt` `(2, q, p + 1)` the low-pass state of the differenced rows;
-    `lag_z` `(lags, p + p^2)` the recent scores `[a, vec G]`, `pairs`, `white` their
-    forgetting-weighted pair sums (lags up to `lags`, lag 0); `spread` how the
-    information is spread; `fh` `(f, q, p)`, `fy` `(f, q)` the running transforms,
+    `block_z` `(levels, p + p^2)` the running block sums of the scores `[a, vec G]`,
+    `block_g` `(levels, p^2)` of `w_i^2 vec G_i`, `pairs` `(levels, d, d)` the
+    forgetting-weighted outer products of the completed block sums, and `spread` how
+    the information is spread over the blocks, both as of the samples `block_t`
+    `(levels,)` (the forgetting since then applied when they are read); `fh` `(f, q, p)`, `fy` `(f, q)` the running transforms,
     `phasor`, `rotation` `(f,)`.
     """
 
@@ -81,9 +88,10 @@ class RecursiveState(eqx.Module):
     prev_h: Float[Array, "q p"]
     prev_y: Float[Array, " q"]
     prev_o: Float[Array, " q"]
-    lag_z: Float[Array, "lags d"]
-    pairs: Float[Array, "d d"]
-    white: Float[Array, "d d"]
+    block_z: Float[Array, "levels d"]
+    block_g: Float[Array, "levels pp"]
+    block_t: Int[Array, " levels"]
+    pairs: Float[Array, "levels d d"]
     fh: Complex[Array, "f q p"]
     fy: Complex[Array, "f q"]
     phasor: Complex[Array, " f"]
@@ -99,8 +107,7 @@ class RecursiveEstimates(eqx.Module):
     estimate of the effective degrees of freedom of the corrected bound (how many
     independent pieces of data it was estimated from), and `halfwidth` `(p,)` the
     half-width of the 95% band: the Student-t quantile at `dof` times
-    `stderr_corrected` for the recursive Fourier transform, 1.96 times it for
-    least squares (whose `dof` was measured conservative)."""
+    `stderr_corrected`."""
 
     theta: Float[Array, " p"]
     stderr: Float[Array, " p"]
@@ -216,9 +223,10 @@ def _filter_matrices(bandwidth, dt):
     return jnp.asarray(e[:2, :2]), jnp.asarray(e[:2, 2])
 
 
-def _empty_state(p, q, lags, frequencies, dt, theta0, prior, scores):
+def _empty_state(p, q, levels, frequencies, dt, theta0, prior, scores):
     f = jnp.asarray(frequencies, float)
     d = (p + p * p) if scores else 0
+    pp = p * p if scores else 0
     rotation = jnp.exp(-2j * jnp.pi * f * dt)
     return RecursiveState(
         theta=jnp.asarray(theta0, float),
@@ -229,16 +237,17 @@ def _empty_state(p, q, lags, frequencies, dt, theta0, prior, scores):
         prev_h=jnp.zeros((q, p)),
         prev_y=jnp.zeros(q),
         prev_o=jnp.zeros(q),
-        lag_z=jnp.zeros((lags, d)),
-        pairs=jnp.zeros((d, d)),
-        white=jnp.zeros((d, d)),
+        block_z=jnp.zeros((levels, d)),
+        block_g=jnp.zeros((levels, pp)),
+        block_t=jnp.zeros(levels, int),
+        pairs=jnp.zeros((levels, d, d)),
         fh=jnp.zeros((len(f), q, p), rotation.dtype),
         fy=jnp.zeros((len(f), q), rotation.dtype),
         phasor=jnp.ones_like(rotation),
         rotation=rotation,
         filt=jnp.zeros((2, q, p + 1)),
         rows=jnp.zeros((q, p + 2, p + 2)),
-        spread=_Spread(jnp.zeros(p * p), jnp.zeros((p * p, p * p))),
+        spread=_Spread(jnp.zeros((levels, pp)), jnp.zeros((levels, pp, pp))),
     )
 
 
@@ -285,23 +294,28 @@ def _fitted_sandwich(pm, middle, pairs_gg, p):
 
 class RecursiveLeastSquares(AbstractRecursiveEstimator):
     """Recursive least squares with exponential forgetting, bounds corrected for
-    coloured residuals (see the module docstring).
+    coloured residuals by batch means over a ladder of block lengths (see the
+    module docstring).
 
-    **Fields:** `forgetting` (`lam`), `derivative` `(q,)` bool, `dt` (s), `lags`:
-    how many lags of the scores' autocovariance enter the corrected bound
-    (default 64 samples: it should span the residuals' correlation time; the cost
-    of an update grows with it).
+    **Fields:** `forgetting` (`lam`), `derivative` `(q,)` bool, `dt` (s),
+    `levels`: the block lengths `1, 2, 4, ... 2^(levels - 1)` samples over which
+    the scores are summed for the corrected bound (the longest should exceed the
+    residuals' correlation time several times; the bound picks its block length
+    from the data), `bandwidth` (Hz, optional): the low-pass of the differenced
+    state equations.
     """
 
     forgetting: float = eqx.field(static=True)
     derivative: tuple[bool, ...] = eqx.field(static=True)
     dt: float = eqx.field(static=True)
-    lags: int = eqx.field(static=True, default=64)
+    levels: int = eqx.field(static=True, default=12)
     bandwidth: float | None = eqx.field(static=True, default=None)
 
     def init(self, theta0, prior=1e6):
         p, q = len(theta0), len(self.derivative)
-        return _empty_state(p, q, self.lags, np.zeros(0), self.dt, theta0, prior, True)
+        return _empty_state(
+            p, q, self.levels, np.zeros(0), self.dt, theta0, prior, True
+        )
 
     def absorb(self, state, h, y):
         lam = self.forgetting
@@ -337,18 +351,36 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
         # it exactly, so the bound is evaluated with the current estimate's
         # residuals (no transient of early estimates stays in it)
         z = jnp.concatenate([hn.T @ yn, (hn.T @ hn).reshape(p * p)])
-        decay = lam ** jnp.arange(1, self.lags + 1)
-        near = z + jnp.einsum("l,ld->d", decay, state.lag_z)
-        pairs = lam**2 * state.pairs + jnp.outer(z, near) + jnp.outer(near, z)
-        pairs = pairs - jnp.outer(z, z)
-        white = lam**2 * state.white + jnp.outer(z, z)
         g = z[p:]
-        spread = eqx.tree_at(
-            lambda s: (s.g2, s.g4),
-            state.spread,
-            (lam**2 * state.spread.g2 + g, lam**4 * state.spread.g4 + jnp.outer(g, g)),
+        # the block ladder: level j sums blocks of 2^j samples (forgetting-
+        # weighted); a completed block's sum enters the pair sums and the
+        # partial sums restart. The levels completing at a sample are a prefix
+        # (those whose length divides the count), about two per sample: only
+        # they are touched, their sums brought up to date by the forgetting
+        # since they last were (`last`)
+        size = 2 ** jnp.arange(self.levels)
+        bz = lam * state.block_z + z[None]
+        bg = lam**2 * state.block_g + g[None]
+        done = ((state.count + 1) % size) == 0
+        k = state.count
+
+        def complete(j, carry):
+            pairs, g2, g4, last = carry
+            f = jnp.power(lam, (k - last[j]).astype(float))
+            pairs = pairs.at[j].set(f**2 * pairs[j] + jnp.outer(bz[j], bz[j]))
+            g2 = g2.at[j].set(f**2 * g2[j] + bg[j])
+            g4 = g4.at[j].set(f**4 * g4[j] + jnp.outer(bg[j], bg[j]))
+            return pairs, g2, g4, last.at[j].set(k)
+
+        pairs, g2, g4, last = jax.lax.fori_loop(
+            0,
+            jnp.sum(done),
+            complete,
+            (state.pairs, state.spread.g2, state.spread.g4, state.block_t),
         )
-        lag_z = jnp.concatenate([z[None], state.lag_z[:-1]], axis=0)
+        spread = _Spread(g2, g4)
+        block_z = jnp.where(done[:, None], 0.0, bz)
+        block_g = jnp.where(done[:, None], 0.0, bg)
         return eqx.tree_at(
             lambda s: (
                 s.theta,
@@ -356,39 +388,74 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
                 s.rhs,
                 s.r,
                 s.rows,
-                s.lag_z,
+                s.block_z,
+                s.block_g,
+                s.block_t,
                 s.pairs,
-                s.white,
                 s.spread,
             ),
             state,
-            (theta, info, rhs, r, rows, lag_z, pairs, white, spread),
+            (theta, info, rhs, r, rows, block_z, block_g, last, pairs, spread),
         )
 
-    def estimates(self, state):
+    def _since(self, state):
+        """Per level, the forgetting `lam^(k - block_t)` from when the level's
+        sums were last brought up to date to the last sample absorbed, `k`."""
+        age = jnp.maximum(state.count - 1 - state.block_t, 0)
+        return jnp.power(self.forgetting, age.astype(float))
+
+    def _blocks(self, state, pm):
+        """The effective number of independent blocks `(levels, p)` behind each
+        parameter's bound: the blocks' shares `c_b = (P C_b P)_aa` of the
+        variance counted as `(sum c)^2 / sum c^2` (the partial blocks
+        included)."""
         p = state.theta.shape[0]
-        pm = _inverse(state.info)
-        # the scores' pair sums with the current estimate: s_i s_j^T summed over
-        # |i - j| <= lags (forgetting-weighted), s = [I, -kron(I, theta^T)] z
-        t = jnp.concatenate([jnp.eye(p), -jnp.kron(jnp.eye(p), state.theta[None])], 1)
-        var = _fitted_sandwich(pm, t @ state.white @ t.T, state.white[p:, p:], p)
-        var_c = _fitted_sandwich(pm, t @ state.pairs @ t.T, state.pairs[p:, p:], p)
-        var = jnp.where(var > 0, var, jnp.inf)
-        # a truncated window can make it negative: then the white bound stands
-        var_c = jnp.where(var_c > 0, var_c, var)
-        # degrees of freedom: the samples' shares c_i = w_i^2 (P G_i P)_aa of the
-        # variance give an effective count (sum c)^2 / sum c^2, and a window of
-        # 2 lags + 1 samples per estimated product leaves that over 2 lags + 1
-        # (the variance of a truncated-window long-run variance estimate)
+        f2 = self._since(state)[:, None] ** 2
+        g2 = f2 * state.spread.g2 + state.block_g
+        g4 = f2[..., None] ** 2 * state.spread.g4 + jnp.einsum(
+            "la,lb->lab", state.block_g, state.block_g
+        )
         pp = jnp.einsum("ab,ac->abc", pm, pm).reshape(p, p * p)  # rows a: P_ab P_ac
-        total = pp @ state.spread.g2
-        square = jnp.einsum("ai,ij,aj->a", pp, state.spread.g4, pp)
-        n_eff = total**2 / jnp.maximum(square, 1e-300)
-        dof = n_eff / (2 * self.lags + 1)
-        # the Student-t quantile at this dof is not applied: over a Monte Carlo
-        # of 200 flights it covered 93-100% (the normal quantile 85-92%); the
-        # truncated lag window's bound is noisier than a chi-square of that dof
-        return _finish(state.theta, var, var_c, dof, student=False)
+        total = jnp.einsum("ak,lk->la", pp, g2)
+        square = jnp.einsum("ai,lij,aj->la", pp, g4, pp)
+        return total**2 / jnp.maximum(square, 1e-300)
+
+    def _variance(self, state, pm, level):
+        """The bound's variance `(p,)` from the block sums of one level (the
+        partial block included), with the current estimate's scores `s = [I,
+        -kron(I, theta^T)] z`."""
+        p = state.theta.shape[0]
+        bz = state.block_z[level]
+        m = self._since(state)[level] ** 2 * state.pairs[level] + jnp.outer(bz, bz)
+        t = jnp.concatenate([jnp.eye(p), -jnp.kron(jnp.eye(p), state.theta[None])], 1)
+        return _fitted_sandwich(pm, t @ m @ t.T, m[p:, p:], p)
+
+    def ladder(self, state):
+        """The bound at every block length: the variance `(levels, p)` and the
+        effective number of blocks `(levels, p)` it rests on (for inspection;
+        [`estimates`][] computes only the level it takes)."""
+        pm = _inverse(state.info)
+        var = jax.vmap(lambda j: self._variance(state, pm, j))(jnp.arange(self.levels))
+        return var, self._blocks(state, pm)
+
+    def estimates(self, state):
+        pm = _inverse(state.info)
+        blocks = self._blocks(state, pm)
+        white = self._variance(state, pm, 0)
+        white = jnp.where(white > 0, white, jnp.inf)
+        # the longest blocks that leave at least three for every parameter (two
+        # degrees of freedom): longer blocks leave less of the correlation out
+        # (a block misses the correlation across its ends, a share falling as
+        # one over its length), the Student-t quantile at their number less one
+        # carries their fewness; fewer than three would leave one degree of
+        # freedom, a band 6.5 times the normal one
+        usable = jnp.all(blocks >= 3.0, axis=1)
+        j = jnp.max(jnp.where(usable, jnp.arange(self.levels), 0))
+        var_c = self._variance(state, pm, j)
+        ok = jnp.any(usable) & (var_c > 0)
+        var_c = jnp.where(ok, var_c, white)
+        dof = jnp.where(ok, blocks[j] - 1.0, 1.0)
+        return _finish(state.theta, white, var_c, dof, student=True)
 
 
 class RecursiveFourier(AbstractRecursiveEstimator):

@@ -43,6 +43,7 @@ from ._engine import (
     AbstractLayout,
     coloured_information as _coloured_information,
     Layout,
+    MAX_ITER,
     RESULTS,
     segment_outputs,
     solve,
@@ -423,7 +424,7 @@ def fit_windowed_data(
     active: Bool[Array, " windows"],
     held: Bool[Array, "windows params"],
     rtol: float = 1e-5,
-    max_iter: int = 30,
+    max_iter: int | None = None,
 ) -> WindowedFit:
     """[`fit_windowed`][] on a prepared data layout ([`window_data`][]) and start
     ([`windowed_start`][]): pure and jitted, so `jax.vmap` batches it over the
@@ -437,7 +438,7 @@ def fit_windowed_data(
             "model": model,
             "windows": windows,
             "stepped": stepped,
-            "max_iter": max_iter,
+            "max_iter": MAX_ITER if max_iter is None else int(max_iter),
         },
         {
             "data": data,
@@ -462,7 +463,7 @@ def fit_windowed(
     active=None,
     held=None,
     rtol: float = 1e-5,
-    max_iter: int = 30,
+    max_iter: int | None = None,
 ) -> WindowedFit:
     """Multiple-shooting output error of `model` on `record` with its parameters per
     window (see the module).
@@ -482,7 +483,10 @@ def fit_windowed(
     with `linear` the knot it shares with an active neighbour is estimated, so
     report inactive windows as having no estimate); `held` `(windows, params)`
     parameters held at their starting values in a window (default none; a linear
-    parameter's knot is estimated if an active window using it does not hold it).
+    parameter's knot is estimated if an active window using it does not hold it);
+    `rtol` the relative change of det(R) that ends the iteration; `max_iter` an
+    iteration bound (default `None`: run to convergence, the engine's adaptive
+    budget, whose bound only ends a fit that keeps creeping and says so).
 
     **Returns:** a [`WindowedFit`][].
     """
@@ -568,7 +572,7 @@ def fit_windowed_oem(
     active=None,
     held=None,
     rtol: float = 1e-5,
-    max_iter: int = 30,
+    max_iter: int | None = None,
 ) -> WindowedFit:
     """Deprecated: [`fit_windowed`][] on a `dp.Model` and a `dp.Record`. This
     form takes an [`OEMProblem`][] with `window`, `node_interval` and
