@@ -2,8 +2,11 @@
 committed under tests/data/rocket_sim by scripts/make_rocket_fixtures.py): is the
 planted CD(Mach) inside its 95% band, and which effects does diagnose name?
 
-Writes benchmarks/results/rocket_validation.json. Run:
-`python benchmarks/rocket_validation.py [--no-diagnose]`.
+Writes benchmarks/results/rocket_validation.json (or `--out NAME`.json). Run:
+`python benchmarks/rocket_validation.py [--no-diagnose] [--flights DIR] [--free a,b]
+[--out NAME]`: `--flights` a folder of such flights (`python
+scripts/make_rocket_fixtures.py --validation DIR` writes more), `--free` the effects
+estimated besides the drag and thrust (default the fit's, `default_free`).
 """
 
 import json
@@ -39,9 +42,17 @@ def sim_log(folder):
 def main():
     import diffpegasus.rocket as dr
 
-    do_diagnose = "--no-diagnose" not in sys.argv
+    args = sys.argv[1:]
+
+    def option(name, default):
+        return args[args.index(name) + 1] if name in args else default
+
+    do_diagnose = "--no-diagnose" not in args
+    flights = pathlib.Path(option("--flights", SIM))
+    free = option("--free", None)
+    free = None if free is None else tuple(f for f in free.split(",") if f)
     out = {}
-    for folder in sorted(p for p in SIM.iterdir() if p.is_dir()):
+    for folder in sorted(p for p in flights.iterdir() if p.is_dir()):
         truth = tomllib.loads((folder / "rocket.toml").read_text())["truth"]
         rocket = dr.read_rocket(folder / "rocket.toml")
         log = sim_log(folder)
@@ -49,7 +60,7 @@ def main():
         problem = dr.prepare(rocket, log)
         # the start curve must not be the truth: a flat 0.5
         flat = {n: 0.5 for n in problem.flight.knots.names}
-        result = dr.fit_rocket(problem, start=flat, throw=False)
+        result = dr.fit_rocket(problem, free=free, start=flat, throw=False)
         seconds = time.perf_counter() - t0
         mach_true, cd_true = rocket.team_drag_off
         top = float(np.max(result.mach))
@@ -68,6 +79,18 @@ def main():
             "points": len(mach),
             "thrust_scale": result.estimate("thrust_scale"),
             "thrust_scale_planted": truth["thrust_scale"],
+            "estimates": {
+                n: [float(v), float(e)]
+                for n, v, e, f in zip(
+                    result.fit.model.parameters,
+                    result.fit.params,
+                    result.fit.stderr_corrected,
+                    result.fit.model.free,
+                    strict=True,
+                )
+                if f
+            },
+            "cost": float(result.fit.cost),
             "apogee_reconstructed_m": result.apogee,
             "apogee_log_m": float(np.max(log.channels["altitude"].values)),
         }
@@ -89,10 +112,12 @@ def main():
             row.get("named"),
             flush=True,
         )
-    total = sum(r["inside_95"] for r in out.values())
-    points = sum(r["points"] for r in out.values())
+    rows = [r for r in out.values() if isinstance(r, dict)]
+    total = sum(r["inside_95"] for r in rows)
+    points = sum(r["points"] for r in rows)
     out["coverage"] = total / points
-    path = ROOT / "benchmarks" / "results" / "rocket_validation.json"
+    name = option("--out", "rocket_validation")
+    path = ROOT / "benchmarks" / "results" / f"{name}.json"
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(out, indent=1, default=float))
     print("coverage", out["coverage"])

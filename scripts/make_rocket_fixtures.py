@@ -3,14 +3,18 @@ rocket tests and the validation benchmark.
 
 Each flight gets a folder under tests/data/rocket_sim/<name>/ with `rocket.toml` (the
 facts, the planted truth under [truth]), `motor.csv`, `drag.csv` (the planted
-power-off curve) and `log.csv` (time s, barometric altitude m above the pad as a
+power-off curve as RocketPy flies it: RocketPy turns a list of (Mach, CD) points into a
+cubic spline, not straight lines between them, which runs up to 3.4% below the lines
+between Mach 0.6 and 0.8 of the curves here; the file holds that spline every 0.01
+Mach, so that straight lines between its points are the flown curve within 1.2e-4) and `log.csv` (time s, barometric altitude m above the pad as a
 flight computer computes it from static pressure with the standard atmosphere,
-axial specific force m/s^2 with gravity included), sampled at 50 Hz to apogee.
+axial specific force m/s^2 with gravity included), sampled at 50 Hz (or the flight's `rate`) to apogee.
 
 Planted effects per flight: a drag curve, a thrust scale (the motor file holds the
 catalogue curve, RocketPy flies the scaled one), constant wind, barometer lag
 (first-order), static-pressure error (per dynamic pressure) and white noise on both
-channels. Run: `python scripts/make_rocket_fixtures.py` (RocketPy from PyPI).
+channels. Run: `python scripts/make_rocket_fixtures.py` (RocketPy from PyPI); with
+`--validation DIR` it writes the benchmark's further flights (`VALIDATION`) to DIR.
 """
 
 import pathlib
@@ -79,20 +83,68 @@ FLIGHTS = {
 }
 
 
-def flight(name, spec):
+# More flights for the validation benchmark (not committed; written where asked):
+# other seeds and drag curves, each effect alone, and 20 Hz logs.
+CURVE_B = [
+    (0.0, 0.40),
+    (0.25, 0.38),
+    (0.5, 0.41),
+    (0.7, 0.44),
+    (0.85, 0.55),
+    (1.2, 0.75),
+]
+CURVE_C = [
+    (0.0, 0.70),
+    (0.3, 0.58),
+    (0.6, 0.52),
+    (0.75, 0.53),
+    (0.9, 0.62),
+    (1.2, 0.78),
+]
+VALIDATION = {
+    "clean-s3-20hz": dict(FLIGHTS["clean"], seed=3, rate=20.0),
+    "clean-smooth": dict(FLIGHTS["clean"], smooth_pressure=True),
+    "curve-b-s4": dict(FLIGHTS["clean"], drag=CURVE_B, seed=4),
+    "curve-c-s5-20hz": dict(
+        FLIGHTS["clean"], drag=CURVE_C, noise=(1.0, 0.5), seed=5, rate=20.0
+    ),
+    "wind-s6": dict(FLIGHTS["clean"], drag=CURVE_B, wind=(-5.0, 5.0), seed=6),
+    "thrust-s7-20hz": dict(
+        FLIGHTS["clean"], drag=CURVE_C, scale=1.05, seed=7, rate=20.0
+    ),
+    "sensors-s8": dict(
+        FLIGHTS["clean"], lag=0.15, static=0.04, noise=(1.0, 0.5), seed=8
+    ),
+    "planted-s9-20hz": dict(FLIGHTS["planted"], seed=9, rate=20.0),
+}
+
+
+def _isa_pressure(h):
+    """Pa, the standard atmosphere's troposphere at geometric height `h` m."""
+    hg = 6_356_766.0 * h / (6_356_766.0 + h)
+    return 101325.0 * (1 - 0.0065 * hg / 288.15) ** (9.80665 / (287.05287 * 0.0065))
+
+
+def flight(name, spec, out=OUT):
     from rocketpy import Environment, Flight, GenericMotor, Rocket
 
-    folder = OUT / name
+    folder = out / name
     folder.mkdir(parents=True, exist_ok=True)
     np.savetxt(folder / "motor.csv", THRUST, delimiter=",", fmt="%.4f")
-    np.savetxt(folder / "drag.csv", np.array(spec["drag"]), delimiter=",", fmt="%.4f")
     flown = THRUST.copy()
     flown[:, 1] *= spec["scale"]
     env = Environment(latitude=39.39, longitude=-8.29, elevation=150)
     u, v = spec["wind"]
+    pressure = None
+    if spec.get("smooth_pressure"):
+        # RocketPy's standard-atmosphere pressure is a spline through 100 points
+        # over 0-80 km (808 m apart): up to 3 m of barometric altitude off the
+        # hydrostatic profile between them; the exact profile every 10 m instead
+        heights = np.arange(-100.0, 8000.0, 10.0)
+        pressure = np.column_stack([heights, [_isa_pressure(h) for h in heights]])
     env.set_atmospheric_model(
         type="custom_atmosphere",
-        pressure=None,
+        pressure=pressure,
         temperature=None,
         wind_u=[(0, u), (8000, u)],
         wind_v=[(0, v), (8000, v)],
@@ -119,6 +171,14 @@ def flight(name, spec):
         center_of_mass_without_motor=1.2,
         coordinate_system_orientation="tail_to_nose",
     )
+    mach = np.round(np.arange(0.0, 1.2001, 0.01), 2)
+    flown_cd = np.array([float(rocket.power_off_drag(m)) for m in mach])
+    np.savetxt(
+        folder / "drag.csv",
+        np.column_stack([mach, flown_cd]),
+        delimiter=",",
+        fmt="%.5f",
+    )
     rocket.add_motor(motor, position=0.0)
     rocket.add_nose(length=0.52, kind="von karman", position=2.72)
     rocket.add_trapezoidal_fins(
@@ -134,7 +194,8 @@ def flight(name, spec):
         terminate_on_apogee=True,
         max_time_step=0.01,
     )
-    t = np.arange(0.0, float(fl.apogee_time), 0.02)
+    dt = 1.0 / spec.get("rate", 50.0)
+    t = np.arange(0.0, float(fl.apogee_time), dt)
     rng = np.random.default_rng(spec["seed"])
     # static pressure at the rocket, the ports' error, then the flight computer's
     # standard-atmosphere altitude above the pad's reading
@@ -144,7 +205,7 @@ def flight(name, spec):
     rho = np.array([env.density(h) for h in z])
     p_read = p + spec["static"] * 0.5 * rho * speed**2
     if spec["lag"] > 0:  # first-order lag, exact for a piecewise-constant input
-        k = np.exp(-0.02 / spec["lag"])
+        k = np.exp(-dt / spec["lag"])
         for i in range(1, len(p_read)):
             p_read[i] = k * p_read[i - 1] + (1 - k) * p_read[i]
     h_std = 44330.77 * (1 - (p_read / 101325.0) ** 0.190263)
@@ -212,5 +273,11 @@ max_mach = {float(fl.max_mach_number):.4f}
 
 
 if __name__ == "__main__":
-    for name, spec in FLIGHTS.items():
-        flight(name, spec)
+    import sys
+
+    if len(sys.argv) > 2 and sys.argv[1] == "--validation":
+        for name, spec in VALIDATION.items():
+            flight(name, spec, pathlib.Path(sys.argv[2]))
+    else:
+        for name, spec in FLIGHTS.items():
+            flight(name, spec)

@@ -129,7 +129,9 @@ def test_model_jacobian_matches_finite_differences():
         assert np.max(np.abs(fd - jac[:, k]) / scale) < 1e-4, k
 
 
-@pytest.mark.parametrize("seed", [3, 4, 6])
+# two clean flights (seed 6 is the hard one); the false-alarm rate over many clean
+# flights is measured by experiments/decision_rule.py (independent generator)
+@pytest.mark.parametrize("seed", [3, 6])
 def test_clean_flights_flag_nothing(seed):
     base, result = baseline((), seed)
     assert base.converged
@@ -147,14 +149,16 @@ def test_clean_flights_flag_nothing(seed):
 # air data, sensor bias on a measured and on a derived channel); the other
 # sensor biases and offsets share these code paths and are scored in the
 # decision-rule experiments, which keeps this file inside the suite's time budget.
+# The timing case (actuator_delay=0.02) and the az bias (sensor_bias:az=0.2) are
+# diagnosed, added and recovered on this same flight by
+# test_two_effects_diagnose_add_diagnose_again, and the az bias alone through the
+# command line by test_cli_diagnose_and_fit_json_on_a_log_without_sidecar.
 PLANTED = [
     ("pitch_damping", -10.0),
     ("drag_offset", 0.05),
     ("moment_offset", 0.01),
     ("thrust_misalignment", 0.03),
-    ("actuator_delay", 0.02),
     ("vertical_wind", 5.0),
-    ("sensor_bias:az", 0.2),
     ("sensor_bias:q", 0.002),
 ]
 # the baseline's own structural error (its cubic in alpha against the database's
@@ -201,6 +205,11 @@ def test_two_effects_diagnose_add_diagnose_again():
     assert other in second["significant"]
     both = fit(log, tuple(planted), start=one)
     assert both.cost < 0.1 * base.cost
+    # both planted values recovered together, each within 3 standard errors
+    estimates = both.effect_estimates()
+    for name, value in (("sensor_bias:az", 0.2), ("actuator_delay", 0.02)):
+        est = estimates[name]
+        assert abs(est["estimate"] - value) < 3 * est["stderr"], (name, est)
     assert diagnose(both)["significant"] == []
 
 

@@ -145,10 +145,9 @@ def test_residual_noise_sigma_ignores_signal():
 # Where the noise is low (1 kHz logs averaged to the model's 50 Hz) the rule
 # calibrated on the log may report them, with their sizes; nothing else may be flagged.
 # Seed 17 at 1 kHz: the largest of 20 clean flights (thrust-misalignment statistic
-# 102).
-@pytest.mark.parametrize(
-    "seed,rate", [(3, 1000.0), (4, 1000.0), (3, 50.0), (4, 50.0), (17, 1000.0)]
-)
+# 102). One more flight at each rate proves the point here; the false-alarm rate over
+# many clean flights is measured by experiments/decision_rule.py.
+@pytest.mark.parametrize("seed,rate", [(3, 1000.0), (3, 50.0), (17, 1000.0)])
 def test_clean_generator_flights_flag_only_the_known_model_differences(seed, rate):
     base, result = baseline(seed, rate)
     assert base.converged

@@ -133,7 +133,7 @@ def _nn_chunk(net, channels, layout):
     return jax.vmap(one)(channels)
 
 
-def _oem_chunk(setups, max_iter: int | None = None):
+def _oem_chunk(setups, max_iter: int = 30):
     def one(s):
         fit = s.fit(max_iter=max_iter)
         values, sd, ok, flags = windowed_lift_drag(fit, s.alpha, "body")

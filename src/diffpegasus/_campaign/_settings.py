@@ -44,9 +44,12 @@ class Campaign:
     multiple of the device count to shard); flight `t_final` (s) and `sample_rate`
     (Hz); OEM `decimate`, `window` and `node_interval` (s); `ignition` (s, windows
     before it do not count); `nn_epochs` for training the network; `max_iter`,
-    an iteration bound of each OEM fit (default `None`: each runs to convergence,
-    within the engine's adaptive budget; a chunk's fits are batched, so it takes
-    as long as its slowest flight).
+    the iteration bound of each OEM fit. The campaign's fits are vmapped per
+    chunk, so one fit that keeps creeping would hold its whole chunk to the
+    engine's 500-iteration budget (10 times its cost and more): the campaign bounds
+    them at 30 (its fits converge in 5-7) and counts a fit that stops there as not
+    converged, with no estimate. `dp.pegasus.estimate_oem` on one log runs to
+    convergence.
     """
 
     samples: int = 100
@@ -61,7 +64,7 @@ class Campaign:
     ignition: float = 5.0
     min_qbar: float = 2000.0
     nn_epochs: int = 1000
-    max_iter: int | None = None
+    max_iter: int = 30
 
     def __post_init__(self):
         unknown = [m for m in self.methods if m not in METHODS]

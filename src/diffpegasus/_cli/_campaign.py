@@ -13,7 +13,6 @@ from ._common import (
     at_least_one,
     finite,
     FIT,
-    MaxIterOption,
     OUTPUT,
     positive,
 )
@@ -70,7 +69,16 @@ def montecarlo(
             rich_help_panel=FIT,
         ),
     ] = 1000,
-    max_iter: MaxIterOption = None,
+    max_iter: Annotated[
+        int,
+        typer.Option(
+            help="Iteration bound of each flight's OEM fit (the fits of a chunk are "
+            "batched, so one creeping fit holds its chunk; a fit that stops short "
+            "counts as not converged)",
+            callback=at_least_one,
+            rich_help_panel=FIT,
+        ),
+    ] = 30,
     processes: Annotated[
         int,
         typer.Option(
@@ -127,9 +135,8 @@ def montecarlo(
             f"--duration={duration!r}",
             f"--sample-rate={sample_rate!r}",
             f"--nn-epochs={nn_epochs}",
+            f"--max-iter={max_iter}",
         ]
-        if max_iter is not None:
-            args.append(f"--max-iter={max_iter}")
         try:
             launch_local(["montecarlo", *args], processes)
         except (ValueError, OSError) as e:

@@ -77,6 +77,12 @@ class RESULTS(eqx.Enumeration):
 MAX_ITER = 500
 
 
+def iteration_bound(max_iter: int | None) -> int:
+    """`max_iter` as the engine's loops take it: `None` is the adaptive budget,
+    whose bound is `MAX_ITER`."""
+    return MAX_ITER if max_iter is None else int(max_iter)
+
+
 class AbstractLayout(eqx.Module):
     """Where the unknowns live and how a segment is simulated: what the engine needs
     of a parameter layout.

@@ -48,7 +48,14 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from .._model import Model, Record
-from ._engine import _input_at, coloured_information, explain, Layout, MAX_ITER, RESULTS
+from ._engine import (
+    _input_at,
+    coloured_information,
+    explain,
+    iteration_bound,
+    Layout,
+    RESULTS,
+)
 from ._estimator import AbstractFit
 from ._filter_gain import AbstractFilterGain, SteadyStateGain
 from ._fit import layout as _layout, output_error, simulate, SingleShooting
@@ -305,9 +312,9 @@ def solve_filter_error(
         f = z[p:] * ratio[jnp.asarray(prob.noise_states, int)]
         return r_new, z.at[p:].set(f)
 
-    def body(carry):
+    def step(carry, lin):
         z, rmat, ref, cost_prev, it, _, damping, _, _, _ = carry
-        h, g, jkc, (nu, _, kc, _, c, xs) = _linearise(model, prob, z, rmat, ref)
+        h, g, jkc, (nu, _, kc, _, c, xs), _, _ = lin
         j0 = weighted(nu, rmat)
 
         def trial(lam):
@@ -317,13 +324,23 @@ def solve_filter_error(
             return new, jnp.where(jnp.isfinite(j1), j1, jnp.inf), nu1, xs1, act
 
         def increase(carry):
-            lam = jnp.maximum(10.0 * carry[0], 1e-8)
-            return (lam, *trial(lam))
+            # the first pass tries the carried damping, later ones raise it; one
+            # copy of the trial (and of the filter in it) in the compiled program
+            lam = jnp.where(carry[0], carry[1], jnp.maximum(10.0 * carry[1], 1e-8))
+            return (jnp.array(False), lam, *trial(lam))
 
-        damping, new, j1, nu1, xs1, act = jax.lax.while_loop(
-            lambda c_: ~(c_[2] < j0) & (c_[0] < 1e8),
+        _, damping, new, j1, nu1, xs1, act = jax.lax.while_loop(
+            lambda c_: c_[0] | (~(c_[3] < j0) & (c_[1] < 1e8)),
             increase,
-            (damping, *trial(damping)),
+            (
+                jnp.array(True),
+                damping,
+                z,
+                jnp.full((), jnp.inf, j0.dtype),
+                nu,
+                xs,
+                jnp.array(False),
+            ),
         )
         accepted = j1 < j0
         new = jnp.where(accepted, new, z)
@@ -367,12 +384,32 @@ def solve_filter_error(
     init = (z0, r0, ref0, jnp.linalg.det(r0), jnp.array(0), jnp.array(False))
     init = (*init, jnp.array(0.0), ~jnp.all(jnp.isfinite(r0)), jnp.array(False))
     init = (*init, jnp.array(jnp.inf))
-    z, rmat, ref, cost, iterations, done, _, broken, active, change = (
-        jax.lax.while_loop(lambda c_: (c_[4] < max_iter) & ~c_[5] & ~c_[7], body, init)
+
+    def going(c_):
+        return (c_[4] < max_iter) & ~c_[5] & ~c_[7]
+
+    def linearise(c_):
+        return _linearise(model, prob, c_[0], c_[1], c_[2], rows=True)
+
+    def body(carry):
+        # every pass linearises where it stands; the pass after the last step
+        # only does that, for the statistics at the solution: one copy of the
+        # filter's Jacobian in the compiled program, not one in the loop and
+        # another after it
+        state, _, _ = carry
+        lin = linearise(state)
+        go = going(state)
+        state = jax.lax.cond(go, lambda s_: step(s_, lin), lambda s_: s_, state)
+        return state, lin, ~go
+
+    lin0 = jax.tree.map(
+        lambda a: jnp.zeros(a.shape, a.dtype), jax.eval_shape(linearise, init)
     )
-    h, _, _, (nu, y, kc, k, _, _), jw, ew = _linearise(
-        model, prob, z, rmat, ref, rows=True
+    state, lin, _ = jax.lax.while_loop(
+        lambda c_: ~c_[2], body, (init, lin0, jnp.array(False))
     )
+    z, rmat, ref, cost, iterations, done, _, broken, active, change = state
+    h, _, _, (nu, y, kc, k, _, _), jw, ew = lin
     m = free.astype(h.dtype)
     hm = h * m[:, None] * m[None, :] + jnp.diag(1.0 - m)
     cov = jnp.linalg.inv(hm) * m[:, None] * m[None, :]
@@ -707,7 +744,7 @@ def filter_error(
         jnp.asarray(z0),
         jnp.asarray(free),
         rtol=rtol,
-        max_iter=jnp.asarray(MAX_ITER if max_iter is None else int(max_iter)),
+        max_iter=jnp.asarray(iteration_bound(max_iter)),
         full=bool(full_R),
         progress=bool(progress),
     )
@@ -769,6 +806,18 @@ def filter_error(
 GAIN_VARIATION = 0.1
 
 
+@functools.partial(jax.jit, static_argnames=("model",))
+def _kc_at_points(model, prob, theta, f, rmat, ref):
+    """`diag(K C)` `(records, points, states)` at the schedule points of `prob`
+    (one compiled program per model and shape, shared by every call)."""
+
+    def one(r):
+        k, c, _ = gain(model, prob, r, theta, f, rmat, ref[r])
+        return jnp.einsum("pij,pji->pi", k, c)
+
+    return jax.vmap(one)(jnp.arange(prob.layout.n_records))
+
+
 def gain_variation(model, prob, theta, f, residuals) -> float:
     """The largest change of `diag(K C)` (dimensionless, 0 to 1) between the
     steady-state gains solved at the schedule points of `prob` and its first,
@@ -778,16 +827,9 @@ def gain_variation(model, prob, theta, f, residuals) -> float:
     e = np.concatenate([np.asarray(r) for r in residuals])
     rmat = jnp.diag(jnp.asarray(np.maximum(np.mean(e**2, axis=0), 1e-300)))
     ref = jnp.where(jnp.isnan(prob.reference), prob.x0[:, None, :], prob.reference)
-
-    @jax.jit
-    def weights(theta, f, rmat, ref):
-        def one(r):
-            k, c, _ = gain(model, prob, r, theta, f, rmat, ref[r])
-            return jnp.einsum("pij,pji->pi", k, c)
-
-        return jax.vmap(one)(jnp.arange(prob.layout.n_records))
-
-    kc = np.asarray(weights(jnp.asarray(theta), jnp.asarray(f), rmat, ref))
+    kc = np.asarray(
+        _kc_at_points(model, prob, jnp.asarray(theta), jnp.asarray(f), rmat, ref)
+    )
     change = np.abs(kc - kc[:, :1])
     return float(np.max(np.where(np.isfinite(change), change, np.inf)))
 

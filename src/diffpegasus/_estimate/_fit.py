@@ -10,7 +10,7 @@ import numpy as np
 
 from .._cache import kept_call
 from .._model import Model, Record
-from ._engine import explain, Layout, MAX_ITER, RESULTS, solve
+from ._engine import explain, iteration_bound, Layout, RESULTS, solve
 from ._estimator import AbstractFit
 
 
@@ -358,7 +358,7 @@ def output_error(
     }
     dynamic = {
         # traced: every bound shares one compiled program
-        "max_iter": np.asarray(MAX_ITER if max_iter is None else int(max_iter)),
+        "max_iter": np.asarray(iteration_bound(max_iter)),
         "layout": lay,
         "z0": np.asarray(z0, float),
         "free_params": np.asarray(model.free),

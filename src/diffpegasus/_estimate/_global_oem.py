@@ -19,7 +19,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from .._cache import kept_call
-from ._engine import Layout, MAX_ITER, RESULTS, solve
+from ._engine import iteration_bound, Layout, RESULTS, solve
 from ._oem import OEMProblem, theil_inequality
 from ._score import score, ScoreTest
 
@@ -176,7 +176,7 @@ def fit_global_oem(
     # model functions are values of the package, e.g. the discrepancy model's)
     return kept_call(
         _fit,
-        {"max_iter": MAX_ITER if max_iter is None else int(max_iter)},
+        {"max_iter": iteration_bound(max_iter)},
         {
             "problem": problem,
             "theta0": theta0,

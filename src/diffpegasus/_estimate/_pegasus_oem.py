@@ -96,7 +96,7 @@ from .._vehicle._gravity import gravity
 from .._vehicle._parts import Geometry
 from .._vehicle._pegasus._aerodynamics import body_axis, load_database
 from .._vehicle._pegasus._vehicle import C_REF, S_REF
-from ._engine import Layout, MAX_ITER, RESULTS, segment_solve, solve
+from ._engine import iteration_bound, Layout, RESULTS, segment_solve, solve
 from ._lse import estimate_lse, window_truth
 from ._result import Estimates
 from ._windowed_oem import (
@@ -687,7 +687,7 @@ def estimate_oem(
             setup.theta0,
             jnp.asarray(states[0]),
             jnp.asarray(rtol, float),
-            max_iter=MAX_ITER if max_iter is None else int(max_iter),
+            max_iter=iteration_bound(max_iter),
         )
         flags = {"converged": ok, "iterations": its}
         cov = jax.vmap(jnp.diag)(body_sd**2)  # the sequential fits give no correlation

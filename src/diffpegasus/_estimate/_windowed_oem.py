@@ -42,8 +42,8 @@ from .._model import Model, Record
 from ._engine import (
     AbstractLayout,
     coloured_information as _coloured_information,
+    iteration_bound,
     Layout,
-    MAX_ITER,
     RESULTS,
     segment_outputs,
     solve,
@@ -438,7 +438,7 @@ def fit_windowed_data(
             "model": model,
             "windows": windows,
             "stepped": stepped,
-            "max_iter": MAX_ITER if max_iter is None else int(max_iter),
+            "max_iter": iteration_bound(max_iter),
         },
         {
             "data": data,

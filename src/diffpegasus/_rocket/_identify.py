@@ -22,6 +22,8 @@ from ._data import ascent_record, pad_pressure
 
 BASE_FREE = ("thrust_scale", "motor_time")
 SENSOR_FREE = ("baro_lag", "static_error")
+# the wind along the rail's heading, where an accelerometer spans the ascent
+WIND_FREE = ("wind_along",)
 # the accelerometer fixes the length scale the barometer reads in, at every height
 ACCEL_FREE = ("temperature", "lapse_rate")
 STANDARD_LAPSE = -6.5  # K/km
@@ -239,6 +241,33 @@ def knots_for(record, rocket, temperature) -> DragKnots:
     return DragKnots(tuple(float(m) for m in np.round(np.linspace(0.1, top, n), 3)))
 
 
+def default_free(problem) -> tuple[str, ...]:
+    """The effects [`fit_rocket`][] estimates by default besides the drag and the
+    thrust. With an accelerometer: the barometer's lag and static-pressure error
+    (the lag is told from the flight only against an accelerometer's independent
+    kinematics), the transonic static-pressure jump on a flight whose knots reach
+    Mach 1, and, where the accelerometer spans the ascent, the wind along the rail's
+    heading: the drag acts on the airspeed, the barometer integrates the ground
+    speed, and an accelerometer reading the drag over the whole climb tells them
+    apart, if weakly (4.4-4.7 m/s standard error on RocketPy's flights). Held at
+    zero, a wind the log cannot rule out goes into `CD` at low Mach, where it is a
+    large share of the airspeed (RocketPy's flight with a 6.4 m/s tail wind: `CD`
+    56% low at Mach 0.15, 4 bands out); estimated, `CD`'s band carries it. An
+    altitude alone: the static-pressure error only, which follows the dynamic
+    pressure at once (a dip at burnout, no integration; Andromeda: 53 m RMS
+    without, 22 m with)."""
+    from .._vehicle._rocket._sensors import TRANSONIC_WIDTH
+
+    if "accel" not in problem.outputs:
+        return ("static_error",)
+    free = SENSOR_FREE
+    if problem.flight.knots.mach[-1] > 1.0 - TRANSONIC_WIDTH:
+        free += ("transonic_error",)
+    if accel_covers_ascent(problem.record):
+        free += WIND_FREE
+    return free
+
+
 @dataclasses.dataclass(frozen=True)
 class Problem:
     """A flight ready to fit: the rocket, its [`Flight`][] (one per problem, so
@@ -311,7 +340,7 @@ def record_until(record, until: float):
 def fit_rocket(
     problem: Problem,
     *,
-    free=SENSOR_FREE,
+    free=None,
     until=None,
     drag: str = "knots",
     start: dict | None = None,
@@ -331,8 +360,7 @@ def fit_rocket(
     - `free`: effects estimated besides the drag, the thrust scale, the motor's
       start time and, with an accelerometer, its offset and either the day's
       temperature and lapse rate or its scale (see [`accel_covers_ascent`][]) (names
-      in the model's parameter list); by default the barometer's lag and
-      static-pressure error.
+      in the model's parameter list); by default [`default_free`][]'s.
     - `until`: s, use the log only up to this time (the model still runs to apogee;
       the record keeps its length, so the fit shares the compiled program).
     - `drag`: `"knots"` (the knots estimated) or `"scale"` (the start curve held,
@@ -347,6 +375,7 @@ def fit_rocket(
     """
     values = dict(problem.start)
     values.update(start or {})
+    free = default_free(problem) if free is None else tuple(free)
     unknown = [f for f in free if f not in values]
     if unknown:
         raise LogError(f"unknown effect(s) {unknown}; effects are {', '.join(EFFECTS)}")

@@ -30,22 +30,13 @@ def run_flight(rocket, log, out=None, *, free=None) -> dict:
     **Returns:** the summary (see [`summary`][]) with `cd_table` rows (Mach, CD,
     standard error, team CD) added.
     """
-    from .._vehicle._rocket._sensors import TRANSONIC_WIDTH
-    from ._identify import SENSOR_FREE
+    from ._identify import default_free
     from ._report import figures, summary
 
     t0 = time.perf_counter()
     problem = prepare(rocket, log)
     if free is None:
-        # a flight through Mach 1 carries the transonic jump of the static pressure.
-        # The barometer's lag is told from the flight only against an
-        # accelerometer's independent kinematics; its static-pressure error, which
-        # follows the dynamic pressure at once (a dip at burnout, no integration),
-        # shows in an altitude alone too (Andromeda: 53 m RMS without, 22 m with)
-        through = problem.flight.knots.mach[-1] > 1.0 - TRANSONIC_WIDTH
-        free = SENSOR_FREE + (("transonic_error",) if through else ())
-        if "accel" not in problem.outputs:
-            free = ("static_error",)
+        free = default_free(problem)
     free = tuple(free)
     result = fit_rocket(problem, free=free, throw=False)
     seconds = time.perf_counter() - t0
