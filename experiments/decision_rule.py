@@ -203,7 +203,7 @@ def refit(args):
     from _shared import block_length
 
     from diffpegasus._cli._runners import _fit_spec
-    from diffpegasus._diagnose._calibration import _spectra, _statistics
+    from diffpegasus._diagnose._calibration import _spectra, _statistics, windows_of
     from diffpegasus._estimate._fit import fit as engine_fit
     from diffpegasus._estimate._model import Record
     from diffpegasus._estimate._score import score
@@ -236,13 +236,17 @@ def refit(args):
     rows = np.asarray(st.rows)[valid]
     ew = np.asarray(st.residuals)[valid]
     offset = np.asarray(st.slope) - np.einsum("nok,no->k", rows, ew)
-    sp = _spectra(jnp.asarray(rows), jnp.asarray(st.curvature), jnp.asarray(offset))
+    windows, _ = windows_of(rows, ew, np.asarray(st.curvature), offset)
+    sp = _spectra(
+        jnp.asarray(rows), jnp.asarray(st.curvature), jnp.asarray(offset), windows
+    )
     basis = np.asarray(st.basis)[valid]
     basis = basis[..., np.any(basis != 0.0, axis=(0, 1))]
     sp_refit = _spectra(
         jnp.asarray(rows),
         jnp.asarray(st.curvature),
         jnp.asarray(offset),
+        windows,
         jnp.asarray(basis),
     )
     block = block_length(ew)

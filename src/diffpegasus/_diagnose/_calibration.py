@@ -16,14 +16,20 @@ Jacobian, vmapped over replicates:
   is kept) and filtered again: the residuals' colour is kept at every lag, where
   a block bootstrap keeps it only within a block (and so gives a null too light
   for strongly coloured residuals: measured in the validation page);
-- each replicate's statistic is **studentised** exactly as the observed one: the
-  long-run variance of the per-sample score (all outputs added at a sample) by a
-  Bartlett lag window whose bandwidth Andrews' rule takes from that series itself
-  ([`long_run_variance`][]), from the replicate's own residuals after its own
-  step, so the null holds whatever the residuals' scale and the bandwidth's
-  scatter is in it too. A lag window, not the sum over all lags the score test
-  reports ([`score_variance`][]): the all-lag sum scatters from record to record
-  by an amount no resampling reproduces (measured in the validation page);
+- each replicate's statistic is **studentised** exactly as the observed one. A
+  score is fixed sensitivities (the manoeuvre's) times residuals, so its
+  variance is the residuals' autocovariance (between outputs too) weighed by the
+  sensitivities' own, summed over lags under a Bartlett lag window
+  ([`_statistics`][]); the window's bandwidth is Andrews' rule on the log's
+  residuals after each candidate's own step ([`windows_of`][]), taken once and
+  used unchanged on every replicate, whose autocovariance is its own. A lag
+  window, not the sum over all lags the score test reports ([`score_variance`][]):
+  the all-lag sum scatters from record to record by an amount no resampling
+  reproduces; and the residuals' colour, not that of the per-sample product of
+  sensitivity and residual: a candidate's signature is local to the manoeuvre
+  (a doublet, a step), and a lag window on the product counts what is left of it
+  after the step as noise, at its full local strength (measured in the
+  validation page);
 - the family-wise null is the **maximum** over all candidates of each replicate,
   so a candidate's p-value (Westfall and Young's single-step max-T) is the share of
   replicates whose largest statistic reaches its own, and the threshold at level
@@ -156,16 +162,82 @@ class Calibration(eqx.Module):
 
 
 class _Spectra(eqx.Module):
-    # what every replicate shares: the candidates' sensitivities, their per-sample
-    # squares summed over outputs, and the fit's refit operator
+    # what every replicate shares: the candidates' sensitivities, the fit's refit
+    # operator, and the lag-windowed products of the sensitivities that turn a
+    # residual series' autocovariance into each score's variance ([`_windows`][])
     rows: Float[Array, "samples outputs k"]
     curvature: Float[Array, " k"]
     offset: Float[Array, " k"]
     basis: Float[Array, "samples outputs unknowns"] | None
+    windowed: Float[Array, "lags outputs outputs k"]  # w(l) C(l), l = -(L-1)..L-1
+    smoothed: Float[Array, "samples outputs outputs k"]
+    own: Float[Array, "outputs outputs k"]
 
 
-def _spectra(rows, curvature, offset, basis=None) -> _Spectra:
-    return _Spectra(rows, curvature, offset, basis)
+def _spectra(rows, curvature, offset, windows, basis=None) -> _Spectra:
+    return _Spectra(rows, curvature, offset, basis, *windows)
+
+
+def bandwidth(e) -> float:
+    """Andrews' (1991) plug-in bandwidth, samples, of the Bartlett lag window for
+    the long-run covariance of a residual series `e` `(samples, channels)`: an
+    autoregression of order one per channel (`rho`, variance `s2`),
+    `S = 1.1447 (alpha n)^(1/3)`, `alpha = sum 4 rho^2 s2^2 / ((1 - rho)^6
+    (1 + rho)^2) / sum s2^2 / (1 - rho)^4`; between 1 and `n`."""
+    e = np.asarray(e, float)
+    n = e.shape[0]
+    e = e - e.mean(axis=0)
+    g0 = np.sum(e * e, axis=0)
+    g1 = np.sum(e[:-1] * e[1:], axis=0)
+    rho = np.clip(g1 / np.maximum(g0, np.finfo(float).tiny), -1 + 1e-9, 1 - 1e-9)
+    s4 = (g0 / n) ** 2
+    num = np.sum(4 * rho**2 * s4 / ((1 - rho) ** 6 * (1 + rho) ** 2))
+    den = np.sum(s4 / (1 - rho) ** 4)
+    alpha = num / den if den > 0 else 0.0
+    return float(np.clip(1.1447 * (alpha * n) ** (1.0 / 3.0), 1.0, n))
+
+
+def _windows(rows, bandwidths):
+    """The parts of the lag-window variance that depend on the sensitivities only,
+    candidate `k` with Bartlett weights `w(l) = 1 - |l| / S_k`:
+    `windowed[l, a, b] = w(l) C_ab(l)`, `C_ab(l) = sum_t rows[t, a] rows[t + l, b]`
+    (`l = -(L-1)..L-1`, `L` the largest bandwidth rounded up);
+    `smoothed[t, a, b] = (1 / n) sum_l w(l) C_ab(l) rows[t + l, b]`;
+    `own[a, b] = sum_t rows[t, a] smoothed[t, a, b]`."""
+    rows = np.asarray(rows, float)
+    n, o, k = rows.shape
+    bandwidths = np.broadcast_to(np.asarray(bandwidths, float), (k,))
+    lags = max(1, min(int(np.ceil(np.max(bandwidths))), n))
+    ell = np.arange(-(lags - 1), lags)
+    w = np.clip(1.0 - np.abs(ell)[:, None] / bandwidths[None, :], 0.0, 1.0)
+    c = np.empty((len(ell), o, o, k))
+    for i, l in enumerate(ell):
+        if l >= 0:
+            c[i] = np.einsum("tak,tbk->abk", rows[: n - l], rows[l:])
+        else:
+            c[i] = np.einsum("tak,tbk->abk", rows[-l:], rows[: n + l])
+    windowed = w[:, None, None, :] * c
+    smoothed = np.zeros((n, o, o, k))
+    for i, l in enumerate(ell):
+        lo, hi = max(0, -l), min(n, n - l)  # 0 <= t + l < n
+        smoothed[lo:hi] += windowed[i][None] * rows[lo + l : hi + l, None, :, :]
+    smoothed /= n
+    own = np.einsum("tak,tabk->abk", rows, smoothed)
+    return windowed, smoothed, own
+
+
+def windows_of(rows, residuals, curvature, offset):
+    """Each candidate's Bartlett window, taken once from the log: Andrews'
+    bandwidth ([`bandwidth`][]) of the residuals the candidate's own step leaves
+    (`residuals - slope / curvature * rows_k`: under an alternative the step takes
+    the candidate's signature out, which would otherwise read as colour), and the
+    window's products ([`_windows`][]). **Returns** `(parts, bandwidths (k,))`."""
+    rows = np.asarray(rows, float)
+    e = np.asarray(residuals, float)
+    slope = np.einsum("nok,no->k", rows, e) + np.asarray(offset, float)
+    a = -slope / np.asarray(curvature, float)
+    s = np.array([bandwidth(e + a[j] * rows[..., j]) for j in range(rows.shape[2])])
+    return _windows(rows, s), s
 
 
 def _refitted(sp: _Spectra, e_star):
@@ -178,72 +250,73 @@ def _refitted(sp: _Spectra, e_star):
     )
 
 
-def long_run_variance(u: Float[Array, "samples k"]) -> tuple[Array, Array]:
-    """Long-run variance of `sum_t u[t]` for each column of `u` `(samples, k)`, a
-    series correlated in time (centred here): the Bartlett lag-window (Newey-West)
-    estimate `sum_|l|<S (1 - |l| / S) sum_t u_t u_(t+l)`, its bandwidth `S` from
-    the series itself by Andrews' (1991) plug-in rule for the Bartlett window, an
-    autoregression of order one fitted to the column (`rho`):
-    `S = 1.1447 (alpha n)^(1/3)`, `alpha = 4 rho^2 / ((1 - rho)^2 (1 + rho)^2)`,
-    at most `n`. **Returns** `(variance (k,), bandwidth (k,))`, samples."""
-    n = u.shape[0]
-    u = u - jnp.mean(u, axis=0)[None, :]
-    spectrum = jnp.fft.rfft(u, n=2 * n, axis=0)
-    gamma = jnp.fft.irfft(jnp.abs(spectrum) ** 2, n=2 * n, axis=0)[:n]  # sums
-    rho = gamma[1] / jnp.maximum(gamma[0], jnp.finfo(u.dtype).tiny)
-    rho = jnp.clip(rho, -1.0 + 1e-9, 1.0 - 1e-9)
-    alpha = 4.0 * rho**2 / ((1.0 - rho) ** 2 * (1.0 + rho) ** 2)
-    bandwidth = jnp.clip(1.1447 * (alpha * n) ** (1.0 / 3.0), 1.0, float(n))
-    lags = jnp.arange(n, dtype=u.dtype)[:, None]
-    weight = jnp.clip(1.0 - lags / bandwidth[None, :], 0.0, 1.0)
-    weight = weight.at[1:].multiply(2.0)  # both signs of each lag
-    return jnp.sum(weight * gamma, axis=0), bandwidth
-
-
 def _statistics(sp: _Spectra, e_star, refit: bool = False):
     """Studentised score statistic of every candidate on one residual series
     `e_star` `(samples, outputs)` and its variance: `(k,)`, `(k,)`.
 
-    The score is `sum_t u_t`, `u_t = sum_o rows[t, o] e[t, o]` (every output's
-    evidence at a sample added first, so their covariance counts); its variance
-    is the long-run variance of `u` ([`long_run_variance`][]: a Bartlett lag
-    window, bandwidth by Andrews' rule from `u` itself), with `u` taken from the
-    residuals the candidate's own step leaves (under an alternative the step's
-    signature would otherwise count as noise). Never below `curvature`, the
-    variance under white residuals of unit variance. `sp.offset` `(k,)` is the
-    score's part from the fit's continuity defects, which do not depend on the
-    data.
+    The score is `sum_t sum_o rows[t, o] e[t, o]`: fixed sensitivities (the
+    manoeuvre's, not a random series) times residuals. Its variance is
+    `sum_l w(l) sum_ab gamma_ab(l) C_ab(l)`: `gamma` the residuals'
+    autocovariance (between outputs too) estimated from `e_star`, `C` the
+    sensitivities' own, `w` the candidate's Bartlett lag window, the same for the
+    log and every replicate ([`windows_of`][]). The residuals are taken after the
+    candidate's own step (`e - slope / curvature * rows`: under an alternative
+    the step's signature would otherwise count as noise), expanded in the step so
+    that no per-candidate series is formed. Never below `curvature`, the variance
+    under white residuals of unit variance. `sp.offset` `(k,)` is the score's
+    part from the fit's continuity defects, which do not depend on the data.
 
     With `refit` (a bootstrap replicate), as a refit to data with these residuals
     would see them, to first order: the free unknowns refitted (`sp.basis`), then
-    the residual variance of every output estimated again (the fit's R is the
-    mean square of its own residuals, so its whitened residuals have unit mean
+    the output weights re-estimated from the refitted residuals (an
+    output-error fit's weights make the observed residuals unit mean
     square; a replicate's, once refitted, have less). Each output's residuals and
     sensitivities are whitened again by it, which is a weight `1 / c` per output
     on every product (`c` the refitted replicate's mean square there)."""
+    n = e_star.shape[0]
     if refit:
         e_star = _refitted(sp, e_star)
         c = jnp.mean(e_star**2, axis=0)
         v = 1.0 / jnp.maximum(c, 1e-12 * jnp.max(c))
     else:
         v = jnp.ones(e_star.shape[1])
-    u = jnp.einsum("nok,no,o->nk", sp.rows, e_star, v)
-    q = jnp.einsum("nok,o->nk", sp.rows**2, v)
-    slope = jnp.sum(u, axis=0) + sp.offset
+    slope = jnp.einsum("nok,no,o->k", sp.rows, e_star, v) + sp.offset
     # the curvature's part from the outputs is reweighted; the defects' part not
-    curvature = sp.curvature + jnp.sum(q, axis=0) - jnp.sum(sp.rows**2, axis=(0, 1))
+    q = jnp.einsum("nok,o->k", sp.rows**2, v)
+    curvature = sp.curvature + q - jnp.sum(sp.rows**2, axis=(0, 1))
     a = -slope / curvature
-    variance, _ = long_run_variance(u + a[None, :] * q)
-    variance = jnp.maximum(variance, curvature)
+    e = e_star - jnp.mean(e_star, axis=0)[None, :]
+    vv = v[:, None] * v[None, :]
+    # gamma_ab(l) = (1 / n) sum_t e[t, a] e[t + l, b], l = -(L-1)..L-1, by FFT
+    lags = (sp.windowed.shape[0] + 1) // 2
+    spectrum = jnp.fft.rfft(e, n=2 * n, axis=0)
+    cross = jnp.fft.irfft(
+        jnp.conj(spectrum)[:, :, None] * spectrum[:, None, :], n=2 * n, axis=0
+    )
+    gamma = jnp.concatenate([cross[2 * n - lags + 1 :], cross[:lags]], axis=0) / n
+    noise = jnp.einsum("lab,labk,ab->k", gamma, sp.windowed, vv)
+    step = jnp.einsum("na,nabk,ab->k", e, sp.smoothed, vv)
+    signal = jnp.einsum("abk,ab->k", sp.own, vv)
+    variance = jnp.maximum(noise + 2.0 * a * step + a**2 * signal, curvature)
     return slope**2 / variance, variance
 
 
 @functools.partial(jax.jit, static_argnames=("replicates", "chunk"))
 def _bootstrap(
-    rows, innovations, transfer, curvature, offset, key, basis, *, replicates, chunk
+    rows,
+    innovations,
+    transfer,
+    curvature,
+    offset,
+    key,
+    basis,
+    windows,
+    *,
+    replicates,
+    chunk,
 ):
     n = rows.shape[0]
-    sp = _spectra(rows, curvature, offset, basis)
+    sp = _spectra(rows, curvature, offset, windows, basis)
 
     def one(k):
         # innovation rows drawn with replacement (all channels at once: their
@@ -258,8 +331,8 @@ def _bootstrap(
 
 
 @jax.jit
-def _observed(rows, residuals, curvature, offset):
-    return _statistics(_spectra(rows, curvature, offset), residuals)
+def _observed(rows, residuals, curvature, offset, windows):
+    return _statistics(_spectra(rows, curvature, offset, windows), residuals)
 
 
 def statistics(
@@ -277,8 +350,10 @@ def statistics(
     candidate's standard error is its square root over `curvature`)."""
     rows = np.asarray(rows, float)
     residuals = np.asarray(residuals, float)
+    curvature = np.asarray(curvature, float)
     offset = np.asarray(slope, float) - np.einsum("nok,no->k", rows, residuals)
-    stat, var = _observed(rows, residuals, np.asarray(curvature, float), offset)
+    windows, _ = windows_of(rows, residuals, curvature, offset)
+    stat, var = _observed(rows, residuals, curvature, offset, windows)
     if variance:
         return np.asarray(stat), np.asarray(var)
     return np.asarray(stat)
@@ -344,6 +419,8 @@ def calibrate(
     if key is None:
         key = jax.random.key(0)
     offset = np.asarray(slope, float) - np.einsum("nok,no->k", rows, residuals)
+    # the windows are the observed log's, used unchanged on every replicate
+    windows, _ = windows_of(rows, residuals, curvature, offset)
     maxima = _bootstrap(
         jnp.asarray(rows),
         jnp.asarray(fitted.innovations, float),
@@ -352,6 +429,7 @@ def calibrate(
         jnp.asarray(offset),
         key,
         None if basis is None else jnp.asarray(basis, float),
+        windows,
         replicates=int(replicates),
         chunk=8,
     )

@@ -3,8 +3,9 @@
 Pegasus workflow ([`diffpegasus.discrepancy.diagnose`][]).
 
 A candidate is **significant** when its score statistic (1 degree of freedom,
-studentised by a Bartlett lag-window long-run variance, bandwidth by Andrews' rule,
-so the residuals' colour and their covariance between outputs count) exceeds
+studentised by the residuals' autocovariance under a Bartlett lag window, bandwidth
+by Andrews' rule, weighed by the sensitivities' own, so the residuals' colour and
+their covariance between outputs count) exceeds
 a **threshold taken from the log itself**: the `1 - significance` point of the
 largest statistic over all candidates when residuals are drawn from the
 autoregression fitted to the fit's residuals (a sieve bootstrap, [`calibrate`][]), so it holds the family-wise false-alarm level
@@ -253,9 +254,9 @@ def rule_summary(ranking: list[dict]) -> dict:
         "null_order": r["null_order"],
         "method": "parametric bootstrap: residuals from the autoregression fitted "
         "to the fit's residuals (sieve), through the efficient score at the "
-        "fitted Jacobian, studentised by a Bartlett lag-window long-run variance "
-        "(Andrews' bandwidth) on the log and every replicate alike, max over "
-        "candidates",
+        "fitted Jacobian, studentised by the residuals' autocovariance under a "
+        "Bartlett lag window (Andrews' bandwidth) weighed by the sensitivities', "
+        "on the log and every replicate alike, max over candidates",
     }
 
 
