@@ -170,7 +170,7 @@ class _Spectra(eqx.Module):
     offset: Float[Array, " k"]
     basis: Float[Array, "samples outputs unknowns"] | None
     windowed: Float[Array, "lags outputs outputs k"]  # w(l) C(l), l = -(L-1)..L-1
-    smoothed: Float[Array, "samples outputs outputs k"]
+    smoothed: Float[Array, "samples outputs k"]
     own: Float[Array, "outputs outputs k"]
 
 
@@ -201,13 +201,15 @@ def _windows(rows, bandwidths):
     """The parts of the lag-window variance that depend on the sensitivities only,
     candidate `k` with Bartlett weights `w(l) = 1 - |l| / S_k`:
     `windowed[l, a, b] = w(l) C_ab(l)`, `C_ab(l) = sum_t rows[t, a] rows[t + l, b]`
-    (`l = -(L-1)..L-1`, `L` the largest bandwidth rounded up);
-    `smoothed[t, a, b] = (1 / n) sum_l w(l) C_ab(l) rows[t + l, b]`;
-    `own[a, b] = sum_t rows[t, a] smoothed[t, a, b]`."""
+    (`l = -(L-1)..L-1`, `L` the largest bandwidth rounded up to a power of two,
+    so that few shapes are compiled); `own[a, b] = sum_t rows[t, a] H[t, a, b]`
+    and `smoothed[t, a] = sum_b H[t, a, b]`, with
+    `H[t, a, b] = (1 / n) sum_l w(l) C_ab(l) rows[t + l, b]`."""
     rows = np.asarray(rows, float)
     n, o, k = rows.shape
     bandwidths = np.broadcast_to(np.asarray(bandwidths, float), (k,))
-    lags = max(1, min(int(np.ceil(np.max(bandwidths))), n))
+    lags = 2 ** int(np.ceil(np.log2(max(1.0, np.max(bandwidths)))))
+    lags = max(1, min(lags, n))
     ell = np.arange(-(lags - 1), lags)
     w = np.clip(1.0 - np.abs(ell)[:, None] / bandwidths[None, :], 0.0, 1.0)
     c = np.empty((len(ell), o, o, k))
@@ -223,7 +225,7 @@ def _windows(rows, bandwidths):
         smoothed[lo:hi] += windowed[i][None] * rows[lo + l : hi + l, None, :, :]
     smoothed /= n
     own = np.einsum("tak,tabk->abk", rows, smoothed)
-    return windowed, smoothed, own
+    return windowed, np.sum(smoothed, axis=2), own
 
 
 def windows_of(rows, residuals, curvature, offset):
@@ -295,7 +297,12 @@ def _statistics(sp: _Spectra, e_star, refit: bool = False):
     )
     gamma = jnp.concatenate([cross[2 * n - lags + 1 :], cross[:lags]], axis=0) / n
     noise = jnp.einsum("lab,labk,ab->k", gamma, sp.windowed, vv)
-    step = jnp.einsum("na,nabk,ab->k", e, sp.smoothed, vv)
+    # the cross term weighs the partner output b by the mean weight, not its own
+    # (exact when the weights are equal, as for a log's own residuals; a refit
+    # moves them apart by the free unknowns' share, and the term is first order
+    # in the step, small under the null): an array (samples, outputs, k) instead
+    # of (samples, outputs, outputs, k)
+    step = jnp.einsum("na,nak,a->k", e, sp.smoothed, v) * jnp.mean(v)
     signal = jnp.einsum("abk,ab->k", sp.own, vv)
     variance = jnp.maximum(noise + 2.0 * a * step + a**2 * signal, curvature)
     return slope**2 / variance, variance
