@@ -225,7 +225,9 @@ def test_score_variance_is_the_sensitivities_times_the_residuals_colour():
             w = max(0.0, 1 - abs(lag) / s[k])
             lo, hi = max(0, -lag), n - max(0, lag)
             gam = np.einsum("ta,tb->ab", x[lo:hi], x[lo + lag : hi + lag]) / n
-            cc = np.einsum("ta,tb->ab", rows[lo:hi, :, k], rows[lo + lag : hi + lag, :, k])
+            cc = np.einsum(
+                "ta,tb->ab", rows[lo:hi, :, k], rows[lo + lag : hi + lag, :, k]
+            )
             total += w * np.sum(gam * cc)
         assert variance[k] == pytest.approx(max(total, curvature[k]), rel=1e-9)
 

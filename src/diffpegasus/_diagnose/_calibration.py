@@ -213,19 +213,22 @@ def _windows(rows, bandwidths):
     ell = np.arange(-(lags - 1), lags)
     w = np.clip(1.0 - np.abs(ell)[:, None] / bandwidths[None, :], 0.0, 1.0)
     c = np.empty((len(ell), o, o, k))
-    for i, l in enumerate(ell):
-        if l >= 0:
-            c[i] = np.einsum("tak,tbk->abk", rows[: n - l], rows[l:])
+    for i, lag in enumerate(ell):
+        if lag >= 0:
+            c[i] = np.einsum("tak,tbk->abk", rows[: n - lag], rows[lag:])
         else:
-            c[i] = np.einsum("tak,tbk->abk", rows[-l:], rows[: n + l])
+            c[i] = np.einsum("tak,tbk->abk", rows[-lag:], rows[: n + lag])
     windowed = w[:, None, None, :] * c
-    smoothed = np.zeros((n, o, o, k))
-    for i, l in enumerate(ell):
-        lo, hi = max(0, -l), min(n, n - l)  # 0 <= t + l < n
-        smoothed[lo:hi] += windowed[i][None] * rows[lo + l : hi + l, None, :, :]
+    smoothed = np.zeros((n, o, k))
+    for i, lag in enumerate(ell):
+        lo, hi = max(0, -lag), min(n, n - lag)  # 0 <= t + lag < n
+        smoothed[lo:hi] += np.einsum(
+            "abk,tbk->tak", windowed[i], rows[lo + lag : hi + lag]
+        )
     smoothed /= n
-    own = np.einsum("tak,tabk->abk", rows, smoothed)
-    return windowed, np.sum(smoothed, axis=2), own
+    # sum_t rows[t, a] H[t, a, b] = (1 / n) sum_l w(l) C_ab(l)^2
+    own = np.einsum("labk,labk->abk", windowed, c) / n
+    return windowed, smoothed, own
 
 
 def windows_of(rows, residuals, curvature, offset):
