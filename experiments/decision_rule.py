@@ -238,7 +238,10 @@ def refit(args):
     offset = np.asarray(st.slope) - np.einsum("nok,no->k", rows, ew)
     windows, _ = windows_of(rows, ew, np.asarray(st.curvature), offset)
     sp = _spectra(
-        jnp.asarray(rows), jnp.asarray(st.curvature), jnp.asarray(offset), windows
+        jnp.asarray(rows),
+        jnp.asarray(st.curvature),
+        jnp.asarray(offset),
+        windows=windows,
     )
     basis = np.asarray(st.basis)[valid]
     basis = basis[..., np.any(basis != 0.0, axis=(0, 1))]
@@ -246,8 +249,8 @@ def refit(args):
         jnp.asarray(rows),
         jnp.asarray(st.curvature),
         jnp.asarray(offset),
-        windows,
         jnp.asarray(basis),
+        windows,
     )
     block = block_length(ew)
     w = np.sqrt(np.asarray(result.R))  # whitened -> SI

@@ -174,7 +174,10 @@ class _Spectra(eqx.Module):
     own: Float[Array, "outputs outputs k"]
 
 
-def _spectra(rows, curvature, offset, windows, basis=None) -> _Spectra:
+def _spectra(rows, curvature, offset, basis=None, windows=None) -> _Spectra:
+    # without windows, those of white residuals (a bandwidth of one lag)
+    if windows is None:
+        windows = _windows(rows, 1.0)
     return _Spectra(rows, curvature, offset, basis, *windows)
 
 
@@ -326,7 +329,7 @@ def _bootstrap(
     chunk,
 ):
     n = rows.shape[0]
-    sp = _spectra(rows, curvature, offset, windows, basis)
+    sp = _spectra(rows, curvature, offset, basis, windows)
 
     def one(k):
         # innovation rows drawn with replacement (all channels at once: their
@@ -342,7 +345,7 @@ def _bootstrap(
 
 @jax.jit
 def _observed(rows, residuals, curvature, offset, windows):
-    return _statistics(_spectra(rows, curvature, offset, windows), residuals)
+    return _statistics(_spectra(rows, curvature, offset, None, windows), residuals)
 
 
 def statistics(
