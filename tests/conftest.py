@@ -37,6 +37,19 @@ jax.config.update("jax_numpy_rank_promotion", "raise")
 enable_cache()
 
 
+def pytest_configure(config):
+    # Under pytest-xdist (`-n 2`) each test file runs on one worker (`loadfile`): its
+    # tests share module fixtures (a generated flight, a campaign, a fit) and
+    # compiled programs (the launch vehicle's fit, score test and bootstrap), which
+    # `load`'s test-by-test distribution would build on both workers (the persistent
+    # cache only spares XLA's part, and only to a worker that comes second).
+    # `load` is what `-n` alone means; a `--dist` the user chose otherwise is kept.
+    if getattr(config.option, "numprocesses", None) and (
+        getattr(config.option, "dist", "no") == "load"
+    ):
+        config.option.dist = "loadfile"
+
+
 def pytest_unconfigure(config):
     # only the process that made the folder (the controller) removes it
     if _CREATED_CACHE is not None and not hasattr(config, "workerinput"):
