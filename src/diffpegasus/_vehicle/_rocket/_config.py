@@ -48,6 +48,8 @@ class Rocket(eqx.Module):
     - `airbrakes`: `(time s, deployment 0-1)` schedule or `None`.
     - `recorded_apogee`, `preflight_apogee`: m AGL from the team, or `None`.
     - `folder`: where the file was.
+    - `latitude`: deg, the pad's geodetic latitude (gravity from the WGS84 ellipsoid
+      there), or `None` (standard gravity, 9.80665 m/s^2 at sea level).
     """
 
     name: str = eqx.field(static=True)
@@ -66,6 +68,7 @@ class Rocket(eqx.Module):
     recorded_apogee: float | None = eqx.field(static=True)
     preflight_apogee: float | None = eqx.field(static=True)
     folder: str = eqx.field(static=True, default=".")
+    latitude: float | None = eqx.field(static=True, default=None)
 
     @property
     def loaded_mass(self) -> float:
@@ -171,4 +174,5 @@ def read_rocket(path) -> Rocket:
         recorded_apogee=_optional(rs, "recorded_apogee_agl_m"),
         preflight_apogee=_optional(rs, "preflight_simulated_apogee_agl_m"),
         folder=str(folder),
+        latitude=_optional(la, "latitude_deg"),
     )
