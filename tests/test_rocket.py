@@ -56,7 +56,14 @@ def test_layered_atmosphere_against_hydrostatic_integration():
     from diffpegasus._vehicle._atmosphere import R_AIR
 
     earth = 6_356_766.0
-    t_pad, lapse, p_pad, elev, top, off = 305.0, -9.8, 86_000.0, 1400.0, 4500.0, (2.0, -1.5)
+    t_pad, lapse, p_pad, elev, top, off = (
+        305.0,
+        -9.8,
+        86_000.0,
+        1400.0,
+        4500.0,
+        (2.0, -1.5),
+    )
     knot_h = np.arange(4) * top / 3
     knot_t = t_pad + lapse * 1e-3 * knot_h + np.r_[0.0, off, 0.0]
 
@@ -319,3 +326,54 @@ def test_log_past_a_cut_is_missing_not_read():
     np.testing.assert_array_equal(cut.measured[~late], record.measured[~late])
     np.testing.assert_array_equal(cut.inputs[~late], record.inputs[~late])
     np.testing.assert_array_equal(cut.inputs[:, 0], record.inputs[:, 0])
+
+
+def test_normal_gravity_on_the_wgs84_ellipsoid():
+    """WGS84's published normal gravity: 9.7803253359 m/s^2 at the equator,
+    9.8321849378 at the poles; the free-air gradient near the surface -3.086e-6 /s^2
+    (the textbook 0.3086 mGal/m)."""
+    from diffpegasus._vehicle._gravity import normal_gravity
+
+    assert float(normal_gravity(0.0, 0.0)) == pytest.approx(9.7803253359, abs=1e-9)
+    assert float(normal_gravity(0.0, 90.0)) == pytest.approx(9.8321849378, abs=1e-9)
+    grad = float(normal_gravity(1000.0, 45.0) - normal_gravity(0.0, 45.0)) / 1000.0
+    assert grad == pytest.approx(-3.086e-6, rel=2e-3)
+
+
+def test_rocket_file_latitude_sets_gravity():
+    """The committed RocketPy flights' pad (39.39 deg, 150 m): RocketPy's own
+    gravity there is 9.800692 m/s^2 (its WGS84 model); the rocket's model
+    reads the latitude from the file."""
+    rocket = dr.read_rocket(SIM / "clean" / "rocket.toml")
+    assert rocket.latitude == pytest.approx(39.39)
+    from diffpegasus._vehicle._gravity import normal_gravity
+
+    assert float(normal_gravity(150.0, rocket.latitude)) == pytest.approx(
+        9.800692, abs=2e-6
+    )
+
+
+def test_diagnose_says_which_finding_a_missed_effect_cannot_be_told_from():
+    """A candidate above its threshold in one round and below it once that round's
+    finding joined the model is reported as not told apart from the finding."""
+    from diffpegasus._rocket._diagnose import _aliases
+
+    def row(r, name, significant):
+        return {
+            "round": r,
+            "candidate": name,
+            "significant": significant,
+            "cannot_be_told_from": [],
+        }
+
+    rows = [
+        row(1, "static-pressure error", True),
+        row(1, "barometer lag", True),
+        row(1, "wind", False),
+        row(2, "barometer lag", False),
+        row(2, "wind", False),
+    ]
+    _aliases(rows, ["static-pressure error"])
+    assert rows[3]["cannot_be_told_from"] == ["static-pressure error"]
+    assert rows[4]["cannot_be_told_from"] == []
+    assert rows[1]["cannot_be_told_from"] == []

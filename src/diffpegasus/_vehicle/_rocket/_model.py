@@ -54,7 +54,7 @@ EFFECTS = (
     "motor_time",
     "temperature",
     "lapse_rate",
-        "wind_east",
+    "wind_east",
     "wind_north",
     "wind_along",
     "baro_lag",
