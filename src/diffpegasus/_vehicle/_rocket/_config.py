@@ -10,7 +10,7 @@ read, every other key is kept for people:
     [aero]    power_off_drag_file, power_on_drag_file (optional; the team's curves),
               air_brakes_actuation_file (optional, time s / deployment 0-1)
     [launch]  elevation_m, rail_length_m, inclination_deg (from horizontal),
-              heading_deg (from north)
+              heading_deg (from north), latitude_deg (optional: gravity)
     [atmosphere] surface_temperature_K (or a notebook_surface_conditions text
               "T 299.96 K, ..." or era5_near_surface_temperature_K); optional
     [results] recorded_apogee_agl_m, preflight_simulated_apogee_agl_m (optional)
