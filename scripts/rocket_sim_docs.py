@@ -167,19 +167,20 @@ def main():
     ]
     if more:
         lines += ["### Further flights", "", *coverage_rows(more), ""]
-        if any(r.get("from_printed_line") for r in more.values()):
-            lines += [
-                "This run's further flights are the lines the benchmark printed "
-                "(coverage, thrust scale, time): it was stopped during "
-                "`thrust-s7-20hz` (its fit past 25 minutes on a machine at load "
-                "10-14), before writing its file, so `thrust-s7-20hz` and `wind-s6` "
-                "are not measured. `clean-smooth`'s fit from the flat start stopped "
-                "in a local minimum (thrust scale ± 0.0036, five times the others'; "
-                "with the wind held, from the planted curve it reaches det(R) 2.5 times lower, CD within "
-                "1.3% of the truth but at the top knot), so its full coverage comes "
-                "with wide bands.",
-                "",
-            ]
+        lines += [
+            "The same 8 flights as before this code (barometer in geopotential "
+            "metres, gravity from the pad's latitude) are covered at the same "
+            "131 of 160 points, flight by flight; `thrust-s7-20hz` (20 of 20) and "
+            "`wind-s6` (6 of 20) are measured for the first time. Coverage comes "
+            "two ways: `thrust-s7-20hz` and `sensors-s8` are covered with wide "
+            "bands (the day's temperature ± 7 to 14 K, CD ± 10 to 20% at the top "
+            "knot), while the misses are bias with tight bands: on `wind-s6` the "
+            "wind along the rail is estimated -1.7 ± 1.1 m/s for -7.1 planted and "
+            "CD is 3 to 4 bands high over the whole range; on the clean flights CD "
+            "is 2 to 3% high at the top knot and the temperature and lapse rate "
+            "bend (287.2 K and -6.5 K/km read as 286.9 and -5.1).",
+            "",
+        ]
     lines += [
         "## Diagnose",
         "",
