@@ -24,23 +24,26 @@ def main():
     for folder in map(pathlib.Path, sys.argv[1:]):
         rocket = read_rocket(folder / "rocket.toml")
         log = read_rocket_log(folder / "rocket.toml")
-        # the free set the command uses (see run_flight)
-        free = (
-            ("baro_lag", "static_error")
-            if "accel_axial" in log.channels
-            else ("static_error",)
-        )
         times = []
         for _ in range(2):
             t0 = time.perf_counter()
             problem = prepare(rocket, log) if not times else problem  # noqa: F821
-            result = fit_rocket(problem, free=free, throw=False)
+            # the default effects (default_free: with the wind where an
+            # accelerometer spans the ascent), as the command fits them
+            result = fit_rocket(problem, throw=False)
             times.append(time.perf_counter() - t0)
         out[folder.name] = {
             "cold_s": times[0],
             "warm_s": times[1],
             "iterations": int(result.fit.iterations),
             "samples": len(result.record.t),
+            "free": [
+                n
+                for n, f in zip(
+                    result.fit.model.parameters, result.fit.model.free, strict=True
+                )
+                if f
+            ],
             "load_average_after": os.getloadavg()[0],
         }
         print(folder.name, out[folder.name], flush=True)

@@ -112,15 +112,19 @@ def main():
             row.get("named"),
             flush=True,
         )
+        # written after every flight: a run stopped early keeps what it measured
+        write(out, option("--out", "rocket_validation"))
+    print("coverage", out["coverage"])
+
+
+def write(out, name):
     rows = [r for r in out.values() if isinstance(r, dict)]
     total = sum(r["inside_95"] for r in rows)
     points = sum(r["points"] for r in rows)
     out["coverage"] = total / points
-    name = option("--out", "rocket_validation")
     path = ROOT / "benchmarks" / "results" / f"{name}.json"
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(out, indent=1, default=float))
-    print("coverage", out["coverage"])
 
 
 if __name__ == "__main__":

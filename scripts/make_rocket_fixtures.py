@@ -247,6 +247,7 @@ power_off_drag_file = "drag.csv"
 power_on_drag_file = "drag.csv"
 
 [launch]
+latitude_deg = 39.39
 elevation_m = 150
 rail_length_m = 12
 inclination_deg = 84

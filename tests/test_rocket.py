@@ -16,67 +16,96 @@ G0 = 9.80665
 
 
 def test_pressure_altitude_inverts_the_standard_atmosphere():
+    """Pressure altitude is geopotential, as flight computers print it: ambiance's
+    geometric heights converted with the standard's Earth radius."""
     ambiance = pytest.importorskip("ambiance")
     h = np.array([-200.0, 0.0, 1401.0, 5000.0, 10_500.0, 15_000.0])
     p = ambiance.Atmosphere(h).pressure
+    hg = 6_356_766.0 * h / (6_356_766.0 + h)
     # ambiance's table constants differ from ours in the 6th digit: 0.05 m
-    np.testing.assert_allclose(dr.pressure_altitude(p), h, atol=0.05)
+    np.testing.assert_allclose(dr.pressure_altitude(p), hg, atol=0.05)
+    # the flight computers' troposphere formula
+    np.testing.assert_allclose(
+        dr.pressure_altitude(p[:4]),
+        44330.77 * (1 - (p[:4] / 101325.0) ** 0.190263),
+        atol=0.05,
+    )
 
 
 def test_baro_reads_height_times_temperature_ratio():
     """A troposphere with the standard lapse rate but a hot pad: pressure in closed
-    form, read back through the standard atmosphere, is the height times
-    T_std(pad) / T_pad, up to geometric vs geopotential height: the closed form
-    here is in geopotential metres, the reading in geometric ones, (h_pad + z) z / R
-    = 3.4 m at 4 km over a 1.4 km pad, 1e-3."""
+    form over geopotential height z, read back through the standard atmosphere, is
+    z times T_std(pad) / T_pad."""
     lapse, r, t_pad, p_pad = 0.0065, 287.05287, 300.0, 86_400.0
     z = np.linspace(0.0, 4000.0, 9)
     p = p_pad * (1 - lapse * z / t_pad) ** (G0 / (r * lapse))
     read = dr.pressure_altitude(p) - dr.pressure_altitude(p_pad)
     s = float(dr.baro_scale(p_pad, t_pad))
-    np.testing.assert_allclose(read, s * z, rtol=1.5e-3, atol=1e-6)
+    np.testing.assert_allclose(read, s * z, rtol=1e-9, atol=1e-6)
     assert 0.92 < s < 0.94  # 279.6 K standard at 86.4 kPa over 300 K
 
 
-def test_lapse_atmosphere_against_hydrostatic_integration():
-    """An atmosphere whose temperature falls at 9.8 K/km from 305 K at a 1.4 km pad:
-    pressure from integrating dp/dz = -p g0 / (R T(z)) numerically (scipy), read
-    through the standard atmosphere, and the reading's rate T_std(reading) / T
-    against a finite difference of it. With the standard lapse the reading is the
-    height times T_std(pad) / T (the closed form above)."""
+def test_layered_atmosphere_against_hydrostatic_integration():
+    """Temperature piecewise linear in geopotential height (305 K at a 1.4 km pad,
+    -9.8 K/km on average to 4.5 km, +2 K and -1.5 K off that line at a third and
+    two thirds): pressure from integrating dp/dz = -p g(z) / (R T) numerically over
+    geometric height z with gravity falling as 1/r^2 (scipy), read through the
+    standard atmosphere; the reading's rate against a central difference of it."""
     from scipy.integrate import solve_ivp
 
     from diffpegasus._vehicle._atmosphere import R_AIR
 
-    t_pad, lapse, p_pad = 305.0, -9.8, 86_000.0
-    z = np.linspace(0.0, 5000.0, 11)
-    sol = solve_ivp(
-        lambda zz, p: -p * G0 / (R_AIR * (t_pad + lapse * 1e-3 * zz)),
-        (0.0, z[-1]),
-        [p_pad],
-        t_eval=z,
-        rtol=1e-11,
-        atol=1e-6,
+    earth = 6_356_766.0
+    t_pad, lapse, p_pad, elev, top, off = (
+        305.0,
+        -9.8,
+        86_000.0,
+        1400.0,
+        4500.0,
+        (2.0, -1.5),
     )
-    p, temp, reading, rate = (
-        np.asarray(a) for a in dr.linear_lapse_air(p_pad, t_pad, lapse, z)
-    )
-    np.testing.assert_allclose(p, sol.y[0], rtol=1e-8)  # integration tolerance
-    np.testing.assert_allclose(temp, t_pad + lapse * 1e-3 * z, rtol=1e-12)
+    knot_h = np.arange(4) * top / 3
+    knot_t = t_pad + lapse * 1e-3 * knot_h + np.r_[0.0, off, 0.0]
+
+    def geopotential(z):
+        a = elev + z
+        return earth * a / (earth + a) - earth * elev / (earth + elev)
+
+    def temperature(z):
+        hg = geopotential(z)
+        k = int(np.clip(np.searchsorted(knot_h, hg) - 1, 0, 2))  # ends extrapolated
+        slope = (knot_t[k + 1] - knot_t[k]) / (knot_h[k + 1] - knot_h[k])
+        return knot_t[k] + slope * (hg - knot_h[k])
+
+    def rate(zz, p):
+        return -p * G0 * (earth / (earth + elev + zz)) ** 2 / (R_AIR * temperature(zz))
+
+    z = np.linspace(-100.0, 6000.0, 13)
+    kw = dict(dense_output=True, rtol=1e-12, atol=1e-8, max_step=50.0)
+    up = solve_ivp(rate, (0.0, z[-1]), [p_pad], **kw)
+    down = solve_ivp(rate, (0.0, z[0]), [p_pad], **kw)
+    p_ref = np.array([(up if zz >= 0 else down).sol(zz)[0] for zz in z])
+
+    def air(zz):
+        return dr.layered_air(
+            p_pad, t_pad, lapse, zz, offsets=off, top=top, elevation=elev
+        )
+
+    h = 0.5  # one call (eager jax is slow per call): z, then z + h and z - h
+    out = [np.asarray(a) for a in air(np.concatenate([z, z + h, z - h]))]
+    p, temp, reading, slope = (a[: z.size] for a in out)
+    np.testing.assert_allclose(p, p_ref, rtol=1e-9)  # integration tolerance
+    np.testing.assert_allclose(temp, [temperature(zz) for zz in z], atol=1e-9)
     np.testing.assert_allclose(
-        reading, dr.pressure_altitude(sol.y[0]) - dr.pressure_altitude(p_pad), atol=1e-4
+        reading, dr.pressure_altitude(p_ref) - dr.pressure_altitude(p_pad), atol=1e-5
     )
-    # the rate against a central difference of the reading; geometric against
-    # geopotential height (pad + z) / R_earth: 1e-3 at 5 km over a 1.4 km pad
-    h = 1.0
-    up = np.asarray(dr.linear_lapse_air(p_pad, t_pad, lapse, z + h)[2])
-    down = np.asarray(dr.linear_lapse_air(p_pad, t_pad, lapse, z - h)[2])
-    np.testing.assert_allclose(rate, (up - down) / (2 * h), rtol=1.5e-3)
-    # a faster fall than standard reads higher and higher above the standard lapse's
-    std = np.asarray(dr.linear_lapse_air(p_pad, t_pad, -6.5, z)[2])
+    diff = (out[2][z.size : 2 * z.size] - out[2][2 * z.size :]) / (2 * h)
+    np.testing.assert_allclose(slope, diff, rtol=1e-8)
+    # no offsets and the standard lapse: the reading is T_std(pad) / T times the
+    # geopotential height
+    std = np.asarray(dr.layered_air(p_pad, t_pad, -6.5, z, elevation=elev)[2])
     s = float(dr.baro_scale(p_pad, t_pad))
-    np.testing.assert_allclose(std, s * z, rtol=1.5e-3, atol=1e-6)
-    assert np.all(np.diff(reading - std) > 0)
+    np.testing.assert_allclose(std, s * geopotential(z), rtol=1e-9, atol=1e-6)
 
 
 def test_baro_lag_of_a_steady_climb_is_lag_times_rate():
@@ -298,3 +327,54 @@ def test_log_past_a_cut_is_missing_not_read():
     np.testing.assert_array_equal(cut.measured[~late], record.measured[~late])
     np.testing.assert_array_equal(cut.inputs[~late], record.inputs[~late])
     np.testing.assert_array_equal(cut.inputs[:, 0], record.inputs[:, 0])
+
+
+def test_normal_gravity_on_the_wgs84_ellipsoid():
+    """WGS84's published normal gravity: 9.7803253359 m/s^2 at the equator,
+    9.8321849378 at the poles; the free-air gradient near the surface -3.086e-6 /s^2
+    (the textbook 0.3086 mGal/m)."""
+    from diffpegasus._vehicle._gravity import normal_gravity
+
+    assert float(normal_gravity(0.0, 0.0)) == pytest.approx(9.7803253359, abs=1e-9)
+    assert float(normal_gravity(0.0, 90.0)) == pytest.approx(9.8321849378, abs=1e-9)
+    grad = float(normal_gravity(1000.0, 45.0) - normal_gravity(0.0, 45.0)) / 1000.0
+    assert grad == pytest.approx(-3.086e-6, rel=2e-3)
+
+
+def test_rocket_file_latitude_sets_gravity():
+    """The committed RocketPy flights' pad (39.39 deg, 150 m): RocketPy's own
+    gravity there is 9.800692 m/s^2 (its WGS84 model); the rocket's model
+    reads the latitude from the file."""
+    rocket = dr.read_rocket(SIM / "clean" / "rocket.toml")
+    assert rocket.latitude == pytest.approx(39.39)
+    from diffpegasus._vehicle._gravity import normal_gravity
+
+    assert float(normal_gravity(150.0, rocket.latitude)) == pytest.approx(
+        9.800692, abs=2e-6
+    )
+
+
+def test_diagnose_says_which_finding_a_missed_effect_cannot_be_told_from():
+    """A candidate above its threshold in one round and below it once that round's
+    finding joined the model is reported as not told apart from the finding."""
+    from diffpegasus._rocket._diagnose import _aliases
+
+    def row(r, name, significant):
+        return {
+            "round": r,
+            "candidate": name,
+            "significant": significant,
+            "cannot_be_told_from": [],
+        }
+
+    rows = [
+        row(1, "static-pressure error", True),
+        row(1, "barometer lag", True),
+        row(1, "wind", False),
+        row(2, "barometer lag", False),
+        row(2, "wind", False),
+    ]
+    _aliases(rows, ["static-pressure error"])
+    assert rows[3]["cannot_be_told_from"] == ["static-pressure error"]
+    assert rows[4]["cannot_be_told_from"] == []
+    assert rows[1]["cannot_be_told_from"] == []

@@ -29,7 +29,7 @@ from ._vehicle._rocket import (
     DragKnots as DragKnots,
     EFFECTS as EFFECTS,
     Flight as Flight,
-    linear_lapse_air as linear_lapse_air,
+    layered_air as layered_air,
     Motor as Motor,
     pressure_altitude as pressure_altitude,
     read_drag_curve as read_drag_curve,

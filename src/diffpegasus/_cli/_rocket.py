@@ -1,6 +1,7 @@
 """`rocket fit | compare | diagnose`: a rocket flight from its `rocket.toml` and logs."""
 
 import json
+import math
 import pathlib
 from typing import Annotated
 
@@ -180,7 +181,16 @@ def diagnose_command(
     for r in rows:
         mark = "*" if r["significant"] else " "
         kind = "Wald" if r["round"] == 0 else "score"
-        typer.echo(
+        line = (
             f" {mark} round {r['round']}: {r['candidate']:<34} "
             f"{kind} {r['statistic']:9.1f} (threshold {r['threshold']:.1f})"
         )
+        if not r["significant"] and r.get("cannot_be_told_from"):
+            line += f"  cannot be told from {', '.join(r['cannot_be_told_from'])}"
+        elif not r["significant"] and math.isfinite(r.get("smallest_named", math.nan)):
+            ((name, value),) = r["estimates"].items()
+            line += (
+                f"  {name} {value:+.3g}; this log names only "
+                f"|{name}| > {r['smallest_named']:.3g}"
+            )
+        typer.echo(line)

@@ -124,6 +124,14 @@ def diagnose(problem: Problem, *, level: float = 0.01, rounds: int = 3):
                     "cost_ratio": 1.0 - float(row["cost_reduction"]),
                     "estimates": {row["parameter"]: float(row["estimate"])},
                     "significant": bool(row["significant"]),
+                    # the smallest effect this test names on this log: its
+                    # threshold in standard errors
+                    "smallest_named": float(
+                        np.sqrt(row["threshold"]) * row.get("stderr", np.nan)
+                    ),
+                    "cannot_be_told_from": [
+                        held[c].name for c in row["hard_to_tell_from"] if c in held
+                    ],
                 }
             )
             if row["significant"] and found is None:
@@ -136,4 +144,32 @@ def diagnose(problem: Problem, *, level: float = 0.01, rounds: int = 3):
         warm = dict(zip(current.fit.model.parameters, current.fit.params, strict=True))
         warm.update({n: problem.start[n] for n in found.parameters})
         current = fit_rocket(problem, free=free, start=warm, throw=False)
+    _aliases(rows, named)
     return named, rows, current
+
+
+def _aliases(rows, named):
+    """A candidate significant in one round and not in the next, after the round's
+    finding joined the model, was that finding's signature: it cannot be told from
+    it on this log (a boost-coast climb's barometer lag and static-pressure error
+    both peak at burnout). Added to the later row's `cannot_be_told_from`."""
+    for r in rows:
+        before = [
+            q
+            for q in rows
+            if q["round"] == r["round"] - 1 and q["candidate"] == r["candidate"]
+        ]
+        was = bool(before) and before[0]["significant"]
+        if r["round"] > 1 and not r["significant"] and was:
+            finding = next(
+                (
+                    q["candidate"]
+                    for q in rows
+                    if q["round"] == r["round"] - 1
+                    and q["significant"]
+                    and q["candidate"] in named
+                ),
+                None,
+            )
+            if finding and finding not in r["cannot_be_told_from"]:
+                r["cannot_be_told_from"] = r["cannot_be_told_from"] + [finding]

@@ -11,6 +11,8 @@ radius and no rotation (9.798 m/s^2) would be 0.008 m/s^2 weaker, which a
 diagnosis of a low-noise log sees as an accelerometer bias.
 """
 
+import numpy as np
+
 from .._custom_types import Scalar, ScalarLike
 from ._atmosphere import G0, R_EARTH_GEOPOTENTIAL
 
@@ -22,3 +24,19 @@ def gravity(h: ScalarLike) -> Scalar:
     It acts along the inertial +z axis (down).
     """
     return G0 * (R_EARTH_GEOPOTENTIAL / (R_EARTH_GEOPOTENTIAL + h)) ** 2
+
+
+def normal_gravity(h: ScalarLike, latitude: float) -> Scalar:
+    """The WGS84 normal gravity (m/s^2) at geometric height `h` (m) above the
+    ellipsoid at geodetic `latitude` (deg): Somigliana's closed form on the
+    ellipsoid (gravitation plus the Earth's rotation: 9.7803 at the equator, 9.8322
+    at the poles) and the ellipsoid's second-order free-air decrease with height.
+    It acts down along the local vertical."""
+    import jax.numpy as jnp
+
+    a, f, m = 6_378_137.0, 1 / 298.257223563, 0.00344978650684  # WGS84
+    g_e, k, e2 = 9.7803253359, 0.00193185265241, 0.00669437999013
+    s2 = float(np.sin(np.radians(latitude)) ** 2)
+    g = g_e * (1 + k * s2) / np.sqrt(1 - e2 * s2)
+    h = jnp.asarray(h, dtype=float)
+    return g * (1 - 2 / a * (1 + f + m - 2 * f * s2) * h + 3 / a**2 * h**2)

@@ -13,6 +13,6 @@ from ._sensors import (
     axial_specific_force as axial_specific_force,
     baro_altitude as baro_altitude,
     baro_scale as baro_scale,
-    linear_lapse_air as linear_lapse_air,
+    layered_air as layered_air,
     pressure_altitude as pressure_altitude,
 )

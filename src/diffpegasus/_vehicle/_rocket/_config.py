@@ -10,7 +10,7 @@ read, every other key is kept for people:
     [aero]    power_off_drag_file, power_on_drag_file (optional; the team's curves),
               air_brakes_actuation_file (optional, time s / deployment 0-1)
     [launch]  elevation_m, rail_length_m, inclination_deg (from horizontal),
-              heading_deg (from north)
+              heading_deg (from north), latitude_deg (optional: gravity)
     [atmosphere] surface_temperature_K (or a notebook_surface_conditions text
               "T 299.96 K, ..." or era5_near_surface_temperature_K); optional
     [results] recorded_apogee_agl_m, preflight_simulated_apogee_agl_m (optional)
@@ -48,6 +48,8 @@ class Rocket(eqx.Module):
     - `airbrakes`: `(time s, deployment 0-1)` schedule or `None`.
     - `recorded_apogee`, `preflight_apogee`: m AGL from the team, or `None`.
     - `folder`: where the file was.
+    - `latitude`: deg, the pad's geodetic latitude (gravity from the WGS84 ellipsoid
+      there), or `None` (standard gravity, 9.80665 m/s^2 at sea level).
     """
 
     name: str = eqx.field(static=True)
@@ -66,6 +68,7 @@ class Rocket(eqx.Module):
     recorded_apogee: float | None = eqx.field(static=True)
     preflight_apogee: float | None = eqx.field(static=True)
     folder: str = eqx.field(static=True, default=".")
+    latitude: float | None = eqx.field(static=True, default=None)
 
     @property
     def loaded_mass(self) -> float:
@@ -171,4 +174,5 @@ def read_rocket(path) -> Rocket:
         recorded_apogee=_optional(rs, "recorded_apogee_agl_m"),
         preflight_apogee=_optional(rs, "preflight_simulated_apogee_agl_m"),
         folder=str(folder),
+        latitude=_optional(la, "latitude_deg"),
     )

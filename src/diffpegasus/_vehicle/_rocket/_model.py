@@ -14,8 +14,8 @@ Parameters (name: unit, meaning):
 - `power_on_ratio`: CD power on / power off.
 - `thrust_scale`: delivered / catalogue thrust.
 - `motor_time`: s, log time of the thrust curve's zero.
-- `temperature`: K at the pad; `lapse_rate`: K/km, its fall with height (-6.5 the
-  standard atmosphere's). Together they set density, speed of sound and what the
+- `temperature`: K at the pad; `lapse_rate`: K/km, its fall with geopotential
+  height (-6.5 the standard atmosphere's). Together they set density, speed of sound and what the
   barometer reads (it converts pressure with the standard atmosphere).
 - `wind_east`, `wind_north`: m/s, a constant wind; `wind_along`: m/s, blowing
   towards the rail's heading (a tail wind; the part a flight at zero angle of attack
@@ -38,11 +38,11 @@ import numpy as np
 
 from ..._model import Model
 from .._atmosphere import GAMMA_AIR, R_AIR
-from .._gravity import gravity
+from .._gravity import gravity, normal_gravity
 from ._config import Rocket
 from ._drag import DragKnots
 from ._motor import motor_at
-from ._sensors import axial_specific_force, baro_altitude, linear_lapse_air
+from ._sensors import axial_specific_force, baro_altitude, layered_air
 
 
 STATES = ("e", "n", "u", "ve", "vn", "vu")
@@ -89,8 +89,12 @@ class Flight(eqx.Module):
     def air(self, height, p):
         """Density (kg/m^3), speed of sound (m/s), the barometer's reading (m above
         the pad) and its rate per metre of height, at `height` m above the pad."""
-        pressure, temperature, reading, rate = linear_lapse_air(
-            self.pad_pressure, p["temperature"], p["lapse_rate"], height
+        pressure, temperature, reading, rate = layered_air(
+            self.pad_pressure,
+            p["temperature"],
+            p["lapse_rate"],
+            height,
+            elevation=self.rocket.elevation,
         )
         return (
             pressure / (R_AIR * temperature),
@@ -98,6 +102,14 @@ class Flight(eqx.Module):
             reading,
             rate,
         )
+
+    def gravity(self, height):
+        """m/s^2 at `height` m above the pad: normal gravity at the pad's latitude
+        where the rocket file gives one, else standard gravity."""
+        h = self.rocket.elevation + height
+        if self.rocket.latitude is None:
+            return gravity(h)
+        return normal_gravity(h, self.rocket.latitude)
 
     def forces(self, t, x, u, p):
         """Acceleration `(3,)` m/s^2, body axis `(3,)`, and the air data."""
@@ -129,7 +141,7 @@ class Flight(eqx.Module):
         cd = p["cd_scale"] * cd * jnp.where(thrust > 0, p["power_on_ratio"], 1.0)
         cd = cd + p["airbrake_cd"] * u[0]
         drag = q * r.area * cd
-        g = gravity(r.elevation + pos[2])
+        g = self.gravity(pos[2])
         gvec = jnp.stack([0.0, 0.0, -g])
         free = (thrust - drag) / mass * axis + gvec
         # on the rail: the component along it, less friction, never backwards from rest
