@@ -177,8 +177,9 @@ def test_hfb320_converges_within_one_short_period_cycle(which):
     # the pitching-moment derivatives (least squares measured 0.22, 0.34, 0.55);
     # the recursive Fourier transform also has Za within its band after one
     # cycle (0.18); least squares' Za after 1.5 cycles (measured z = 1.35 at one
-    # cycle, 0.31 at 1.5: Za shares the equation with ZV and Z0 while the speed
-    # barely moves)
+    # cycle, 0.31 at 1.5: not confounding with ZV, Z0 (correlations 0.30, -0.33)
+    # but the az equation lacking the elevator's lift, which Za takes up during
+    # the doublet; with Zde * de in the model z = 0.51)
     sp = ["Za", "Ma", "Mq", "Mde"] if which == "rft" else ["Ma", "Mq", "Mde"]
     idx = [reg.parameters.index(n) for n in sp]
     report, z = _converged(hist, onset, period, reg.parameters)

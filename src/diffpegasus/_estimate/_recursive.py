@@ -325,9 +325,11 @@ def _centering_loss(lam, size, count):
     def geometric(r):
         if r == 1.0:
             return length.astype(float)
-        return jnp.power(r, start.astype(float)) * (
-            1.0 - jnp.power(r, length.astype(float))
-        ) / (1.0 - r)
+        return (
+            jnp.power(r, start.astype(float))
+            * (1.0 - jnp.power(r, length.astype(float)))
+            / (1.0 - r)
+        )
 
     g, v = geometric(lam), geometric(lam**2)
     b = jnp.eye(len(g)) - jnp.outer(g, jnp.ones_like(g)) / jnp.maximum(g.sum(), 1e-300)
