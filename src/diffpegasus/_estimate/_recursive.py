@@ -34,7 +34,9 @@ evaluated with the current estimate; the fitted residuals' first-order loss `sum
 G_b V G_b` is solved for. `stderr` is the bound of single samples (white residuals);
 `stderr_corrected` the one from the longest blocks that leave at least three
 (effectively, counted from how the information is spread over them), and the 95%
-band (`halfwidth`) the Student-t quantile at their number less one times it. For the
+band (`halfwidth`) the Student-t quantile at their number less what taking the
+residuals at the estimate costs (`_centering_loss`: one block without
+forgetting, about 0.2 with it) times it. For the
 recursive Fourier transform the residual transforms at different frequencies are
 nearly independent, so the bound is the per-frequency sandwich of the batch method
 ([`frequency_equation_error`][]), with the scores of frequencies closer than the
@@ -493,9 +495,10 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
         # the longest blocks that leave at least three for every parameter (two
         # degrees of freedom): longer blocks leave less of the correlation out
         # (a block misses the correlation across its ends, a share falling as
-        # one over its length), the Student-t quantile at their number less one
-        # carries their fewness; fewer than three would leave one degree of
-        # freedom, a band 6.5 times the normal one
+        # one over its length), the Student-t quantile at their number less the
+        # centering loss carries their fewness; fewer than three would leave
+        # about one degree of freedom without forgetting, a band 6.5 times the
+        # normal one
         usable = jnp.all(blocks >= 3.0, axis=1)
         j = jnp.max(jnp.where(usable, jnp.arange(self.levels), 0))
         var_c = self._variance(state, pm, j)
