@@ -17,10 +17,18 @@ last stdout line is the JSON summary (also written to DIR/coverage.json).
 
 import argparse
 import json
+import os
 import pathlib
 import time
 
-import jax
+
+# XLA's CPU runtime stalled (every thread waiting, no progress) on these vmapped
+# replays with Eigen's multi-threaded kernels; one thread per operation avoids it
+os.environ.setdefault(
+    "XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
+)
+
+import jax  # noqa: E402
 import jax.numpy as jnp
 import numpy as np
 import scipy.linalg

@@ -334,9 +334,14 @@ def _centering_loss(lam, size, count):
         )
 
     g, v = geometric(lam), geometric(lam**2)
-    b = jnp.eye(len(g)) - jnp.outer(g, jnp.ones_like(g)) / jnp.maximum(g.sum(), 1e-300)
-    a = b.T @ b * v[None, :]
-    nu = jnp.trace(a) ** 2 / jnp.maximum(jnp.trace(a @ a), 1e-300)
+    # (B^T B)_ij = delta_ij - (g_i + g_j) / G + sum g^2 / G^2, G = sum g, built
+    # elementwise: a matrix product here, inside the replay's loop under vmap,
+    # stalled XLA's CPU runtime
+    total = jnp.maximum(g.sum(), 1e-300)
+    btb = jnp.eye(len(g)) - (g[:, None] + g[None, :]) / total + jnp.sum(g**2) / total**2
+    nu = jnp.sum(jnp.diag(btb) * v) ** 2 / jnp.maximum(
+        jnp.sum(btb**2 * v[:, None] * v[None, :]), 1e-300
+    )
     blocks = v.sum() ** 2 / jnp.maximum(jnp.sum(v**2), 1e-300)
     return blocks - nu
 
