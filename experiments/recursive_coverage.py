@@ -22,8 +22,9 @@ import pathlib
 import time
 
 
-# XLA's CPU runtime stalled (every thread waiting, no progress) on these vmapped
-# replays with Eigen's multi-threaded kernels; one thread per operation avoids it
+# XLA's CPU runtime stalls (every thread waiting, no progress) on some of these
+# vmapped replays; one thread per operation made it rarer, not gone (two of eight
+# 25-flight runs at 50 Hz still stalled): rerun a stalled run with another seed
 os.environ.setdefault(
     "XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
 )
