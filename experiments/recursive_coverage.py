@@ -17,10 +17,19 @@ last stdout line is the JSON summary (also written to DIR/coverage.json).
 
 import argparse
 import json
+import os
 import pathlib
 import time
 
-import jax
+
+# XLA's CPU runtime stalls (every thread waiting, no progress) on some of these
+# vmapped replays; one thread per operation made it rarer, not gone (two of eight
+# 25-flight runs at 50 Hz still stalled): rerun a stalled run with another seed
+os.environ.setdefault(
+    "XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
+)
+
+import jax  # noqa: E402
 import jax.numpy as jnp
 import numpy as np
 import scipy.linalg
