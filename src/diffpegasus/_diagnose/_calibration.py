@@ -318,7 +318,6 @@ def _statistics(sp: _Spectra, e_star, refit: bool = False):
 def _bootstrap(
     rows,
     innovations,
-    count,
     transfer,
     curvature,
     offset,
@@ -335,7 +334,7 @@ def _bootstrap(
     def one(k):
         # innovation rows drawn with replacement (all channels at once: their
         # covariance is kept), filtered by the autoregression (circularly, by FFT)
-        index = jax.random.randint(k, (n,), 0, count)
+        index = jax.random.randint(k, (n,), 0, innovations.shape[0])
         u = jnp.fft.rfft(innovations[index], axis=0)
         e = jnp.fft.irfft(jnp.einsum("fab,fb->fa", transfer, u), n=n, axis=0)
         return jnp.max(_statistics(sp, e, refit=True)[0])
@@ -435,15 +434,9 @@ def calibrate(
     offset = np.asarray(slope, float) - np.einsum("nok,no->k", rows, residuals)
     # the windows are the observed log's, used unchanged on every replicate
     windows, _ = windows_of(rows, residuals, curvature, offset)
-    # the innovations padded to the log's length and their number traced: one
-    # compiled program whatever order the autoregression takes (the same draws)
-    innovations = np.asarray(fitted.innovations, float)
-    padded = np.zeros((n, innovations.shape[1]))
-    padded[: len(innovations)] = innovations
     maxima = _bootstrap(
         jnp.asarray(rows),
-        jnp.asarray(padded),
-        jnp.asarray(len(innovations)),
+        jnp.asarray(fitted.innovations, float),
         jnp.asarray(fitted.transfer(n)),
         jnp.asarray(curvature, float),
         jnp.asarray(offset),
