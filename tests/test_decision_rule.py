@@ -1,12 +1,9 @@
-"""The decision rule calibrated on the log: the sieve bootstrap of the efficient
-score against closed forms (chi-square maxima, the variance of a score with AR(1)
-residuals and Andrews' bandwidth, the colour a fit's projection takes out), its family-wise false-alarm level
-on coloured residuals, and the rule's verdicts on a synthetic score test (delays:
-resolution, leads); the circular-block length the experiments compare against."""
+"""The decision rule calibrated on the log: the block bootstrap of the efficient
+score against closed forms (chi-square maxima, Politis and White's block length of
+an AR(1) series), its family-wise false-alarm level on coloured residuals, and the
+rule's verdicts on a synthetic score test (delays: resolution, leads)."""
 
 import functools
-import pathlib
-import sys
 import types
 
 import jax
@@ -14,12 +11,8 @@ import numpy as np
 import pytest
 import scipy.stats
 
-from diffpegasus._diagnose._calibration import calibrate, statistics
+from diffpegasus._diagnose._calibration import block_length, calibrate, statistics
 from diffpegasus._diagnose._rule import DecisionRule
-
-
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "experiments"))
-from _shared import block_length  # noqa: E402
 
 
 def _ar1(rng, n, channels, phi):
@@ -163,95 +156,3 @@ def test_rule_finds_one_effect_not_its_lookalikes_and_judges_delays():
     ranking, _ = decide(test, delays=[True, False, False], resolution=1.0)
     by = {r["effect"]: r for r in ranking}
     assert by["late"]["resolution_limit"] and not by["late"]["significant"]
-
-
-def test_lag_window_bandwidth_of_an_ar1_series_matches_andrews():
-    # AR(1) with unit innovations: Andrews' bandwidth for the Bartlett window is
-    # 1.1447 (alpha n)^(1/3), alpha = 4 phi^2 / ((1 - phi)^2 (1 + phi)^2), 37.7
-    # samples at n = 20000, phi = 0.5 (phi estimated: within 15% on this seed)
-    from diffpegasus._diagnose._calibration import bandwidth
-
-    rng = np.random.default_rng(5)
-    n, phi = 20000, 0.5
-    alpha = 4 * phi**2 / ((1 - phi) ** 2 * (1 + phi) ** 2)
-    assert bandwidth(_ar1(rng, n, 2, phi)) == pytest.approx(
-        1.1447 * (alpha * n) ** (1 / 3), rel=0.15
-    )
-    # white: the bandwidth falls to a few lags
-    assert bandwidth(rng.normal(size=(n, 1))) < 5.0
-
-
-def test_score_variance_is_the_sensitivities_times_the_residuals_colour():
-    # the variance of sum_t r_t e_t for fixed sensitivities r and AR(1) residuals
-    # (gamma(l) = phi^|l| / (1 - phi^2)) is sum_l gamma(l) C(l), C the
-    # sensitivities' own autocovariance; here 2 channels of a slow manoeuvre-like
-    # regressor, two candidates, phi = 0.5, n = 20000: the lag window's bias
-    # (about -S^-1 sum |l| gamma(l) C(l) / sum gamma C, ~4%) and scatter (~5%)
-    # leave it within 15% of the closed form (measured 5.2% and 7.9% low, bandwidth
-    # 38 samples)
-    from diffpegasus._diagnose._calibration import windows_of
-
-    rng = np.random.default_rng(7)
-    n, phi = 20000, 0.5
-    t = np.arange(n) / n
-    rows = np.stack(
-        [
-            np.stack([np.sin(2 * np.pi * 3 * t), np.cos(2 * np.pi * 5 * t)], axis=1),
-            np.stack([np.sign(np.sin(2 * np.pi * 7 * t)), 0.5 + 0 * t], axis=1),
-        ],
-        axis=2,
-    )
-    e = _ar1(rng, n, 2, phi)
-    curvature, slope = _test(rows, e)
-    _, variance = statistics(rows, e, curvature, slope, variance=True)
-    lags = np.arange(-60, 61)
-    gamma = phi ** np.abs(lags) / (1 - phi**2)
-    exact = np.zeros(2)
-    for lag, g in zip(lags, gamma, strict=True):
-        c = np.einsum("tok,tok->k", rows[max(0, -lag) : n - max(0, lag)],
-                      rows[max(0, lag) : n - max(0, -lag)])  # fmt: skip
-        exact += g * c
-    assert variance == pytest.approx(exact, rel=0.15)
-    assert np.all(variance > 1.5 * curvature)  # white: 3.7-3.8 times too small
-    # the step expansion against forming each candidate's stepped residuals in
-    # numpy: the same numbers to rounding
-    offset = slope - np.einsum("nok,no->k", rows, e)
-    (windowed, _, _), s = windows_of(rows, e, curvature, offset)
-    a = -slope / curvature
-    for k in range(2):
-        x = e - e.mean(axis=0) + a[k] * rows[..., k]
-        total = 0.0
-        for lag in range(-int(np.ceil(s.max())) + 1, int(np.ceil(s.max()))):
-            w = max(0.0, 1 - abs(lag) / s[k])
-            lo, hi = max(0, -lag), n - max(0, lag)
-            gam = np.einsum("ta,tb->ab", x[lo:hi], x[lo + lag : hi + lag]) / n
-            cc = np.einsum(
-                "ta,tb->ab", rows[lo:hi, :, k], rows[lo + lag : hi + lag, :, k]
-            )
-            total += w * np.sum(gam * cc)
-        assert variance[k] == pytest.approx(max(total, curvature[k]), rel=1e-9)
-
-
-def test_refitted_sieve_recovers_the_colour_a_fit_took_out():
-    # (an experiment's alternative null, kept for the validation page's comparison)
-    # a fit of a level and a slope per segment of 40 samples takes the slow part
-    # of AR(0.9) noise with it: the autoregression of what is left reads about
-    # 0.75 (measured, mean of 30 records); moved until its own refitted replicates
-    # read the same, it reads the noise's 0.9 (measured 0.898 +/- 0.038 over 10)
-    from _shared import refitted_sieve, segment_projection
-
-    from diffpegasus._diagnose._calibration import sieve
-
-    n, outputs = 400, 2
-    _, basis, refit = segment_projection(n, outputs)
-    rng = np.random.default_rng(7)
-    plain, moved = [], []
-    for _ in range(4):
-        e = refit(_ar1(rng, n, outputs, 0.9))
-        s = sieve(e, order=1)
-        plain.append(np.diag(np.asarray(s.coefficients)[0]).mean())
-        moved.append(
-            np.diag(np.asarray(refitted_sieve(s, basis).coefficients)[0]).mean()
-        )
-    assert np.mean(plain) < 0.82
-    assert np.mean(moved) == pytest.approx(0.9, abs=0.05)

@@ -16,20 +16,9 @@ Jacobian, vmapped over replicates:
   is kept) and filtered again: the residuals' colour is kept at every lag, where
   a block bootstrap keeps it only within a block (and so gives a null too light
   for strongly coloured residuals: measured in the validation page);
-- each replicate's statistic is **studentised** exactly as the observed one. A
-  score is fixed sensitivities (the manoeuvre's) times residuals, so its
-  variance is the residuals' autocovariance (between outputs too) weighed by the
-  sensitivities' own, summed over lags under a Bartlett lag window
-  ([`_statistics`][]); the window's bandwidth is Andrews' rule on the log's
-  residuals after each candidate's own step ([`windows_of`][]), taken once and
-  used unchanged on every replicate, whose autocovariance is its own. A lag
-  window, not the sum over all lags the score test reports ([`score_variance`][]):
-  the all-lag sum scatters from record to record by an amount no resampling
-  reproduces; and the residuals' colour, not that of the per-sample product of
-  sensitivity and residual: a candidate's signature is local to the manoeuvre
-  (a doublet, a step), and a lag window on the product counts what is left of it
-  after the step as noise, at its full local strength (measured in the
-  validation page);
+- each replicate's statistic is **studentised** exactly as the observed one (its
+  variance from the replicate's own residuals after its own step,
+  [`score_variance`][]), so the null holds whatever the residuals' scale;
 - the family-wise null is the **maximum** over all candidates of each replicate,
   so a candidate's p-value (Westfall and Young's single-step max-T) is the share of
   replicates whose largest statistic reaches its own, and the threshold at level
@@ -49,6 +38,58 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
+
+
+def _flat_top(x):
+    # the trapezoidal flat-top lag window of Politis and White (2004)
+    x = np.abs(x)
+    return np.where(x <= 0.5, 1.0, np.where(x <= 1.0, 2.0 * (1.0 - x), 0.0))
+
+
+def block_length(residuals: np.ndarray) -> int:
+    """Circular-block length, in samples, for a bootstrap of `residuals` `(samples,
+    channels)`: Politis and White's (2004, corrected 2009) automatic choice for each
+    channel, the largest over channels (all channels are resampled with the same
+    blocks), at least 1 and at most their `min(3 sqrt(n), n / 3)`.
+
+    Per channel: the first lag `m` after which `K = max(5, sqrt(log10 n))`
+    autocorrelations in a row are below `2 sqrt(log10 n / n)`; the flat-top window
+    to `2m` gives `G = sum lambda(k/2m) |k| gamma(k)` and the spectral density at zero
+    `g = sum lambda(k/2m) gamma(k)`; the circular-block length is
+    `(2 G^2 / D)^(1/3) n^(1/3)` with `D = 4/3 g^2`.
+    """
+    e = np.asarray(residuals, float)
+    n = e.shape[0]
+    e = e - e.mean(axis=0)
+    spectrum = np.abs(np.fft.rfft(e, n=2 * n, axis=0)) ** 2
+    gamma = np.fft.irfft(spectrum, axis=0)[:n] / n
+    k_run = max(5, int(np.ceil(np.sqrt(np.log10(n)))))
+    bound = 2.0 * np.sqrt(np.log10(n) / n)
+    longest = 1.0
+    for c in range(e.shape[1]):
+        g = gamma[:, c]
+        if not g[0] > 0:
+            continue
+        rho = np.abs(g / g[0])
+        small = rho[1:] < bound
+        m = n // 3
+        for lag in range(len(small) - k_run):
+            if small[lag : lag + k_run].all():
+                m = lag
+                break
+        big_m = min(2 * max(m, 1), n - 1)
+        lags = np.arange(-big_m, big_m + 1)
+        w = _flat_top(lags / big_m)
+        gk = g[np.abs(lags)]
+        big_g = np.sum(w * np.abs(lags) * gk)
+        g0 = np.sum(w * gk)
+        if g0 <= 0:
+            continue
+        d = (4.0 / 3.0) * g0**2
+        length = (2.0 * big_g**2 / d) ** (1.0 / 3.0) * n ** (1.0 / 3.0)
+        longest = max(longest, float(length))
+    most = int(np.ceil(min(3.0 * np.sqrt(n), n / 3.0)))
+    return int(np.clip(np.ceil(longest), 1, max(1, most)))
 
 
 class Sieve(eqx.Module):
@@ -162,90 +203,35 @@ class Calibration(eqx.Module):
 
 
 class _Spectra(eqx.Module):
-    # what every replicate shares: the candidates' sensitivities, the fit's refit
-    # operator, and the lag-windowed products of the sensitivities that turn a
-    # residual series' autocovariance into each score's variance ([`_windows`][])
+    # what every replicate shares: the candidates' sensitivities in the frequency
+    # domain (one-sided, `weight` counting each bin's mirror) and their products
     rows: Float[Array, "samples outputs k"]
+    spectrum: Array  # (bins, outputs, k), complex
+    power: Float[Array, "bins outputs k"]
+    spectrum_power: Array  # spectrum x power
+    weight: Float[Array, " bins"]
+    joint_power: Float[Array, "bins k"]
     curvature: Float[Array, " k"]
     offset: Float[Array, " k"]
     basis: Float[Array, "samples outputs unknowns"] | None
-    windowed: Float[Array, "lags outputs outputs k"]  # w(l) C(l), l = -(L-1)..L-1
-    smoothed: Float[Array, "samples outputs k"]
-    own: Float[Array, "outputs outputs k"]
 
 
-def _spectra(rows, curvature, offset, basis=None, windows=None) -> _Spectra:
-    # without windows, those of white residuals (a bandwidth of one lag)
-    if windows is None:
-        windows = _windows(rows, 1.0)
-    return _Spectra(rows, curvature, offset, basis, *windows)
-
-
-def bandwidth(e) -> float:
-    """Andrews' (1991) plug-in bandwidth, samples, of the Bartlett lag window for
-    the long-run covariance of a residual series `e` `(samples, channels)`: an
-    autoregression of order one per channel (`rho`, variance `s2`),
-    `S = 1.1447 (alpha n)^(1/3)`, `alpha = sum 4 rho^2 s2^2 / ((1 - rho)^6
-    (1 + rho)^2) / sum s2^2 / (1 - rho)^4`; between 1 and `n`."""
-    e = np.asarray(e, float)
-    n = e.shape[0]
-    e = e - e.mean(axis=0)
-    g0 = np.sum(e * e, axis=0)
-    g1 = np.sum(e[:-1] * e[1:], axis=0)
-    rho = np.clip(g1 / np.maximum(g0, np.finfo(float).tiny), -1 + 1e-9, 1 - 1e-9)
-    s4 = (g0 / n) ** 2
-    num = np.sum(4 * rho**2 * s4 / ((1 - rho) ** 6 * (1 + rho) ** 2))
-    den = np.sum(s4 / (1 - rho) ** 4)
-    alpha = num / den if den > 0 else 0.0
-    return float(np.clip(1.1447 * (alpha * n) ** (1.0 / 3.0), 1.0, n))
-
-
-def _windows(rows, bandwidths):
-    """The parts of the lag-window variance that depend on the sensitivities only,
-    candidate `k` with Bartlett weights `w(l) = 1 - |l| / S_k`:
-    `windowed[l, a, b] = w(l) C_ab(l)`, `C_ab(l) = sum_t rows[t, a] rows[t + l, b]`
-    (`l = -(L-1)..L-1`, `L` the largest bandwidth rounded up to a power of two,
-    so that few shapes are compiled); `own[a, b] = sum_t rows[t, a] H[t, a, b]`
-    and `smoothed[t, a] = sum_b H[t, a, b]`, with
-    `H[t, a, b] = (1 / n) sum_l w(l) C_ab(l) rows[t + l, b]`."""
-    rows = np.asarray(rows, float)
-    n, o, k = rows.shape
-    bandwidths = np.broadcast_to(np.asarray(bandwidths, float), (k,))
-    lags = 2 ** int(np.ceil(np.log2(max(1.0, np.max(bandwidths)))))
-    lags = max(1, min(lags, n))
-    ell = np.arange(-(lags - 1), lags)
-    w = np.clip(1.0 - np.abs(ell)[:, None] / bandwidths[None, :], 0.0, 1.0)
-    c = np.empty((len(ell), o, o, k))
-    for i, lag in enumerate(ell):
-        if lag >= 0:
-            c[i] = np.einsum("tak,tbk->abk", rows[: n - lag], rows[lag:])
-        else:
-            c[i] = np.einsum("tak,tbk->abk", rows[-lag:], rows[: n + lag])
-    windowed = w[:, None, None, :] * c
-    smoothed = np.zeros((n, o, k))
-    for i, lag in enumerate(ell):
-        lo, hi = max(0, -lag), min(n, n - lag)  # 0 <= t + lag < n
-        smoothed[lo:hi] += np.einsum(
-            "abk,tbk->tak", windowed[i], rows[lo + lag : hi + lag]
-        )
-    smoothed /= n
-    # sum_t rows[t, a] H[t, a, b] = (1 / n) sum_l w(l) C_ab(l)^2
-    own = np.einsum("labk,labk->abk", windowed, c) / n
-    return windowed, smoothed, own
-
-
-def windows_of(rows, residuals, curvature, offset):
-    """Each candidate's Bartlett window, taken once from the log: Andrews'
-    bandwidth ([`bandwidth`][]) of the residuals the candidate's own step leaves
-    (`residuals - slope / curvature * rows_k`: under an alternative the step takes
-    the candidate's signature out, which would otherwise read as colour), and the
-    window's products ([`_windows`][]). **Returns** `(parts, bandwidths (k,))`."""
-    rows = np.asarray(rows, float)
-    e = np.asarray(residuals, float)
-    slope = np.einsum("nok,no->k", rows, e) + np.asarray(offset, float)
-    a = -slope / np.asarray(curvature, float)
-    s = np.array([bandwidth(e + a[j] * rows[..., j]) for j in range(rows.shape[2])])
-    return _windows(rows, s), s
+def _spectra(rows, curvature, offset, basis=None) -> _Spectra:
+    n = rows.shape[0]
+    spectrum = jnp.fft.rfft(rows, n=2 * n, axis=0)
+    weight = jnp.full(spectrum.shape[0], 2.0).at[0].set(1.0).at[-1].set(1.0)
+    power = jnp.abs(spectrum) ** 2
+    return _Spectra(
+        rows,
+        spectrum,
+        power,
+        spectrum * power,
+        weight,
+        jnp.sum(power, axis=1),
+        curvature,
+        offset,
+        basis,
+    )
 
 
 def _refitted(sp: _Spectra, e_star):
@@ -260,24 +246,16 @@ def _refitted(sp: _Spectra, e_star):
 
 def _statistics(sp: _Spectra, e_star, refit: bool = False):
     """Studentised score statistic of every candidate on one residual series
-    `e_star` `(samples, outputs)` and its variance: `(k,)`, `(k,)`.
-
-    The score is `sum_t sum_o rows[t, o] e[t, o]`: fixed sensitivities (the
-    manoeuvre's, not a random series) times residuals. Its variance is
-    `sum_l w(l) sum_ab gamma_ab(l) C_ab(l)`: `gamma` the residuals'
-    autocovariance (between outputs too) estimated from `e_star`, `C` the
-    sensitivities' own, `w` the candidate's Bartlett lag window, the same for the
-    log and every replicate ([`windows_of`][]). The residuals are taken after the
-    candidate's own step (`e - slope / curvature * rows`: under an alternative
-    the step's signature would otherwise count as noise), expanded in the step so
-    that no per-candidate series is formed. Never below `curvature`, the variance
-    under white residuals of unit variance. `sp.offset` `(k,)` is the score's
-    part from the fit's continuity defects, which do not depend on the data.
+    `e_star` `(samples, outputs)`, exactly as [`score`][] computes it (the variance
+    of [`score_variance`][] from the residuals after the candidate's own step),
+    expanded in the step so that no `(bins, outputs, k)` product is formed per
+    candidate: `(k,)`. `sp.offset` `(k,)` is the score's part from the fit's
+    continuity defects, which do not depend on the data.
 
     With `refit` (a bootstrap replicate), as a refit to data with these residuals
     would see them, to first order: the free unknowns refitted (`sp.basis`), then
-    the output weights re-estimated from the refitted residuals (an
-    output-error fit's weights make the observed residuals unit mean
+    the residual variance of every output estimated again (the fit's R is the
+    mean square of its own residuals, so its whitened residuals have unit mean
     square; a replicate's, once refitted, have less). Each output's residuals and
     sensitivities are whitened again by it, which is a weight `1 / c` per output
     on every product (`c` the refitted replicate's mean square there)."""
@@ -290,46 +268,37 @@ def _statistics(sp: _Spectra, e_star, refit: bool = False):
         v = jnp.ones(e_star.shape[1])
     slope = jnp.einsum("nok,no,o->k", sp.rows, e_star, v) + sp.offset
     # the curvature's part from the outputs is reweighted; the defects' part not
-    q = jnp.einsum("nok,o->k", sp.rows**2, v)
-    curvature = sp.curvature + q - jnp.sum(sp.rows**2, axis=(0, 1))
+    by_output = jnp.einsum("nok,nok->ok", sp.rows, sp.rows)
+    curvature = sp.curvature + jnp.einsum("o,ok->k", v - 1.0, by_output)
     a = -slope / curvature
-    e = e_star - jnp.mean(e_star, axis=0)[None, :]
-    vv = v[:, None] * v[None, :]
-    # gamma_ab(l) = (1 / n) sum_t e[t, a] e[t + l, b], l = -(L-1)..L-1, by FFT
-    lags = (sp.windowed.shape[0] + 1) // 2
-    spectrum = jnp.fft.rfft(e, n=2 * n, axis=0)
-    cross = jnp.fft.irfft(
-        jnp.conj(spectrum)[:, :, None] * spectrum[:, None, :], n=2 * n, axis=0
+    e_f = jnp.fft.rfft(e_star, n=2 * n, axis=0) * v[None, :]  # reweighted
+    w = sp.weight
+    # joint: sum_f |sum_o v (conj(E) R + a |R|^2)|^2
+    cross = jnp.einsum("fo,fok->fk", jnp.conj(e_f), sp.spectrum)
+    q = jnp.einsum("fok,o->fk", sp.power, v)
+    joint = (
+        jnp.einsum("f,fk->k", w, jnp.abs(cross) ** 2)
+        + 2.0 * a * jnp.einsum("f,fk,fk->k", w, jnp.real(cross), q)
+        + a**2 * jnp.einsum("f,fk->k", w, q**2)
     )
-    gamma = jnp.concatenate([cross[2 * n - lags + 1 :], cross[:lags]], axis=0) / n
-    noise = jnp.einsum("lab,labk,ab->k", gamma, sp.windowed, vv)
-    # the cross term weighs the partner output b by the mean weight, not its own
-    # (exact when the weights are equal, as for a log's own residuals; a refit
-    # moves them apart by the free unknowns' share, and the term is first order
-    # in the step, small under the null): an array (samples, outputs, k) instead
-    # of (samples, outputs, outputs, k)
-    step = jnp.einsum("na,nak,a->k", e, sp.smoothed, v) * jnp.mean(v)
-    signal = jnp.einsum("abk,ab->k", sp.own, vv)
-    variance = jnp.maximum(noise + 2.0 * a * step + a**2 * signal, curvature)
-    return slope**2 / variance, variance
+    # own: sum_f sum_o v^2 |conj(E) R + a |R|^2|^2
+    own = (
+        jnp.einsum("f,fo,fok->k", w, jnp.abs(e_f) ** 2, sp.power)
+        + 2.0
+        * a
+        * jnp.real(jnp.einsum("f,fo,o,fok->k", w, jnp.conj(e_f), v, sp.spectrum_power))
+        + a**2 * jnp.einsum("f,o,fok->k", w, v**2, sp.power**2)
+    )
+    variance = jnp.maximum(joint, own) / (2.0 * n * n)
+    return slope**2 / jnp.maximum(variance, curvature)
 
 
 @functools.partial(jax.jit, static_argnames=("replicates", "chunk"))
 def _bootstrap(
-    rows,
-    innovations,
-    transfer,
-    curvature,
-    offset,
-    key,
-    basis,
-    windows,
-    *,
-    replicates,
-    chunk,
+    rows, innovations, transfer, curvature, offset, key, basis, *, replicates, chunk
 ):
     n = rows.shape[0]
-    sp = _spectra(rows, curvature, offset, basis, windows)
+    sp = _spectra(rows, curvature, offset, basis)
 
     def one(k):
         # innovation rows drawn with replacement (all channels at once: their
@@ -337,15 +306,15 @@ def _bootstrap(
         index = jax.random.randint(k, (n,), 0, innovations.shape[0])
         u = jnp.fft.rfft(innovations[index], axis=0)
         e = jnp.fft.irfft(jnp.einsum("fab,fb->fa", transfer, u), n=n, axis=0)
-        return jnp.max(_statistics(sp, e, refit=True)[0])
+        return jnp.max(_statistics(sp, e, refit=True))
 
     keys = jax.random.split(key, replicates)
     return jax.lax.map(one, keys, batch_size=chunk)
 
 
 @jax.jit
-def _observed(rows, residuals, curvature, offset, windows):
-    return _statistics(_spectra(rows, curvature, offset, None, windows), residuals)
+def _observed(rows, residuals, curvature, offset):
+    return _statistics(_spectra(rows, curvature, offset), residuals)
 
 
 def statistics(
@@ -353,23 +322,14 @@ def statistics(
     residuals: Float[Array, "samples outputs"],
     curvature: Float[Array, " k"],
     slope: Float[Array, " k"],
-    *,
-    variance: bool = False,
-):
-    """The studentised score statistics `(k,)` of the candidates of a score test
-    from its parts (`rows`, `residuals` of the valid samples, `curvature`,
-    `slope`), as the bootstrap computes them on every replicate (see
-    [`_statistics`][]); with `variance`, also the score's variance `(k,)` (a
-    candidate's standard error is its square root over `curvature`)."""
+) -> np.ndarray:
+    """The score statistics `(k,)` of [`score`][] from its parts (the same numbers
+    as its `statistic` when given its own; other residuals or conditioned rows give
+    the statistic a fit with those would)."""
     rows = np.asarray(rows, float)
     residuals = np.asarray(residuals, float)
-    curvature = np.asarray(curvature, float)
     offset = np.asarray(slope, float) - np.einsum("nok,no->k", rows, residuals)
-    windows, _ = windows_of(rows, residuals, curvature, offset)
-    stat, var = _observed(rows, residuals, curvature, offset, windows)
-    if variance:
-        return np.asarray(stat), np.asarray(var)
-    return np.asarray(stat)
+    return np.asarray(_observed(rows, residuals, np.asarray(curvature, float), offset))
 
 
 def calibrate(
@@ -432,8 +392,6 @@ def calibrate(
     if key is None:
         key = jax.random.key(0)
     offset = np.asarray(slope, float) - np.einsum("nok,no->k", rows, residuals)
-    # the windows are the observed log's, used unchanged on every replicate
-    windows, _ = windows_of(rows, residuals, curvature, offset)
     maxima = _bootstrap(
         jnp.asarray(rows),
         jnp.asarray(fitted.innovations, float),
@@ -442,7 +400,6 @@ def calibrate(
         jnp.asarray(offset),
         key,
         None if basis is None else jnp.asarray(basis, float),
-        windows,
         replicates=int(replicates),
         chunk=8,
     )

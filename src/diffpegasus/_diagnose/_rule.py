@@ -3,9 +3,7 @@
 Pegasus workflow ([`diffpegasus.discrepancy.diagnose`][]).
 
 A candidate is **significant** when its score statistic (1 degree of freedom,
-studentised by the residuals' autocovariance under a Bartlett lag window, bandwidth
-by Andrews' rule, weighed by the sensitivities' own, so the residuals' colour and
-their covariance between outputs count) exceeds
+variance with the residuals' colour and their covariance between outputs) exceeds
 a **threshold taken from the log itself**: the `1 - significance` point of the
 largest statistic over all candidates when residuals are drawn from the
 autoregression fitted to the fit's residuals (a sieve bootstrap, [`calibrate`][]), so it holds the family-wise false-alarm level
@@ -126,7 +124,6 @@ class DecisionRule:
             basis = basis[..., np.any(basis != 0.0, axis=(0, 1))]
         s = np.array(test.curvature, float)
         g = np.array(test.slope, float)
-        rows0, resid0, g0 = rows.copy(), resid.copy(), g.copy()
         est = np.asarray(test.estimate, float)
         start = est + g / s  # the held values
         corr = np.asarray(test.correlation, float)
@@ -176,12 +173,7 @@ class DecisionRule:
             g[out] = 0.0
             s = np.where(out, 1.0, s_new)
         first = cals[0]
-        # the statistic as every replicate computes it (not the score test's own,
-        # studentised over all lags): the observed one and its null agree
-        stat0, var0 = statistics(
-            rows0, resid0, np.asarray(test.curvature, float), g0, variance=True
-        )
-        stderr0 = np.sqrt(var0) / np.asarray(test.curvature, float)
+        stat0 = np.asarray(test.statistic, float)
         p = first.p_values(stat0)
         reduction = 1.0 - np.asarray(test.cost_ratio, float)
         ranking = []
@@ -201,7 +193,7 @@ class DecisionRule:
                 "statistic": float(stat0[i]),
                 "p_value": float(p[i]),
                 "estimate": float(est[i]),
-                "stderr": float(stderr0[i]),
+                "stderr": float(np.asarray(test.stderr)[i]),
                 # the first finding; later ones were judged given it to first
                 # order only (a large effect's step leaves a remainder the others
                 # pick up): confirmed by adding it and diagnosing again
@@ -254,9 +246,7 @@ def rule_summary(ranking: list[dict]) -> dict:
         "null_order": r["null_order"],
         "method": "parametric bootstrap: residuals from the autoregression fitted "
         "to the fit's residuals (sieve), through the efficient score at the "
-        "fitted Jacobian, studentised by the residuals' autocovariance under a "
-        "Bartlett lag window (Andrews' bandwidth) weighed by the sensitivities', "
-        "on the log and every replicate alike, max over candidates",
+        "fitted Jacobian, max over candidates",
     }
 
 
