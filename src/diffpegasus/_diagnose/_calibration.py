@@ -295,7 +295,17 @@ def _statistics(sp: _Spectra, e_star, refit: bool = False):
 
 @functools.partial(jax.jit, static_argnames=("replicates", "chunk"))
 def _bootstrap(
-    rows, innovations, transfer, curvature, offset, key, basis, *, replicates, chunk
+    rows,
+    innovations,
+    count,
+    transfer,
+    curvature,
+    offset,
+    key,
+    basis,
+    *,
+    replicates,
+    chunk,
 ):
     n = rows.shape[0]
     sp = _spectra(rows, curvature, offset, basis)
@@ -303,7 +313,7 @@ def _bootstrap(
     def one(k):
         # innovation rows drawn with replacement (all channels at once: their
         # covariance is kept), filtered by the autoregression (circularly, by FFT)
-        index = jax.random.randint(k, (n,), 0, innovations.shape[0])
+        index = jax.random.randint(k, (n,), 0, count)
         u = jnp.fft.rfft(innovations[index], axis=0)
         e = jnp.fft.irfft(jnp.einsum("fab,fb->fa", transfer, u), n=n, axis=0)
         return jnp.max(_statistics(sp, e, refit=True))
@@ -392,9 +402,15 @@ def calibrate(
     if key is None:
         key = jax.random.key(0)
     offset = np.asarray(slope, float) - np.einsum("nok,no->k", rows, residuals)
+    # the innovations padded to the log's length and their number traced: one
+    # compiled program whatever order the autoregression takes (the same draws)
+    innovations = np.asarray(fitted.innovations, float)
+    padded = np.zeros((n, innovations.shape[1]))
+    padded[: len(innovations)] = innovations
     maxima = _bootstrap(
         jnp.asarray(rows),
-        jnp.asarray(fitted.innovations, float),
+        jnp.asarray(padded),
+        jnp.asarray(len(innovations)),
         jnp.asarray(fitted.transfer(n)),
         jnp.asarray(curvature, float),
         jnp.asarray(offset),
