@@ -183,6 +183,11 @@ def test_rocket_toml_read_and_refused(tmp_path):
     (tmp_path / "drag.csv").write_text((SIM / "clean" / "drag.csv").read_text())
     with pytest.raises(ValueError, match=r"\[rocket\] radius_m"):
         dr.read_rocket(bad)
+    # a latitude given is used, never dropped: a text or one off the globe refused
+    for value, why in (('"39N"', "is not a number"), ("139.4", "is not in -90..90")):
+        bad.write_text(text.replace("latitude_deg = 39.39", f"latitude_deg = {value}"))
+        with pytest.raises(ValueError, match=rf"\[launch\] latitude_deg .*{why}"):
+            dr.read_rocket(bad)
 
 
 def sim_log(name):

@@ -38,3 +38,8 @@ from ._vehicle._rocket import (
     Rocket as Rocket,
     rocket_model as rocket_model,
 )
+
+
+# the atmosphere's earlier name (one lapse rate; the layers came later, optional):
+# kept for one release
+linear_lapse_air = layered_air

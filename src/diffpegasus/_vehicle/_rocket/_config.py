@@ -102,6 +102,16 @@ def _optional(table, key):
     return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
 
 
+def _latitude(table, path):
+    # optional, but a value given is a number of degrees, never silently dropped
+    if "latitude_deg" not in table:
+        return None
+    v = _number(table, "latitude_deg", path, "launch", positive=False)
+    if abs(v) > 90.0:
+        raise LogError(f"{path}: [launch] latitude_deg = {v!r} is not in -90..90")
+    return v
+
+
 def read_rocket(path) -> Rocket:
     """Read a `rocket.toml` (see the module docstring for its keys).
 
@@ -174,5 +184,5 @@ def read_rocket(path) -> Rocket:
         recorded_apogee=_optional(rs, "recorded_apogee_agl_m"),
         preflight_apogee=_optional(rs, "preflight_simulated_apogee_agl_m"),
         folder=str(folder),
-        latitude=_optional(la, "latitude_deg"),
+        latitude=_latitude(la, path),
     )
