@@ -17,10 +17,18 @@
 import jax.numpy as jnp
 import numpy as np
 
-from ..._vehicle._atmosphere import _H_BASE, _LAPSE, _P_BASE, _T_BASE, G0, R_AIR
+from ..._vehicle._atmosphere import (
+    _H_BASE,
+    _LAPSE,
+    _P_BASE,
+    _T_BASE,
+    G0,
+    geopotential_altitude,
+    R_AIR,
+    R_EARTH_GEOPOTENTIAL,
+)
 
 
-_R_EARTH = 6_356_766.0  # m, the standard atmosphere's geopotential radius
 TRANSONIC_WIDTH = 0.05  # Mach; half-width of the static-pressure disturbance
 
 
@@ -74,10 +82,8 @@ def layered_air(
     layer = top / (n + 1)
     # geopotential height above the pad and its rate per geometric metre
     h_asl = elevation + height
-    hg = _R_EARTH * h_asl / (_R_EARTH + h_asl) - _R_EARTH * elevation / (
-        _R_EARTH + elevation
-    )
-    dhg = (_R_EARTH / (_R_EARTH + h_asl)) ** 2
+    hg = geopotential_altitude(h_asl) - geopotential_altitude(elevation)
+    dhg = (R_EARTH_GEOPOTENTIAL / (R_EARTH_GEOPOTENTIAL + h_asl)) ** 2
     lapse = lapse * 1e-3
     knots_t = [temperature + lapse * layer * k for k in range(n + 2)]
     for k, d in enumerate(offsets):
