@@ -1,4 +1,7 @@
+import json
 import os
+import pathlib
+import resource
 import shutil
 import tempfile
 
@@ -28,6 +31,7 @@ if not os.environ.get("JAX_COMPILATION_CACHE_DIR") and not os.environ.get(
     os.environ["JAX_COMPILATION_CACHE_DIR"] = _CREATED_CACHE
 
 import jax  # noqa: E402
+import pytest  # noqa: E402
 
 from diffpegasus._cache import enable_cache  # noqa: E402
 
@@ -48,6 +52,12 @@ def pytest_configure(config):
         getattr(config.option, "dist", "no") == "load"
     ):
         config.option.dist = "loadfile"
+    # loadfile hands the files out in the order of the collection, unless it reorders
+    # them by their number of tests (its default, which put the longest files last and
+    # left one worker busy alone for the run's last ~10 minutes): the collection is
+    # ordered by each file's measured cost instead (pytest_collection_modifyitems).
+    if getattr(config.option, "dist", "no") in ("loadfile", "loadscope"):
+        config.option.loadscopereorder = False
 
 
 def pytest_unconfigure(config):
@@ -85,13 +95,92 @@ KNOWN_FAILING: dict[str, str] = {
 }
 
 
+@pytest.hookimpl(trylast=True)  # after `-m` and `-k` have deselected
 def pytest_collection_modifyitems(config, items):
-    import pytest
-
     for item in items:
         reason = KNOWN_FAILING.get(item.nodeid)
         if reason:
             item.add_marker(pytest.mark.xfail(reason=reason, strict=False))
+    if hasattr(config, "workerinput"):
+        _longest_files_first(items)
+
+
+# Each test's CPU seconds (its process's and its subprocesses', fixtures included) from
+# a full default run, `python -m pytest -n 2 --store-durations` (updates the entries of
+# the tests it ran). Under pytest-xdist the files are handed out longest first, so the
+# run does not end with one worker busy on a long file; a file not in the table counts
+# as free and goes last.
+DURATIONS = pathlib.Path(__file__).with_name("durations.json")
+
+
+def _file_of(nodeid: str) -> str:
+    return nodeid.split("::", 1)[0]
+
+
+def _longest_files_first(items):
+    try:
+        durations = json.loads(DURATIONS.read_text())
+    except (OSError, ValueError):
+        return
+    cost: dict[str, float] = {}  # of the tests collected (`-m` selects before this)
+    for item in items:
+        seconds = float(durations.get(item.nodeid, 0.0))
+        cost[_file_of(item.nodeid)] = cost.get(_file_of(item.nodeid), 0.0) + seconds
+    # stable: a file's tests keep their order and stay together
+    items.sort(key=lambda item: -cost.get(_file_of(item.nodeid), 0.0))
+
+
+def pytest_addoption(parser):
+    parser.addoption(
+        "--store-durations",
+        action="store_true",
+        default=False,
+        help="write each test's CPU seconds (with its subprocesses') to tests/durations.json",
+    )
+
+
+_CPU_START = pytest.StashKey[float]()
+
+
+def _cpu_seconds() -> float:
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
+def pytest_runtest_setup(item):
+    if item.config.getoption("store_durations"):
+        item.stash[_CPU_START] = _cpu_seconds()
+
+
+def pytest_runtest_makereport(item, call):
+    # the teardown's report carries the test's CPU seconds to the controller
+    if call.when == "teardown" and _CPU_START in item.stash:
+        item.user_properties.append(
+            ("cpu_seconds", _cpu_seconds() - item.stash[_CPU_START])
+        )
+
+
+_MEASURED: dict[str, float] = {}
+
+
+def pytest_runtest_logreport(report):
+    if report.when == "teardown":
+        for name, value in report.user_properties:
+            if name == "cpu_seconds":
+                _MEASURED[report.nodeid] = round(float(value), 2)
+
+
+def pytest_sessionfinish(session, exitstatus):
+    config = session.config
+    if not config.getoption("store_durations") or hasattr(config, "workerinput"):
+        return
+    try:
+        durations = json.loads(DURATIONS.read_text())
+    except (OSError, ValueError):
+        durations = {}
+    durations.update(_MEASURED)
+    DURATIONS.write_text(json.dumps(dict(sorted(durations.items())), indent=0) + "\n")
 
 
 def pytest_runtest_teardown(item, nextitem):
