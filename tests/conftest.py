@@ -102,7 +102,11 @@ def pytest_collection_modifyitems(config, items):
         if reason:
             item.add_marker(pytest.mark.xfail(reason=reason, strict=False))
     if hasattr(config, "workerinput"):
-        _longest_files_first(items)
+        try:
+            durations = json.loads(DURATIONS.read_text())
+        except (OSError, ValueError):
+            durations = {}
+        longest_files_first(items, durations)
 
 
 # Each test's CPU seconds (its process's and its subprocesses', fixtures included) from
@@ -117,11 +121,7 @@ def _file_of(nodeid: str) -> str:
     return nodeid.split("::", 1)[0]
 
 
-def _longest_files_first(items):
-    try:
-        durations = json.loads(DURATIONS.read_text())
-    except (OSError, ValueError):
-        return
+def longest_files_first(items, durations: dict[str, float]):
     cost: dict[str, float] = {}  # of the tests collected (`-m` selects before this)
     for item in items:
         seconds = float(durations.get(item.nodeid, 0.0))
