@@ -3,7 +3,6 @@ cost (`tests/durations.json`), and pytest-xdist's file scheduler handing them ou
 that order (with its reordering by number of tests off, as `tests/conftest.py` sets)."""
 
 import json
-import pathlib
 from types import SimpleNamespace
 
 import pytest
@@ -88,9 +87,8 @@ def test_xdist_hands_the_files_out_in_the_collection_order():
 
 
 def test_the_cost_table_is_readable():
+    # test ids to CPU seconds; an entry of a renamed or removed test is ignored
     durations = json.loads(DURATIONS.read_text())
-    assert durations and all(v >= 0 for v in durations.values())
-    here = pathlib.Path(__file__).parent
-    # every file it names is a test file of this folder (renamed files go stale)
-    for nodeid in durations:
-        assert (here.parent / nodeid.split("::", 1)[0]).exists(), nodeid
+    assert durations and all(
+        isinstance(k, str) and "::" in k and v >= 0 for k, v in durations.items()
+    )
