@@ -9,6 +9,7 @@ import sys
 
 import numpy as np
 
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
@@ -20,12 +21,19 @@ def main(folders):
     from diffpegasus.rocket import fit_rocket, prepare, read_rocket
 
     out = {}
-    path = ROOT / "experiments" / "results" / "rocket_prediction_static.json"
+    path = (
+        ROOT
+        / "experiments"
+        / "results"
+        / f"rocket_prediction_static_{pathlib.Path(folders[0]).name}.json"
+    )
     for folder in map(pathlib.Path, folders):
         rocket = read_rocket(folder / "rocket.toml")
         log = read_rocket_log(folder / "rocket.toml")
         problem = prepare(rocket, log)
-        summary = json.loads((ROOT / "docs" / "rockets" / folder.name / "summary.json").read_text())
+        summary = json.loads(
+            (ROOT / "docs" / "rockets" / folder.name / "summary.json").read_text()
+        )
         # the burnout the pipeline used: the log's event, else the fitted motor's end
         if "burnout" in log.events:
             burnout = float(log.events["burnout"].t)
@@ -34,8 +42,14 @@ def main(folders):
         short = problem
         if "accel" in problem.outputs and not accel_covers_ascent(problem.record):
             short = altitude_only(problem)
-        pred = fit_rocket(short, free=("static_error",), until=burnout + PREDICTION_HORIZON,
-                          drag="scale", hold_temperature=True, throw=False)
+        pred = fit_rocket(
+            short,
+            free=("static_error",),
+            until=burnout + PREDICTION_HORIZON,
+            drag="scale",
+            hold_temperature=True,
+            throw=False,
+        )
         t, h = baro_channel(log)
         logged = float(np.max(h[t > 0]))
         row = {

@@ -252,7 +252,9 @@ def test_drag_knots_are_the_natural_cubic_spline():
     np.testing.assert_allclose(w @ y, ref, atol=1e-12)
     np.testing.assert_allclose(w.sum(axis=1), 1.0, atol=1e-12)
     jy = jnp.asarray(y)
-    np.testing.assert_allclose([float(knots(v, jy)) for v in m[::10]], ref[::10], atol=1e-12)
+    np.testing.assert_allclose(
+        [float(knots(v, jy)) for v in m[::10]], ref[::10], atol=1e-12
+    )
 
 
 def test_cli_refuses_a_bad_rocket_file_in_one_line(tmp_path):
@@ -428,8 +430,9 @@ def test_coriolis_deflects_a_vertical_throw_as_in_closed_form():
         return np.concatenate([x[3:], a])
 
     t = np.linspace(0.0, 2 * v0 / g, 9)
-    x = solve_ivp(rates, (0, t[-1]), [0, 0, 0, 0, 0, v0], t_eval=t, rtol=1e-11,
-                  atol=1e-9).y
+    x = solve_ivp(
+        rates, (0, t[-1]), [0, 0, 0, 0, 0, v0], t_eval=t, rtol=1e-11, atol=1e-9
+    ).y
     w = EARTH_RATE * np.cos(np.radians(lat))
     np.testing.assert_allclose(x[0], w * (g * t**3 / 3 - v0 * t**2), atol=2e-4)
     assert x[0, -1] == pytest.approx(-4 / 3 * w * v0**3 / g**2, rel=1e-3)
@@ -439,4 +442,3 @@ def test_coriolis_deflects_a_vertical_throw_as_in_closed_form():
         [0.0, -2 * EARTH_RATE * 10 * np.sin(np.radians(lat)), 2 * w * 10],
         rtol=1e-12,
     )
-
