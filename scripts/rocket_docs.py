@@ -150,7 +150,7 @@ def main():
         "the 6.9 s, 0.058 in the full fit) on a day with a -8.7 K/km lapse, "
         "which the prediction holds at the standard -6.5. NDRT's accelerometer "
         "stops after the boost and reads 0.87 g on the pad, so its prediction "
-        "reads the barometer alone; 5.5 s of barometer tell thrust from drag "
+        "reads the barometer alone; 5.3 s of barometer tell thrust from drag "
         "weakly (its static error is estimated 0.003 ± 0.001 where the full fit "
         "finds 0.021), and the prediction moves with small changes of the model: "
         "the spline and the Coriolis term had moved it from -6.6% to -8.4% with "
