@@ -3,8 +3,9 @@
 `CD(M)` is the natural cubic spline through the knots at fixed Mach numbers (two
 knots: the straight line) and constant beyond the first and last. A spline, not
 straight lines: drag curves are smooth, and straight lines between points on one
-leave it by `h^2 CD'' / 8` between knots `h` apart (0.5% of CD on a transonic rise
-at 0.1 Mach spacing), an error the knots' band does not carry. The spline is linear
+leave it by up to `h^2 CD'' / 8` between knots `h` apart (1.5 to 2% of CD on the
+simulated flights' curves at 0.1 Mach spacing; the spline 0.6 to 0.9%, in its end
+intervals), an error the knots' band does not carry. The spline is linear
 in the knot values, `CD(M) = w(M)' cd` with weights from the knot positions alone,
 so the band of `CD(M)` follows from the knots' covariance exactly,
 `var CD(M) = w(M)' C w(M)`.
