@@ -10,8 +10,8 @@ between 9.780 (equator) and 9.832 m/s^2 (poles). Newton's law with the equatoria
 radius and no rotation (9.798 m/s^2) would be 0.008 m/s^2 weaker, which a
 diagnosis of a low-noise log sees as an accelerometer bias.
 
-Where a vehicle knows its latitude, [`normal_gravity`][] (the WGS84 ellipsoid's,
-the centrifugal part included) and [`coriolis`][] (the frame turning with the Earth)
+Where a vehicle knows its latitude, `normal_gravity` (the WGS84 ellipsoid's,
+the centrifugal part included) and `coriolis` (the frame turning with the Earth)
 replace the flat, non-rotating frame's gravity.
 """
 
@@ -55,7 +55,7 @@ def coriolis(velocity, latitude: float):
     (deg): the Earth's rotation `Omega = EARTH_RATE (0, cos lat, sin lat)` there.
 
     Components: east `2 W (v_n sin lat - v_u cos lat)`, north `-2 W v_e sin lat`,
-    up `2 W v_e cos lat`. The centrifugal part is in [`normal_gravity`][]."""
+    up `2 W v_e cos lat`. The centrifugal part is in `normal_gravity`."""
     import jax.numpy as jnp
 
     lat = np.radians(latitude)
