@@ -246,15 +246,13 @@ def main():
         "planted (6 m/s east, 3 m/s south on a rail heading 133 deg); a cross wind "
         "moves altitude and axial acceleration only to second order. The clean "
         "flight names nothing. These tables were measured before the drag spline "
-        "and the Coriolis term. Not re-measured on this code (each diagnosis is "
-        "several fits): the clean 20 Hz flight of another seed (it had named the "
-        "thrust scale, Wald 10.7 against 6.6) and the sensors-only flight (it had "
-        "named nothing).",
+        "and the Coriolis term; the two further flights below were diagnosed "
+        "on this code.",
         "",
     ]
     if diag:
         lines += [
-            "Further flights (`rocket_diagnose_a` and `_b` above):",
+            "Further flights (`python benchmarks/rocket_validation.py --flights DIR --out rocket_diagnose_more` on the two):",
             "",
             "| flight | planted | named |",
             "|---|---|---|",
@@ -266,19 +264,21 @@ def main():
             )
         lines += [
             "",
-            "Measured on this run: the clean 20 Hz flight names the thrust scale "
-            "(1.0015, Wald 10.7 against 6.6): the base fit, holding the sensors and "
-            "the wind, puts 0.15% of thrust where RocketPy's atmosphere table and "
-            "gravity differ from the model's, and the coloured-residual standard "
-            "error (0.0005) does not carry that. The flight with only the sensor "
-            "effects planted names nothing: the static-pressure error is estimated "
-            "right (0.047 for 0.04) and would remove 36% of det(R), yet scores 5.4 "
-            "against 55.6, the residuals' colour (mostly the effects' own slow "
-            "signatures) counted as noise; on the committed planted flight, with "
-            "the thrust scale also planted, the same candidate scores 1298 against "
-            "72. Over the four flights diagnosed: 2 of 6 planted effects named (the "
-            "thrust scale and the static error of the planted flight), one false "
-            "alarm on the 2 clean flights.",
+            "Measured on this code: the clean 20 Hz flight names the thrust scale "
+            "(1.0016, Wald 11.7 against 6.6; 10.7 before the spline and the "
+            "Coriolis term): the base fit, holding the sensors and the wind, puts "
+            "0.16% of thrust where the model and RocketPy still differ (RocketPy's "
+            "atmosphere table; in the boost 0.03% of the speed at burnout, its "
+            "variable-mass terms), and the coloured-residual standard error does "
+            "not carry that. The flight with only the sensor effects planted names "
+            "nothing: the static-pressure error is estimated right (0.047 for "
+            "0.04) and would remove 36% of det(R), yet scores 5.3 against 56.1, "
+            "the residuals' colour (mostly the effects' own slow signatures) "
+            "counted as noise; on the committed planted flight, with the thrust "
+            "scale also planted, the same candidate scores 1298 against 72. Over "
+            "the four flights diagnosed: 2 of 6 planted effects named (the thrust "
+            "scale and the static error of the planted flight), one false alarm "
+            "on the 2 clean flights.",
             "",
         ]
     for name in ("clean", "planted"):
