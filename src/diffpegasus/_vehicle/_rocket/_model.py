@@ -38,7 +38,7 @@ import numpy as np
 
 from ..._model import Model
 from .._atmosphere import GAMMA_AIR, R_AIR
-from .._gravity import gravity, normal_gravity
+from .._gravity import coriolis, gravity, normal_gravity
 from ._config import Rocket
 from ._drag import DragKnots
 from ._motor import motor_at
@@ -144,6 +144,8 @@ class Flight(eqx.Module):
         g = self.gravity(pos[2])
         gvec = jnp.stack([0.0, 0.0, -g])
         free = (thrust - drag) / mass * axis + gvec
+        if r.latitude is not None:  # the pad's frame turns with the Earth
+            free = free + coriolis(vel, r.latitude)
         # on the rail: the component along it, less friction, never backwards from rest
         v_along = jnp.dot(vel, rail)
         normal = g * jnp.sqrt(jnp.clip(1 - rail[2] ** 2, 0.0, None))
