@@ -248,7 +248,9 @@ def main():
     p.add_argument("--table", action="store_true", help="print the table and exit")
     p.add_argument("--only", choices=["pegasus", "hfb320", "demo"], default=None)
     p.add_argument("--max", type=int, default=None, help="flights at most this run")
-    p.add_argument("--out", type=pathlib.Path, default=None, help=f"results (default {OUT})")
+    p.add_argument(
+        "--out", type=pathlib.Path, default=None, help=f"results (default {OUT})"
+    )
     args = p.parse_args()
     if args.out is not None:
         OUT = args.out.resolve()
