@@ -12,7 +12,7 @@ and the demo once (`diffpegasus demo --out DIR`). Flights run one after the othe
 and every result is appended to `experiments/results/acceptance.json` as soon as it
 is known (a rerun skips the flights already there), so a partial run survives.
 
-    nice python experiments/acceptance.py [--only pegasus|hfb320|demo] [--max N]
+    nice python experiments/acceptance.py [--only pegasus|hfb320|demo] [--max N] [--out FILE]
 """
 
 import argparse
@@ -243,11 +243,17 @@ def table():
 
 
 def main():
+    global OUT
     p = argparse.ArgumentParser()
     p.add_argument("--table", action="store_true", help="print the table and exit")
     p.add_argument("--only", choices=["pegasus", "hfb320", "demo"], default=None)
     p.add_argument("--max", type=int, default=None, help="flights at most this run")
+    p.add_argument(
+        "--out", type=pathlib.Path, default=None, help=f"results (default {OUT})"
+    )
     args = p.parse_args()
+    if args.out is not None:
+        OUT = args.out.resolve()
     if args.table:
         print(table())
         return

@@ -39,8 +39,8 @@ def flights(tmp_path_factory):
 def test_diagnose_names_turbulence_on_a_turbulent_launch_vehicle_flight(flights):
     report, row = _diagnose(flights[0])
     assert report["filter_error"]["converged"]
-    # measured: likelihood ratio 1372 on 4 dof, det(R) 99.6% lower, the
-    # filter-error fit converged in 7 iterations; the largest term at it 2.0
+    # measured: likelihood ratio 1388 on 4 dof, det(R) 99.6% lower, the
+    # filter-error fit converged in 9 iterations; the largest term at it 2.0
     assert row["significant"], report["message"]
     assert report["ranking"][0]["effect"] == "process_noise"
     assert report["significant"] == ["process_noise"]

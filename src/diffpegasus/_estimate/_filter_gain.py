@@ -36,11 +36,25 @@ class AbstractFilterGain(eqx.Module):
 
 class SteadyStateGain(AbstractFilterGain):
     """One steady-state gain per record, from the model linearised at the record's
-    initial state and first input (the classical filter-error method)."""
+    initial state and first input (the classical filter-error method).
+
+    `points` > 1 solves that one gain `points` times (all at the first sample):
+    the same gain, but the compiled program is the one a
+    [`ScheduledGain`][]`(points)` uses, so a diagnosis that chooses between the
+    two compiles one filter-error program, not two (the fit's `gain` keeps one
+    point)."""
+
+    points: int = eqx.field(static=True, default=1)
+
+    def __check_init__(self):
+        if not self.points >= 1:
+            raise ValueError(
+                f"SteadyStateGain needs at least 1 point, got {self.points}"
+            )
 
     def schedule(self, n: int) -> np.ndarray:
         del n
-        return np.zeros(1, int)
+        return np.zeros(self.points, int)
 
 
 class ScheduledGain(AbstractFilterGain):
