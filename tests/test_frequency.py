@@ -138,7 +138,9 @@ def test_unstable_aircraft_without_integration(tmp_path):
     est = fd.free
     z = (fd.params - td.params)[est] / td.stderr_corrected[est]
     # a nearly noise-free simulation: both optima agree within 0.93 standard errors
-    # (Mq; deterministic data, so the margin does not move with noise)
+    # (Mq; measured with the end terms held; deterministic data). Against the
+    # independent optimum (experiments/frequency_reference.py) the multiple-shooting
+    # fit is itself 3.2 and the frequency domain 2.5 of its standard errors off (Mw)
     assert np.all(np.abs(z) < 1.0), z
     paths = dp.plot_bode(fd, tmp_path, units={"az": "m/s^2", "w": "m/s", "q": "rad/s"})
     assert all(p.stat().st_size > 10_000 for p in paths)
