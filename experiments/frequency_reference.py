@@ -139,7 +139,7 @@ def output_error(case, start=None, tol=1e-12, max_outer=100):
     every lag), `cost` (`sum_j log S_j`) and `outer` (re-weightings used)."""
     p = np.array(case.start if start is None else start, float)
     s = np.mean(case.residuals(p) ** 2, axis=0)
-    for outer in range(1, max_outer + 1):
+    for outer in range(1, max_outer + 1):  # noqa: B007 (reported)
         w = 1.0 / np.sqrt(s)
         sol = scipy.optimize.least_squares(
             lambda q, w=w: (case.residuals(q) * w).ravel(),
@@ -168,9 +168,9 @@ def output_error(case, start=None, tol=1e-12, max_outer=100):
     wts = np.full(fv.shape[0], 2.0)
     wts[0] = 1.0
     wts[-1] = 1.0
-    mid = np.einsum(
-        "f,fap,fa,fb,fbq->pq", wts, fj.conj(), fv, fv.conj(), fj
-    ).real / (n * size)
+    mid = np.einsum("f,fap,fa,fb,fbq->pq", wts, fj.conj(), fv, fv.conj(), fj).real / (
+        n * size
+    )
     cov = m_inv @ mid @ m_inv
     return {
         "params": p,
@@ -239,8 +239,9 @@ def unstable_case(path):
         d = np.array([[p["Zde"]], [0.0], [0.0]])
         return a, b, c, d
 
-    return LinearCase("unstable_aircraft", names, start, matrices, t, u, y, (0.0, 0.0),
-                      (1, 2))
+    return LinearCase(
+        "unstable_aircraft", names, start, matrices, t, u, y, (0.0, 0.0), (1, 2)
+    )
 
 
 LATERAL = ("Lp", "Lr", "Lda", "Ldr", "Lbeta", "Np", "Nr", "Nda", "Ndr", "Nbeta",
@@ -277,8 +278,9 @@ def package_fits(label, case):
     """The package's time-domain output error (single and, for the unstable
     aircraft, multiple shooting as its model file asks) and frequency-domain
     output error (default band and the band of the frequency-domain page)."""
-    import diffpegasus as dp
     from _shared import attas_like, shared_data
+
+    import diffpegasus as dp
 
     if label == "hfb320":
         spec = dp.load_model_file(ROOT / "examples" / "hfb320_linear.py")
@@ -332,7 +334,10 @@ def reference_optimum(case):
     """Output error from the model file's start values and from the equation-error
     estimate; the lower cost wins (an unstable model's single shooting from the
     file's values can end in a local minimum)."""
-    fits = [output_error(case), output_error(case, start=equation_error(case, case.states))]
+    fits = [
+        output_error(case),
+        output_error(case, start=equation_error(case, case.states)),
+    ]
     best = min(fits, key=lambda f: f["cost"])
     best["costs_from_starts"] = [f["cost"] for f in fits]
     return best
@@ -342,7 +347,9 @@ def compare(case):
     ref = reference_optimum(case)
     # the exact propagation against an adaptive integrator, at the optimum
     ode_gap = float(
-        np.max(np.abs(case.simulate(ref["params"]) - case.simulate(ref["params"], False)))
+        np.max(
+            np.abs(case.simulate(ref["params"]) - case.simulate(ref["params"], False))
+        )
         / np.max(np.abs(case.y), initial=1e-300)
     )
     # the optimum does not depend on the start: again from 10% off
@@ -353,7 +360,9 @@ def compare(case):
         "samples": len(case.t),
         "dt_s": case.dt,
         "reference_reweightings": ref["outer"],
-        "reference_cost_from_file_start_and_equation_error_start": ref["costs_from_starts"],
+        "reference_cost_from_file_start_and_equation_error_start": ref[
+            "costs_from_starts"
+        ],
         "exact_vs_solve_ivp_max_rel": ode_gap,
         "restart_max_change_in_ref_stderr": float(
             np.max(np.abs(again["params"] - ref["params"]) / sd_ref)
@@ -369,7 +378,7 @@ def compare(case):
             "reference_stderr": float(sd_ref[i]),
         }
         td_sd = next(iter(tds.values()))[1][i]
-        for k, (p, sd) in {**{"td " + a: b for a, b in tds.items()},
+        for k, (p, _sd) in {**{"td " + a: b for a, b in tds.items()},
                            **{"fd " + a: b for a, b in fds.items()}}.items():  # fmt: skip
             row[k] = float(p[i])
             row[k + " z_ref"] = float((p[i] - ref["params"][i]) / sd_ref[i])

@@ -251,7 +251,9 @@ def main():
             )
             for i in range(0, args.flights, CHUNK)
         ]  # fmt: skip
-        hist = Hist(**{k: np.concatenate([getattr(p, k) for p in parts]) for k in FIELDS})
+        hist = Hist(
+            **{k: np.concatenate([getattr(p, k) for p in parts]) for k in FIELDS}
+        )
         theta = np.asarray(hist.theta)
         elapsed = time.perf_counter() - start
         cov_plain = coverage(theta, 1.96 * np.asarray(hist.stderr), truth)

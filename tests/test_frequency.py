@@ -116,7 +116,9 @@ def test_hfb320_output_error_in_frequency_and_time_domains_agree(hfb320):
     # the independent optimum (NumPy/SciPy, exact propagation): the package's
     # time-domain fit is on it (measured 0.00 of its standard errors) and the
     # frequency domain within 0.18 (band 0-1.5 Hz; 0.03 with the default band)
-    ref = reference.output_error(reference.hfb320_case(shared_data("hfb320/hfb320_1_10.asc")))
+    ref = reference.output_error(
+        reference.hfb320_case(shared_data("hfb320/hfb320_1_10.asc"))
+    )
     names = ("Za", "ZV", "Z0", "Ma", "Mq", "Mde", "MV", "M0", "az0")  # the case's order
     idx = [model.parameters.index(n) for n in names]
     z_td = (td.params[idx] - ref["params"]) / ref["stderr_corrected"]
@@ -164,6 +166,8 @@ def test_attas_like_lateral_manoeuvres_agree_with_the_time_domain():
     idx = [model.parameters.index(n) for n in reference.LATERAL]
     z_ref = (fd.params[idx] - ref["params"]) / ref["stderr_corrected"]
     assert np.all(np.abs(z_ref) < 0.7), z_ref
-    assert np.all(np.abs(td.params[idx] - ref["params"]) < 0.02 * ref["stderr_corrected"])
+    assert np.all(
+        np.abs(td.params[idx] - ref["params"]) < 0.02 * ref["stderr_corrected"]
+    )
     truth = np.array([TRUTH[n] for n in model.parameters])
     assert np.all(np.abs(fd.params - truth) < 4 * fd.stderr_corrected)
