@@ -26,7 +26,7 @@ class FrequencyOutputError(AbstractEstimator):
     held at the measured states' (`"measured"`), the two samples' noise enters
     every frequency's equation, and the estimates differ from the time-domain
     optimum by up to two of its standard errors on simulated lateral manoeuvres
-    (0.1-0.3 estimated).
+    (0.1-0.5 estimated).
 
     Returns a [`FrequencyFit`][].
     """
