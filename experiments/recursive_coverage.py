@@ -5,7 +5,7 @@ model file linear in its parameters): the same doublet-and-multistep input, new
 sensor noise per flight, white on w and q and coloured (first-order, 0.3 s
 correlation time) on az, so that the equation errors are coloured as in flight. Each
 flight is replayed through recursive least squares and the recursive Fourier
-transform (one `vmap` over the flights of one compiled `lax.scan`), and the fraction
+transform (one compiled `lax.scan`, mapped over the flights), and the fraction
 of flights whose band contains the true value is counted per parameter, at several
 times, for the plain (white-residual) and the corrected bounds. The flights are
 simulated exactly (matrix exponential, inputs linear between samples) in NumPy,
@@ -22,9 +22,18 @@ import pathlib
 import time
 
 
-# XLA's CPU runtime stalls (every thread waiting, no progress) on some of these
-# vmapped replays; one thread per operation made it rarer, not gone (two of eight
-# 25-flight runs at 50 Hz still stalled): rerun a stalled run with another seed
+# Why the vmapped replays stalled in XLA's CPU runtime (every thread waiting, 0 CPU;
+# native stacks by gdb): the batched LU kernel of `jnp.linalg.solve` under `vmap`
+# splits its batch over XLA's intra-op thread pool (`jax::ParallelBatchMap`) and
+# waits for the pieces *on a thread of that same pool*. With the chunks dispatched
+# asynchronously, two replays ran at once, each holding one of the pool's two
+# threads (two cores) inside such a wait: nothing was left to run the pieces. Two
+# such kernels run at once even within one program (XLA runs independent
+# operations concurrently), so running the chunks one at a time was not enough.
+# The flights are therefore replayed by `lax.map` (one flight after another in
+# one program: unbatched solves, no batch split over the pool), each chunk run to
+# completion before the next and saved to disk (`--out`/chunks): a run stopped
+# for any reason resumes where it stopped.
 os.environ.setdefault(
     "XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
 )
@@ -127,6 +136,30 @@ def simulate(n_flights, duration, rate, seed, scale=1.0):
     return t, de, clean[None] + white
 
 
+FIELDS = ("theta", "stderr", "stderr_corrected", "halfwidth", "dof")
+
+
+class Hist:
+    """The replay history's fields the summary uses, as NumPy arrays."""
+
+    def __init__(self, **fields):
+        self.__dict__.update(fields)
+
+
+def replay_chunk(batched, h, y, o, path):
+    """One chunk of flights replayed to completion (or read back from `path`)."""
+    if path.exists():
+        with np.load(path) as f:
+            return Hist(**{k: f[k] for k in FIELDS})
+    res = jax.block_until_ready(batched(h, y, o))
+    out = Hist(**{k: np.asarray(getattr(res, k)) for k in FIELDS})
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp.npz")
+    np.savez(tmp, **out.__dict__)
+    tmp.replace(path)
+    return out
+
+
 def coverage(theta, halfwidth, truth):
     """Fraction of flights whose 95% band (`theta +- halfwidth`) holds the
     truth, per checked time and parameter: `(times, p)`."""
@@ -201,19 +234,26 @@ def main():
     for label, est in estimators.items():
         start = time.perf_counter()
         batched = jax.jit(
-            jax.vmap(
-                lambda hh, yy, oo, est=est: rc.replay(
-                    est, hh, yy, oo, theta0, at=tuple(times_idx)
-                )
+            lambda hh, yy, oo, est=est: jax.lax.map(
+                lambda a: rc.replay(est, *a, theta0, at=tuple(times_idx)),
+                (hh, yy, oo),
             )
         )
-        # flights in chunks of CHUNK (one compiled program; a vmap over all 200
-        # at once stalled the CPU runtime)
+        # flights in chunks of CHUNK (one compiled program), one at a time (see
+        # the note on stalls at the top), each kept on disk once done
         parts = [
-            batched(h[i : i + CHUNK], y[i : i + CHUNK], o[i : i + CHUNK])
+            replay_chunk(
+                batched, h[i : i + CHUNK], y[i : i + CHUNK], o[i : i + CHUNK],
+                args.out / "chunks" / (
+                    f"{label}_rate{args.rate:g}_noise{args.noise_scale:g}_"
+                    f"seed{args.seed}_of{args.flights}_{i}.npz"
+                ),
+            )
             for i in range(0, args.flights, CHUNK)
-        ]
-        hist = jax.tree.map(lambda *a: jnp.concatenate(a), *parts)
+        ]  # fmt: skip
+        hist = Hist(
+            **{k: np.concatenate([getattr(p, k) for p in parts]) for k in FIELDS}
+        )
         theta = np.asarray(hist.theta)
         elapsed = time.perf_counter() - start
         cov_plain = coverage(theta, 1.96 * np.asarray(hist.stderr), truth)

@@ -18,11 +18,28 @@ from diffpegasus._estimate._fourier import frequency_grid
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "experiments"))
+import frequency_reference as reference  # noqa: E402
 from _shared import (  # noqa: E402
     ATTAS as TRUTH,  # noqa: E402
     attas_like,
     shared_data,
 )
+
+
+def test_reference_propagation_is_exact():
+    """The independent reference's sampled-data propagation (matrix exponential,
+    inputs linear between samples) against scipy's adaptive DOP853 at rtol 1e-11,
+    on an unstable 2-state system with a ramp-rich input."""
+    rng = np.random.default_rng(1)
+    a = np.array([[-1.4, 43.0], [0.22, -3.7]])  # eigenvalues +0.7 and -5.8 1/s
+    b = np.array([[-6.0, 0.3], [-12.8, 1.0]])
+    t = np.arange(0.0, 5.0 + 1e-9, 0.05)
+    u = rng.normal(size=(len(t), 2)) * 0.01
+    x0 = np.array([0.1, -0.01])
+    exact = reference.propagate(a, b, x0, u, 0.05)
+    ode = reference.propagate_ode(a, b, x0, t, u)
+    # measured: 3e-9 of the largest state (the ODE solver's own tolerance)
+    np.testing.assert_allclose(exact, ode, rtol=0, atol=1e-8 * np.abs(ode).max())
 
 
 def _require(path):
@@ -96,6 +113,18 @@ def test_hfb320_output_error_in_frequency_and_time_domains_agree(hfb320):
     assert np.all(fd.stderr_corrected[est] >= fd.stderr[est])
     ratio = fd.stderr_corrected[est] / td.stderr_corrected[est]
     assert np.all((ratio > 0.5) & (ratio < 3.0)), ratio
+    # the independent optimum (NumPy/SciPy, exact propagation): the package's
+    # time-domain fit is on it (measured 0.00 of its standard errors) and the
+    # frequency domain within 0.18 (band 0-1.5 Hz; 0.03 with the default band)
+    ref = reference.output_error(
+        reference.hfb320_case(shared_data("hfb320/hfb320_1_10.asc"))
+    )
+    names = ("Za", "ZV", "Z0", "Ma", "Mq", "Mde", "MV", "M0", "az0")  # the case's order
+    idx = [model.parameters.index(n) for n in names]
+    z_td = (td.params[idx] - ref["params"]) / ref["stderr_corrected"]
+    assert np.all(np.abs(z_td) < 0.05), z_td
+    z_fd = ((fd.params[idx] - ref["params"]) / ref["stderr_corrected"])[est[idx]]
+    assert np.all(np.abs(z_fd) < 0.5), z_fd
 
 
 @pytest.mark.slow  # one time-domain and one frequency-domain compile
@@ -111,7 +140,9 @@ def test_unstable_aircraft_without_integration(tmp_path):
     est = fd.free
     z = (fd.params - td.params)[est] / td.stderr_corrected[est]
     # a nearly noise-free simulation: both optima agree within 0.93 standard errors
-    # (Mq; deterministic data, so the margin does not move with noise)
+    # (Mq; measured with the end terms held; deterministic data). Against the
+    # independent optimum (experiments/frequency_reference.py) the multiple-shooting
+    # fit is itself 3.2 and the frequency domain 2.5 of its standard errors off (Mw)
     assert np.all(np.abs(z) < 1.0), z
     paths = dp.plot_bode(fd, tmp_path, units={"az": "m/s^2", "w": "m/s", "q": "rad/s"})
     assert all(p.stat().st_size > 10_000 for p in paths)
@@ -126,6 +157,17 @@ def test_attas_like_lateral_manoeuvres_agree_with_the_time_domain():
     fd = dp.estimate(model, rec, dp.FrequencyOutputError(band=(0.0, 3.0)))
     z = (fd.params - td.params) / td.stderr_corrected
     # same model, same data: within one standard error of the time-domain optimum
-    assert np.all(np.abs(z) < 1.0), dict(zip(model.parameters, z, strict=False))
+    # (seed 3, band 0-3 Hz: measured 0.50 with the end terms estimated, the default,
+    # and with them held; seeds 1, 2, 4, 5: 0.16-0.26 estimated, up to 2.0 held)
+    assert np.all(np.abs(z) < 0.7), dict(zip(model.parameters, z, strict=False))
+    # and of the independent optimum (NumPy/SciPy), on which the package's
+    # time-domain fit lies (measured 0.00 of the standard errors)
+    ref = reference.output_error(reference.attas_case(3))
+    idx = [model.parameters.index(n) for n in reference.LATERAL]
+    z_ref = (fd.params[idx] - ref["params"]) / ref["stderr_corrected"]
+    assert np.all(np.abs(z_ref) < 0.7), z_ref
+    assert np.all(
+        np.abs(td.params[idx] - ref["params"]) < 0.02 * ref["stderr_corrected"]
+    )
     truth = np.array([TRUTH[n] for n in model.parameters])
     assert np.all(np.abs(fd.params - truth) < 4 * fd.stderr_corrected)
