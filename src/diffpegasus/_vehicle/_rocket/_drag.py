@@ -16,31 +16,22 @@ import pathlib
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
+import scipy.interpolate
 
 from ..._errors import LogError
 
 
-def _second_derivatives(x: np.ndarray) -> np.ndarray:
-    """`(knots, knots)`: the natural cubic spline's second derivatives at the knots
-    `x` per unit of each knot value (zero at both ends)."""
+def _coefficients(x: np.ndarray) -> np.ndarray:
+    """`(4, knots - 1, knots)`: the natural cubic spline through the knots `x` of
+    each unit knot vector, as per-segment polynomial coefficients in `M - x[i]`
+    (highest power first), scipy's `CubicSpline` of the identity."""
     n = len(x)
-    out = np.zeros((n, n))
-    if n < 3:
-        return out
-    h = np.diff(x)
-    a = np.zeros((n - 2, n - 2))
-    b = np.zeros((n - 2, n))
-    for k in range(n - 2):
-        a[k, k] = (h[k] + h[k + 1]) / 3
-        if k > 0:
-            a[k, k - 1] = h[k] / 6
-        if k < n - 3:
-            a[k, k + 1] = h[k + 1] / 6
-        b[k, k] = 1 / h[k]
-        b[k, k + 1] = -1 / h[k] - 1 / h[k + 1]
-        b[k, k + 2] = 1 / h[k + 1]
-    out[1:-1] = np.linalg.solve(a, b)
-    return out
+    if n == 2:  # the straight line
+        c = np.zeros((4, 1, 2))
+        c[2, 0] = np.array([-1.0, 1.0]) / (x[1] - x[0])
+        c[3, 0] = np.array([1.0, 0.0])
+        return c
+    return scipy.interpolate.CubicSpline(x, np.eye(n), bc_type="natural").c
 
 
 class DragKnots(eqx.Module):
@@ -65,20 +56,11 @@ class DragKnots(eqx.Module):
     def _basis(self, mach, xp):
         """`(..., knots)` weights at `mach` with array module `xp` (numpy or jax)."""
         x = np.asarray(self.mach, float)
-        d2 = _second_derivatives(x)
+        c = xp.asarray(_coefficients(x))
         m = xp.clip(mach, x[0], x[-1])
         i = xp.clip(xp.searchsorted(x, m, side="right") - 1, 0, len(x) - 2)
-        h = xp.asarray(np.diff(x))[i]
-        a = (xp.asarray(x)[i + 1] - m) / h
-        b = 1.0 - a
-        eye = xp.asarray(np.eye(len(x)))
-        d2 = xp.asarray(d2)
-        return (
-            a[..., None] * eye[i]
-            + b[..., None] * eye[i + 1]
-            + ((a**3 - a) * h**2 / 6)[..., None] * d2[i]
-            + ((b**3 - b) * h**2 / 6)[..., None] * d2[i + 1]
-        )
+        d = (m - xp.asarray(x)[i])[..., None]
+        return ((c[0][i] * d + c[1][i]) * d + c[2][i]) * d + c[3][i]
 
     def __call__(self, mach, values):
         """`CD` at `mach` (jax scalar) from the knot `values` `(knots,)`."""
