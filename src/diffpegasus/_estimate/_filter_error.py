@@ -853,8 +853,7 @@ def choose_gain(model, records, noise_states, x0, theta, f, residuals, points=16
     trial = problem(model, records, noise_states, sched, x0)
     if gain_variation(model, trial, theta, f, residuals) > GAIN_VARIATION:
         return sched
-    # the schedule's shape: either choice runs the same compiled program
-    return SteadyStateGain(points=points)
+    return SteadyStateGain()
 
 
 def _output_error_start(model, records, start, options):
