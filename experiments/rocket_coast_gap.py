@@ -21,63 +21,9 @@ sys.path.insert(0, str(ROOT / "scripts"))
 import make_rocket_fixtures as mk  # noqa: E402
 
 
-def rocketpy_flight(spec):
-    from rocketpy import Environment, Flight, GenericMotor, Rocket
-
-    flown = mk.THRUST.copy()
-    flown[:, 1] *= spec["scale"]
-    env = Environment(latitude=39.39, longitude=-8.29, elevation=150)
-    u, v = spec["wind"]
-    env.set_atmospheric_model(
-        type="custom_atmosphere",
-        pressure=None,
-        temperature=None,
-        wind_u=[(0, u), (8000, u)],
-        wind_v=[(0, v), (8000, v)],
-    )
-    motor = GenericMotor(
-        thrust_source=flown,
-        burn_time=3.8,
-        chamber_radius=0.0375,
-        chamber_height=0.5,
-        chamber_position=0.25,
-        propellant_initial_mass=1.9,
-        nozzle_radius=0.03,
-        dry_mass=1.6,
-        dry_inertia=(0.05, 0.05, 0.002),
-        center_of_dry_mass_position=0.25,
-    )
-    drag = [tuple(p) for p in spec["drag"]]
-    rocket = Rocket(
-        radius=0.052,
-        mass=8.2,
-        inertia=(4.4, 4.4, 0.015),
-        power_off_drag=drag,
-        power_on_drag=drag,
-        center_of_mass_without_motor=1.2,
-        coordinate_system_orientation="tail_to_nose",
-    )
-    rocket.add_motor(motor, position=0.0)
-    rocket.add_nose(length=0.52, kind="von karman", position=2.72)
-    rocket.add_trapezoidal_fins(
-        n=4, root_chord=0.2, tip_chord=0.07, span=0.1, position=0.21
-    )
-    rocket.set_rail_buttons(1.1, 0.3)
-    fl = Flight(
-        rocket=rocket,
-        environment=env,
-        rail_length=12,
-        inclination=84,
-        heading=133,
-        terminate_on_apogee=True,
-        max_time_step=0.01,
-    )
-    return env, rocket, fl
-
-
 def main():
     spec = mk.FLIGHTS["clean"]
-    env, rocket, fl = rocketpy_flight(spec)
+    env, rocket, fl = mk.rocketpy_flight(spec)
     t_apo = float(fl.apogee_time)
     t = np.arange(0.0, t_apo, 0.01)
     st = np.array(fl.solution)  # t, x, y, z, vx, vy, vz, e0..e3, w1..w3

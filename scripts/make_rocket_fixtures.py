@@ -125,12 +125,11 @@ def _isa_pressure(h):
     return 101325.0 * (1 - 0.0065 * hg / 288.15) ** (9.80665 / (287.05287 * 0.0065))
 
 
-def flight(name, spec, out=OUT):
+def rocketpy_flight(spec):
+    """RocketPy's environment, rocket and flight (to apogee) for a flight `spec`
+    of `FLIGHTS`: the fixtures' rocket, motor, rail and site."""
     from rocketpy import Environment, Flight, GenericMotor, Rocket
 
-    folder = out / name
-    folder.mkdir(parents=True, exist_ok=True)
-    np.savetxt(folder / "motor.csv", THRUST, delimiter=",", fmt="%.4f")
     flown = THRUST.copy()
     flown[:, 1] *= spec["scale"]
     env = Environment(latitude=39.39, longitude=-8.29, elevation=150)
@@ -171,14 +170,6 @@ def flight(name, spec, out=OUT):
         center_of_mass_without_motor=1.2,
         coordinate_system_orientation="tail_to_nose",
     )
-    mach = np.round(np.arange(0.0, 1.2001, 0.01), 2)
-    flown_cd = np.array([float(rocket.power_off_drag(m)) for m in mach])
-    np.savetxt(
-        folder / "drag.csv",
-        np.column_stack([mach, flown_cd]),
-        delimiter=",",
-        fmt="%.5f",
-    )
     rocket.add_motor(motor, position=0.0)
     rocket.add_nose(length=0.52, kind="von karman", position=2.72)
     rocket.add_trapezoidal_fins(
@@ -193,6 +184,23 @@ def flight(name, spec, out=OUT):
         heading=133,
         terminate_on_apogee=True,
         max_time_step=0.01,
+    )
+    return env, rocket, fl
+
+
+def flight(name, spec, out=OUT):
+    folder = out / name
+    folder.mkdir(parents=True, exist_ok=True)
+    np.savetxt(folder / "motor.csv", THRUST, delimiter=",", fmt="%.4f")
+    env, rocket, fl = rocketpy_flight(spec)
+    u, v = spec["wind"]
+    mach = np.round(np.arange(0.0, 1.2001, 0.01), 2)
+    flown_cd = np.array([float(rocket.power_off_drag(m)) for m in mach])
+    np.savetxt(
+        folder / "drag.csv",
+        np.column_stack([mach, flown_cd]),
+        delimiter=",",
+        fmt="%.5f",
     )
     dt = 1.0 / spec.get("rate", 50.0)
     t = np.arange(0.0, float(fl.apogee_time), dt)
