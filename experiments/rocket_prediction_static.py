@@ -1,6 +1,6 @@
 """The apogee predicted from the log up to burnout + 2 s with the barometer's
-static-pressure error estimated from the same seconds (the default holds it at
-zero), on the real flights. Run:
+static-pressure error estimated from the same seconds (the pipeline's
+prediction, `predict`), on the real flights. Run:
 PYTHONPATH=src python experiments/rocket_prediction_static.py FOLDER [FOLDER ...]"""
 
 import json
@@ -16,9 +16,8 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 def main(folders):
     from diffpegasus._log._rocketlogs import read_rocket_log
     from diffpegasus._rocket._data import baro_channel
-    from diffpegasus._rocket._identify import accel_covers_ascent, altitude_only
-    from diffpegasus._rocket._pipeline import PREDICTION_HORIZON
-    from diffpegasus.rocket import fit_rocket, prepare, read_rocket
+    from diffpegasus._rocket._pipeline import predict, PREDICTION_HORIZON
+    from diffpegasus.rocket import prepare, read_rocket
 
     out = {}
     path = (
@@ -39,17 +38,7 @@ def main(folders):
             burnout = float(log.events["burnout"].t)
         else:
             burnout = summary["estimates"]["motor_time"][0] + rocket.motor.burn_time
-        short = problem
-        if "accel" in problem.outputs and not accel_covers_ascent(problem.record):
-            short = altitude_only(problem)
-        pred = fit_rocket(
-            short,
-            free=("static_error",),
-            until=burnout + PREDICTION_HORIZON,
-            drag="scale",
-            hold_temperature=True,
-            throw=False,
-        )
+        pred = predict(problem, burnout + PREDICTION_HORIZON)
         t, h = baro_channel(log)
         logged = float(np.max(h[t > 0]))
         row = {

@@ -22,6 +22,33 @@ def burnout_time(log, problem, result) -> float:
     return t0 + problem.rocket.motor.burn_time
 
 
+def predict(problem, until: float):
+    """The fit an air-brake controller could make at `until` (s, log time): the
+    log up to then, the start curve's drag scaled by one factor with the thrust
+    scale and the barometer's static-pressure error; its `apogee` is the
+    prediction."""
+    # a few seconds of log cannot tell the barometer's lag or the day's
+    # temperature from the drag: the prediction holds them at their start values.
+    # The static-pressure error follows the dynamic pressure from the first second
+    # and is estimated (held at zero it went into the thrust and drag split: NDRT
+    # 2020 -8.4% instead of -3.1%; the largest miss of the six real flights 8.4% ->
+    # 4.0%, the mean 2.5% -> 1.7%). An accelerometer that stops after the boost
+    # is calibrated against the barometer over the whole ascent; a few seconds
+    # cannot tell its scale from the drag, so the prediction reads the barometer
+    # alone there
+    short = problem
+    if "accel" in problem.outputs and not accel_covers_ascent(problem.record):
+        short = altitude_only(problem)
+    return fit_rocket(
+        short,
+        free=("static_error",),
+        until=until,
+        drag="scale",
+        hold_temperature=True,
+        throw=False,
+    )
+
+
 def run_flight(rocket, log, out=None, *, free=None) -> dict:
     """Fit the ascent, predict the apogee from the log up to two seconds after
     burnout, re-simulate with the team's drag curve, and (with `out`) write the
@@ -41,29 +68,9 @@ def run_flight(rocket, log, out=None, *, free=None) -> dict:
     result = fit_rocket(problem, free=free, throw=False)
     seconds = time.perf_counter() - t0
     cut = burnout_time(log, problem, result) + PREDICTION_HORIZON
-    # a few seconds of log cannot tell the barometer's lag or the day's
-    # temperature from the drag: the prediction holds them at their start values.
-    # The static-pressure error follows the dynamic pressure from the first second
-    # and is estimated (held at zero it went into the thrust and drag split: NDRT
-    # 2020 -8.4% instead of -3.1%; the largest miss of the six real flights 8.4% ->
-    # 4.0%, the mean 2.5% -> 1.7%). An accelerometer that stops after the boost
-    # is calibrated against the barometer over the whole ascent; a few seconds
-    # cannot tell its scale from the drag, so the prediction reads the barometer
-    # alone there
-    short = problem
-    if "accel" in problem.outputs and not accel_covers_ascent(problem.record):
-        short = altitude_only(problem)
-    prediction = fit_rocket(
-        short,
-        free=("static_error",),
-        until=cut,
-        drag="scale",
-        hold_temperature=True,
-        throw=False,
-    )
+    prediction = predict(problem, cut)
     team = resimulate(problem, result) if rocket.team_drag_off is not None else result
-    _, h = baro_channel(log)
-    t, _ = baro_channel(log)
+    t, h = baro_channel(log)
     log_apogee = float(np.max(h[t > 0]))
     row = summary(problem, result, prediction, team, log_apogee, seconds)
     mach = np.array(problem.flight.knots.mach)
