@@ -346,6 +346,7 @@ def fit_rocket(
     start: dict | None = None,
     shooting_interval: float = 2.0,
     hold_temperature: bool = False,
+    hold: tuple[str, ...] = (),
     throw: bool = True,
 ) -> RocketFit:
     """Fit the rocket's model to the ascent, by continuation: the start curve's
@@ -370,6 +371,9 @@ def fit_rocket(
     - `shooting_interval`: s between multiple-shooting nodes.
     - `hold_temperature`: hold the pad temperature and lapse rate even with an
       accelerometer over the whole ascent (see [`accel_covers_ascent`][]).
+    - `hold`: parameters otherwise estimated (the thrust scale, the motor time, the
+      accelerometer's offset, the day's atmosphere) held at their start values: what
+      a diagnosis tests as absent.
     - `throw`: raise on a failed fit (else the fit carries its result code).
 
     **Returns:** a [`RocketFit`][].
@@ -390,9 +394,10 @@ def fit_rocket(
             extras += ("accel_scale",) if "accel_scale" not in free else ()
         elif not hold_temperature:
             extras += tuple(a for a in ACCEL_FREE if a not in free)
-    scaled = ("cd_scale",) + BASE_FREE + extras
-    estimated = knots.names + BASE_FREE + extras if drag == "knots" else scaled
-    estimated += tuple(free)
+    base = tuple(n for n in BASE_FREE + extras if n not in hold)
+    scaled = ("cd_scale",) + base
+    estimated = knots.names + base if drag == "knots" else scaled
+    estimated += tuple(f for f in free if f not in base)
     record = problem.record
     if until is not None:
         record = record_until(record, until)
