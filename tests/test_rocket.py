@@ -488,3 +488,59 @@ def test_fit_rocket_keeps_the_lowest_det_r_of_its_tries(monkeypatch):
     costs = iter([(5.0, True), (np.nan, False), (1.11, True)])
     kept = _identify.fit_rocket(problem, free=("static_error",), throw=False)
     assert (kept.cost, kept.converged) == (1.11, True)
+
+
+def test_diagnose_judges_the_thrust_scale_in_the_candidates_family(monkeypatch):
+    """The thrust scale is held at the catalogue's in the base fit and scored with
+    every other candidate by the one calibrated rule (no fixed chi-square quantile
+    of its own); once named it is estimated in the refit, and the rest are scored
+    again there. The engine's fit and score are stand-ins here (the decisions on
+    RocketPy's flights are measured by experiments/rocket_diagnose_flights.py)."""
+    import types
+
+    from diffpegasus._diagnose import _candidates
+    from diffpegasus._rocket import _diagnose
+
+    problem = dr.prepare(
+        dr.read_rocket(SIM / "clean" / "rocket.toml"), sim_log("clean")
+    )
+    names = tuple(problem.start)
+    fits, families = [], []
+
+    def fake_fit(problem, *, free, hold, start=None, throw=True):
+        fits.append((tuple(free), tuple(hold), dict(start or {})))
+        model = types.SimpleNamespace(
+            parameters=names,
+            free=[n in free or n in ("motor_time",) for n in names],
+        )
+        return types.SimpleNamespace(
+            fit=types.SimpleNamespace(model=model, params=np.zeros(len(names))),
+            mach=np.array([0.3, 0.8]),
+        )
+
+    def fake_score(fit, candidates, level):
+        families.append(list(candidates))
+        return [
+            {
+                "parameter": c,
+                "statistic": 50.0 if c == "thrust_scale" else 1.0,
+                "threshold": 20.0,
+                "cost_reduction": 0.5 if c == "thrust_scale" else 0.0,
+                "estimate": 0.0,
+                "stderr": 1.0,
+                "significant": c == "thrust_scale",
+                "hard_to_tell_from": [],
+            }
+            for c in candidates
+        ]
+
+    monkeypatch.setattr(_diagnose, "fit_rocket", fake_fit)
+    monkeypatch.setattr(_candidates, "score_candidates", fake_score)
+    named, rows, _ = _diagnose.diagnose(problem)
+    assert named == ["thrust scale (or thrust misalignment)"]
+    assert fits[0][:2] == ((), ("thrust_scale",)) and fits[0][2]["thrust_scale"] == 1.0
+    assert "thrust_scale" in families[0] and "static_error" in families[0]
+    assert fits[1][:2] == (("thrust_scale",), ())
+    assert "thrust_scale" not in families[1] and len(families) == 2
+    assert {r["round"] for r in rows} == {1, 2}
+    assert rows[0]["candidate"].startswith("thrust scale") and rows[0]["significant"]
