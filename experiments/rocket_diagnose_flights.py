@@ -3,7 +3,9 @@ every candidate's statistic against the log's threshold, per round.
 
 `python experiments/rocket_diagnose_flights.py FOLDER [FOLDER ...] [--out FILE]`:
 each FOLDER one flight as `scripts/make_rocket_fixtures.py` writes it (the committed
-ones are under tests/data/rocket_sim; `--validation DIR` writes more).
+ones are under tests/data/rocket_sim; `--validation DIR` writes more). The JSON
+(`--out`, e.g. benchmarks/results/rocket_diagnose_more.json) is what
+scripts/rocket_sim_docs.py puts on the simulated-flights page.
 """
 
 import json
@@ -12,12 +14,27 @@ import sys
 import time
 import tomllib
 
+
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))
 
 
+def planted(folder, rocket):
+    """The flight's planted effects (its rocket file's `[truth]`), with the wind
+    along the rail's heading (the part a zero-angle-of-attack flight shows)."""
+    import numpy as np
+
+    truth = dict(tomllib.loads((folder / "rocket.toml").read_text())["truth"])
+    head = np.radians(rocket.heading)
+    truth["wind_along_m_s"] = truth.get("wind_east_m_s", 0.0) * np.sin(
+        head
+    ) + truth.get("wind_north_m_s", 0.0) * np.cos(head)
+    return truth
+
+
 def main():
-    import diffpegasus.rocket as dr
     from rocket_validation import sim_log
+
+    import diffpegasus.rocket as dr
 
     args = sys.argv[1:]
     out_path = None
@@ -27,8 +44,8 @@ def main():
         del args[i : i + 2]
     out = {}
     for folder in map(pathlib.Path, args):
-        truth = tomllib.loads((folder / "rocket.toml").read_text())["truth"]
         rocket = dr.read_rocket(folder / "rocket.toml")
+        truth = planted(folder, rocket)
         t0 = time.perf_counter()
         named, rows, _ = dr.diagnose(dr.prepare(rocket, sim_log(folder)))
         seconds = time.perf_counter() - t0
@@ -42,7 +59,12 @@ def main():
                 f"  {r['cannot_be_told_from']}",
                 flush=True,
             )
-        out[folder.name] = {"named": named, "rows": rows, "seconds": seconds}
+        out[folder.name] = {
+            "named": named,
+            "tests": rows,
+            "planted_effects": truth,
+            "seconds": seconds,
+        }
         if out_path:
             out_path.write_text(json.dumps(out, indent=1, default=float))
 

@@ -507,7 +507,7 @@ def test_diagnose_judges_the_thrust_scale_in_the_candidates_family(monkeypatch):
     names = tuple(problem.start)
     fits, families = [], []
 
-    def fake_fit(problem, *, free, hold, start=None, throw=True):
+    def fake_fit(problem, *, free, hold, start=None, shooting_interval=2.0, throw=True):
         fits.append((tuple(free), tuple(hold), dict(start or {})))
         model = types.SimpleNamespace(
             parameters=names,

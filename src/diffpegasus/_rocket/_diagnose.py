@@ -70,6 +70,13 @@ def candidates(problem: Problem, top_mach: float) -> list[Candidate]:
 def diagnose(problem: Problem, *, level: float = 0.01, rounds: int = 3):
     """Missing effects, one finding at a time (see the module docstring).
 
+    The fits it scores at are single shooting (one segment from the pad): at a
+    multiple-shooting fit the score test's first-order step let the node states
+    take up a barometer's static-pressure error (RocketPy's flight with lag and
+    static error planted: its statistic 12 against 74, the step predicting det(R)
+    to fall to 0.37 of the base fit's where a refit takes it to 0.0004), while at
+    the single-shooting fit of the same flight it scores 1586 against 43.
+
     **Returns:** `(named, rows, final)`: the names found in order, one row per test
     (`round`, `candidate`, `statistic`, `threshold`, `cost_ratio` (predicted det(R)
     after freeing it over det(R) now), `estimates`, `significant`), and the fit with
@@ -80,11 +87,13 @@ def diagnose(problem: Problem, *, level: float = 0.01, rounds: int = 3):
     # the base fit holds the thrust at the catalogue's: a thrust scale is a
     # candidate like every other, judged by the same calibrated rule
     held_thrust = ("thrust_scale",)
+    single = float(problem.record.t[-1] - problem.record.t[0]) + 1.0
     base = fit_rocket(
         problem,
         free=(),
         hold=held_thrust,
         start={"thrust_scale": THRUST_ABSENT},
+        shooting_interval=single,
         throw=False,
     )
     top = float(np.max(base.mach))
@@ -135,7 +144,12 @@ def diagnose(problem: Problem, *, level: float = 0.01, rounds: int = 3):
         warm.update({n: problem.start[n] for n in found.parameters})
         held_thrust = tuple(h for h in held_thrust if h not in free)
         current = fit_rocket(
-            problem, free=free, hold=held_thrust, start=warm, throw=False
+            problem,
+            free=free,
+            hold=held_thrust,
+            start=warm,
+            shooting_interval=single,
+            throw=False,
         )
     _aliases(rows, named)
     return named, rows, current
