@@ -505,10 +505,11 @@ def test_diagnose_judges_the_thrust_scale_in_the_candidates_family(monkeypatch):
         dr.read_rocket(SIM / "clean" / "rocket.toml"), sim_log("clean")
     )
     names = tuple(problem.start)
-    fits, families = [], []
+    fits, families, intervals = [], [], []
 
     def fake_fit(problem, *, free, hold, start=None, shooting_interval=2.0, throw=True):
         fits.append((tuple(free), tuple(hold), dict(start or {})))
+        intervals.append(shooting_interval)
         model = types.SimpleNamespace(
             parameters=names,
             free=[n in free or n in ("motor_time",) for n in names],
@@ -545,3 +546,6 @@ def test_diagnose_judges_the_thrust_scale_in_the_candidates_family(monkeypatch):
     assert "thrust_scale" not in families[1] and len(families) == 2
     assert {r["round"] for r in rows} == {1, 2}
     assert rows[0]["candidate"].startswith("thrust scale") and rows[0]["significant"]
+    # scored at single-shooting fits: one segment over the whole record
+    span = problem.record.t[-1] - problem.record.t[0]
+    assert len(intervals) == 2 and all(i > span for i in intervals)
