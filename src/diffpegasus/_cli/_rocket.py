@@ -180,10 +180,9 @@ def diagnose_command(
     typer.echo(f"{rocket.name}: " + (", ".join(named) if named else "nothing named"))
     for r in rows:
         mark = "*" if r["significant"] else " "
-        kind = "Wald" if r["round"] == 0 else "score"
         line = (
             f" {mark} round {r['round']}: {r['candidate']:<34} "
-            f"{kind} {r['statistic']:9.1f} (threshold {r['threshold']:.1f})"
+            f"score {r['statistic']:9.1f} (threshold {r['threshold']:.1f})"
         )
         if not r["significant"] and r.get("cannot_be_told_from"):
             line += f"  cannot be told from {', '.join(r['cannot_be_told_from'])}"
