@@ -405,7 +405,8 @@ def demo(
         typer.Option(help="Flight length, s (default: to burnout)", callback=positive),
     ] = None,
     sample_rate: Annotated[
-        float, typer.Option(help="Log rate of the simulated flight, Hz", callback=positive)
+        float,
+        typer.Option(help="Log rate of the simulated flight, Hz", callback=positive),
     ] = 100.0,
 ):
     """Plant an effect in a simulated Pegasus flight and find it again.
