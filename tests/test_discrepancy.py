@@ -324,7 +324,12 @@ def test_cli_rejects_unknown_effect(tmp_path):
 
 
 def test_demo_runs_the_workflow_end_to_end(tmp_path):
-    res = CliRunner().invoke(app, ["demo", "--out", str(tmp_path), "--duration", "30"])
+    # at this file's log shape (30 s at 50 Hz; the demo's default rate is 100 Hz),
+    # so the demo's fits and diagnosis run the programs the tests above compiled
+    res = CliRunner().invoke(
+        app,
+        ["demo", "--out", str(tmp_path), "--duration", "30", "--sample-rate", "50"],
+    )
     assert res.exit_code == 0, res.output
     # the planted delay is what the diagnosis ranks first and what the demo adds
     assert "| 1 | actuator_delay |" in (tmp_path / "diagnose.md").read_text()

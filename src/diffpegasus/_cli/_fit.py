@@ -404,6 +404,10 @@ def demo(
         float | None,
         typer.Option(help="Flight length, s (default: to burnout)", callback=positive),
     ] = None,
+    sample_rate: Annotated[
+        float,
+        typer.Option(help="Log rate of the simulated flight, Hz", callback=positive),
+    ] = 100.0,
 ):
     """Plant an effect in a simulated Pegasus flight and find it again.
 
@@ -423,7 +427,7 @@ def demo(
     )
     try:
         log = entry.simulate(
-            seed=seed, hidden=[hidden], duration=duration, sample_rate=100.0
+            seed=seed, hidden=[hidden], duration=duration, sample_rate=sample_rate
         )
     except LogError as e:
         _fail(str(e))
