@@ -327,6 +327,27 @@ def _observed(rows, residuals, curvature, offset):
     return _statistics(_spectra(rows, curvature, offset), residuals)
 
 
+def padded_count(k: int) -> int:
+    """Candidates are padded to a multiple of 4, so that diagnoses of one log with
+    a few candidates more or fewer (after an effect is added) share one compiled
+    score test and bootstrap."""
+    return max(4, -(-int(k) // 4) * 4)
+
+
+def _pad(rows, curvature, offset):
+    # a padded candidate has no sensitivity and unit curvature: its statistic is
+    # 0, below every real one, so the maximum over candidates is unchanged
+    k = rows.shape[-1]
+    extra = padded_count(k) - k
+    if not extra:
+        return rows, curvature, offset
+    return (
+        np.concatenate([rows, np.zeros(rows.shape[:-1] + (extra,))], axis=-1),
+        np.concatenate([curvature, np.ones(extra)]),
+        np.concatenate([offset, np.zeros(extra)]),
+    )
+
+
 def statistics(
     rows: Float[Array, "samples outputs k"],
     residuals: Float[Array, "samples outputs"],
@@ -338,8 +359,10 @@ def statistics(
     the statistic a fit with those would)."""
     rows = np.asarray(rows, float)
     residuals = np.asarray(residuals, float)
+    k = rows.shape[-1]
     offset = np.asarray(slope, float) - np.einsum("nok,no->k", rows, residuals)
-    return np.asarray(_observed(rows, residuals, np.asarray(curvature, float), offset))
+    rows, curvature, offset = _pad(rows, np.asarray(curvature, float), offset)
+    return np.asarray(_observed(rows, residuals, curvature, offset))[:k]
 
 
 def calibrate(
@@ -402,6 +425,7 @@ def calibrate(
     if key is None:
         key = jax.random.key(0)
     offset = np.asarray(slope, float) - np.einsum("nok,no->k", rows, residuals)
+    rows, curvature, offset = _pad(rows, np.asarray(curvature, float), offset)
     # the innovations padded to the log's length and their number traced: one
     # compiled program whatever order the autoregression takes (the same draws)
     innovations = np.asarray(fitted.innovations, float)

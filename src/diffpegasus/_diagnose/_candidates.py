@@ -4,12 +4,14 @@ parameter at an output-error fit of any model, ranked by the predicted fall of d
 
 from collections.abc import Mapping, Sequence
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
 from .._estimate._fit import Fit, fit
 from .._estimate._score import score
 from .._model import Model, Record
+from ._calibration import padded_count
 from ._rule import DecisionRule, verdict
 
 
@@ -49,16 +51,33 @@ def score_candidates(
                 f"candidate {c!r} is estimated already; hold it to test it"
             )
     idx = np.array([names.index(c) for c in candidates])
+    k = len(idx)
+    # padded (the first candidate repeated) so that diagnoses with a few candidates
+    # more or fewer share one compiled program; each candidate's numbers are its
+    # own column's, the padding is cut off
+    padded = np.concatenate([idx, np.full(padded_count(k) - k, idx[0])])
     st = score(
         model.structure(),
         result.layout,
         jnp.asarray(result.z),
         jnp.asarray(result.R),
         jnp.asarray(result.free),
-        jnp.asarray(idx),
+        jnp.asarray(padded),
         nx=len(model.states),
         p=len(names),
     )
+    st = eqx.tree_at(
+        lambda t: (
+            t.statistic, t.p_value, t.estimate, t.stderr, t.cost_ratio,
+            t.ls_reduction, t.correlation, t.rows, t.curvature, t.slope,
+        ),
+        st,
+        (
+            st.statistic[:k], st.p_value[:k], st.estimate[:k], st.stderr[:k],
+            st.cost_ratio[:k], st.ls_reduction[:k], st.correlation[:k, :k],
+            st.rows[..., :k], st.curvature[:k], st.slope[:k],
+        ),
+    )  # fmt: skip
     rule = rule or DecisionRule(significance=level)
     # judged by parameter (two may belong to one effect); the effect named after
     effects = [c.split(".")[0] for c in candidates]
