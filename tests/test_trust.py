@@ -434,6 +434,8 @@ def test_engine_diagnosis_finds_a_planted_az_bias_on_independent_flights(tmp_pat
     assert report["significant"] == ["sensor_bias:az"]
     assert "sensor_bias:az is significant" in report["message"]
     assert abs(top["estimate"] - 0.1) < 3 * top["stderr"]
+    # the business jet's model has no resolution chosen from the data: none reported
+    assert "baseline" not in report
 
 
 # --- standard errors that cover (issue 15 item 4): the secant bias of the OEM -----
@@ -528,3 +530,81 @@ def test_bootstrap_replicates_are_refitted_like_the_log():
     sp = _spectra(rows, curvature, np.zeros(4), basis)
     left = np.asarray(_refitted(sp, rng.normal(size=(300, 2))))
     assert np.max(np.abs(np.einsum("nou,no->u", basis, left))) < 1e-10
+
+
+# --- the baseline's resolution chosen from the log ------------------------------
+def _sweep(n=1500, seed=0):
+    """A record-like sweep: Mach 0.8 -> 3 (slow start, like a drop then a burn),
+    alpha and elevator moving about, 1 s segments of 50 samples."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / 50.0
+    mach = 0.8 + 2.2 * (t / t[-1]) ** 1.5
+    alpha = 0.05 + 0.03 * np.sin(0.9 * t) + 0.01 * np.sign(np.sin(2.3 * t))
+    de = 0.02 * np.sign(np.sin(1.7 * t + 0.3)) + 0.005 * np.cos(0.4 * t)
+    return t, mach, alpha, de, rng
+
+
+def test_knot_choice_keeps_four_functions_for_a_cubic_in_mach():
+    from diffpegasus._vehicle._mach_spline import choose_knots
+
+    t, mach, alpha, de, rng = _sweep()
+    # every count >= 4 represents a cubic in Mach exactly: more functions only
+    # add variance, so the fewest is kept
+    cl = (3.0 + 0.5 * mach - 0.2 * mach**3) * alpha + 0.4 * de
+    cd = 0.3 * alpha**2 + (0.1 * mach) * alpha + 0.05 * de
+    cm = (-1.0 + 0.3 * mach**2) * alpha - 1.2 * de
+    coeffs = tuple(c + 1e-3 * rng.standard_normal(len(t)) for c in (cl, cd, cm))
+    choice = choose_knots(mach, alpha, de, coeffs, np.floor(t).astype(int))
+    assert choice.knots == 4, choice
+    assert choice.candidates[0] == 4 and choice.segments == 30
+
+
+def test_knot_choice_finds_the_resolution_a_spline_truth_needs():
+    from diffpegasus._vehicle._mach_spline import (
+        MachSplineAerodynamics,
+        choose_knots,
+        mach_breakpoints,
+    )
+
+    t, mach, alpha, de, rng = _sweep(seed=1)
+    # the truth: a spline with 8 functions on the same (quantile) breakpoints,
+    # coefficients far above the noise. 8 represents it exactly; fewer cannot
+    # (misfit much larger than the noise), other counts only approximate it
+    part = MachSplineAerodynamics(knots=8)
+    a = part.regressors(mach, alpha, de, mach_breakpoints(mach, 6))
+    theta = rng.normal(0.0, 1.0, (3, a.shape[1]))
+    coeffs = tuple(a @ th + 1e-3 * rng.standard_normal(len(t)) for th in theta)
+    choice = choose_knots(mach, alpha, de, coeffs, np.floor(t).astype(int))
+    assert choice.knots == 8, choice
+    # the record bounds the counts: a 10 s record (10 segments) tries at most
+    # 3 + 10 / 2 = 8 functions
+    short = slice(0, 500)
+    bounded = choose_knots(
+        mach[short],
+        alpha[short],
+        de[short],
+        tuple(c[short] for c in coeffs),
+        np.floor(t[short]).astype(int),
+    )
+    assert max(bounded.candidates) == 8
+
+
+def test_pegasus_baseline_resolution_is_chosen_from_the_log_and_reported():
+    from diffpegasus._registry._pegasus import PegasusEntry
+
+    spec, _ = PegasusEntry(knots=None).problem([log(3, 50.0)], candidates=True)
+    baseline = spec.notes["baseline"]
+    # measured on this generator's clean logs: 6 (seeds 0, 13 at 50 Hz; 8 at 200
+    # Hz), 8 (seeds 2, 4 at 50 Hz; 3 at 200 Hz), 9 (seed 3 at 50 Hz), 11-12 (1 kHz);
+    # 6 on the package's own simulator (seeds 5, 6, clean and with a CM0 of 0.01)
+    assert baseline["knots"] == 9, baseline
+    assert "left-out" in baseline["rule"]
+    assert baseline["candidates"] == list(range(4, 13))
+    assert sum(n.startswith("CM.a1[") for n in spec.model.parameters) == 9
+    # the default entry keeps 6 functions and says so
+    fixed, _ = ENTRY.problem([log(3, 50.0)])
+    assert fixed.notes["baseline"] == {
+        "rule": "Mach functions per coefficient term set by --knots (quantile "
+        "breakpoints)",
+        "knots": 6,
+    }

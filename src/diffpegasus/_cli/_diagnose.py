@@ -141,6 +141,9 @@ def _print_ranking(report):
     typer.echo(report["message"])
     if isinstance(report.get("rule"), dict):
         typer.echo(f"decision rule: {report['rule']['text']}")
+    baseline = report.get("baseline")
+    if isinstance(baseline, dict):
+        typer.echo(f"baseline: {baseline['knots']} Mach functions; {baseline['rule']}")
     effects = [r for r in report["ranking"] if r["effect"] != "process_noise"]
     for r in report["ranking"]:
         if r["effect"] == "process_noise":

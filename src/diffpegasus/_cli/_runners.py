@@ -320,6 +320,8 @@ def run_model_diagnose(
         max_iter,
     )
     report = {"fit": fit_report(result, spec), "ranking": [], "significant": []}
+    if spec.notes and "baseline" in spec.notes:
+        report["baseline"] = spec.notes["baseline"]
     if not result.converged and not (process_noise and np.isfinite(result.cost)):
         note = excitation_note(spec.model, result.records)
         report["message"] = (

@@ -325,4 +325,6 @@ def ranking_report(ff: FlightFit, ranking) -> dict:
         "significant": [r["effect"] for r in rows if r["significant"]],
         "message": message,
         "rule": rule_summary(ranking),
+        # how the entry chose the baseline's resolution from the log, if it did
+        **({"baseline": ff.spec.notes["baseline"]} if ff.spec.notes else {}),
     }

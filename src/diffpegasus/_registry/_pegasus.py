@@ -30,6 +30,9 @@ OUTPUTS = ("ax", "az", "q", "qdot", "alpha", "V", "theta", "h")
 # continuity defects of multiple shooting (with the 1e-2 tolerance below).
 STATE_SCALE = (0.5, 2e-3, 1e-3, 2e-3, 5.0)
 CONTINUITY_TOL = 1e-2
+# The most Mach functions a log may choose (see `choose_knots`; the record bounds
+# it too): each is seven parameters per coefficient, one compiled program per count.
+MAX_KNOTS = 12
 # Absorbed by the baseline's alpha^2 terms (alpha_order >= 2); a bias on the
 # altitude channel is the same unknown as the (estimated) initial altitude.
 ALPHA_SQUARED = ("lift_alpha_squared", "drag_alpha_squared", "moment_alpha_squared")
@@ -90,9 +93,11 @@ def default_candidates(alpha_order: int = 3) -> tuple[str, ...]:
 
 class PegasusEntry(AbstractVehicleEntry):
     """The Pegasus XL first stage (see the module). Tuning fields: `knots`
-    (spline functions over Mach), `knot_placement` (`quantile` or `blend`),
-    `alpha_order`, `alpha_elevator`, `rate` (model rate, Hz), `node_interval`
-    (shooting interval, s)."""
+    (spline functions over Mach, default 6; `None`: chosen from the log by
+    [`choose_knots`][], cross-validation across the shooting segments, at most
+    `MAX_KNOTS`), `knot_placement` (`quantile` or `blend`), `alpha_order`,
+    `alpha_elevator`, `rate` (model rate, Hz), `node_interval` (shooting
+    interval, s)."""
 
     description: str = (
         "Pegasus XL first stage, drop to burnout (3-DOF pitch plane, Orion 50S "
@@ -100,7 +105,7 @@ class PegasusEntry(AbstractVehicleEntry):
         "aerodynamics and the log's thrust and mass): simulate, estimate, fit, "
         "compare, diagnose"
     )
-    knots: int = 6
+    knots: int | None = 6
     knot_placement: str = "quantile"
     alpha_order: int = 3
     alpha_elevator: bool = True
@@ -108,7 +113,7 @@ class PegasusEntry(AbstractVehicleEntry):
     node_interval: float = 1.0
 
     def __check_init__(self):
-        if self.knots < 4:
+        if self.knots is not None and self.knots < 4:
             raise LogError(
                 f"--knots must be at least 4 (cubic spline), got {self.knots}"
             )
@@ -189,9 +194,14 @@ class PegasusEntry(AbstractVehicleEntry):
         return [f if isinstance(f, FlightLog) else read_log(f) for f in files]
 
     def problem(self, files, *, columns=None, add=(), candidates=False):
+        """The model and one record per log; with `knots=None` the number of Mach
+        functions is chosen from the logs first ([`choose_knots`][], reported in
+        the spec's `notes["baseline"]`)."""
+        import equinox as eqx
+
         from .._estimate._coefficients import reconstruct_coefficients
         from .._estimate._fit import MultipleShooting
-        from .._vehicle._mach_spline import fit_mach_spline
+        from .._vehicle._mach_spline import choose_knots, fit_mach_spline
         from .._vehicle._parts import effect_parameter
 
         if columns is not None:
@@ -200,7 +210,7 @@ class PegasusEntry(AbstractVehicleEntry):
                 "(see `diffpegasus check`)"
             )
         add = tuple(add)
-        model = self.model(add, candidates)
+        self.check_addable(add)
         logs = self.read(files)
         reduced = [self.reduce(log) for log in logs]
         s_ref, c_ref = self.geometry()
@@ -210,13 +220,49 @@ class PegasusEntry(AbstractVehicleEntry):
             + ("thrust", "mass", "Iyy", "Iyy_dot", "xcg", "xcp")
         }
         c = reconstruct_coefficients(stacked, s_ref, c_ref)
+        coefficients = (np.asarray(c.CL), np.asarray(c.CD), np.asarray(c.CM))
+        entry, notes = self, {}
+        if self.knots is None:
+            # the shooting segments of every log, numbered on from log to log
+            segment, first = [], 0
+            for r in reduced:
+                k = np.floor((r["t"] - r["t"][0]) / self.node_interval).astype(int)
+                segment.append(first + k)
+                first += int(k.max()) + 1
+            try:
+                choice = choose_knots(
+                    stacked["mach"],
+                    stacked["alpha"],
+                    stacked["de"],
+                    coefficients,
+                    np.concatenate(segment),
+                    placement=self.knot_placement,
+                    alpha_order=self.alpha_order,
+                    alpha_elevator=self.alpha_elevator,
+                    largest=MAX_KNOTS,
+                )
+            except ValueError as e:
+                raise LogError(str(e)) from None
+            entry = eqx.tree_at(
+                lambda e: e.knots, self, choice.knots, is_leaf=lambda x: x is None
+            )
+            notes = {"baseline": choice.summary()}
+        else:
+            notes = {
+                "baseline": {
+                    "rule": f"Mach functions per coefficient term set by --knots "
+                    f"({self.knot_placement} breakpoints)",
+                    "knots": self.knots,
+                }
+            }
+        model = entry.model(add, candidates)
         try:
             start = fit_mach_spline(
-                self.vehicle().aerodynamics,
+                entry.vehicle().aerodynamics,
                 stacked["mach"],
                 stacked["alpha"],
                 stacked["de"],
-                (np.asarray(c.CL), np.asarray(c.CD), np.asarray(c.CM)),
+                coefficients,
                 self.knot_placement,
             )
         except ValueError as e:
@@ -253,9 +299,10 @@ class PegasusEntry(AbstractVehicleEntry):
                 interval=self.node_interval, continuity_tol=CONTINUITY_TOL, settle=None
             ),
             candidates=tuple(effect_parameter(e) for e in effects if e not in add),
-            vehicle=self.vehicle(),
+            vehicle=entry.vehicle(),
             # turbulence drives the dynamic states; altitude is kinematic
             process_noise=PROCESS_NOISE,
+            notes=notes,
         )
         return spec, records
 
