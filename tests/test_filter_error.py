@@ -7,6 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 import scipy.linalg as sl
+import scipy.signal
 
 from diffpegasus._estimate._filter_error import (
     fit_filter_error,
@@ -232,3 +233,38 @@ def test_without_process_noise_both_methods_agree():
     assert np.all(np.abs(fem.params - oem.params) < 1.5 * oem.stderr)
     assert np.all(fem.kc < 0.05)
     np.testing.assert_allclose(fem.cost, oem.cost, rtol=0.01)
+
+
+def test_innovation_check_white_coloured_and_predictable():
+    """The process-noise candidate's check of a filter's innovations
+    (`innovation_check`: N R^2 of each innovation on its own lags and on signals
+    known before it) against closed forms: chi-square with `lags + regressors`
+    degrees of freedom on white noise; on an AR(1) of coefficient rho, N rho^2
+    more; with a share c of a regressor of unit variance mixed in, about
+    N c^2 / (1 + c^2) more."""
+    import scipy.stats
+
+    from diffpegasus._diagnose._process_noise import innovation_check
+
+    rng = np.random.default_rng(0)
+    n, lags = 1000, 10
+    t = np.arange(n)
+    z = np.column_stack([np.sin(t / 50.0), np.cos(t / 37.0)]) * np.sqrt(2.0)
+    white = np.concatenate(
+        [innovation_check(rng.normal(size=(n, 2)), z, lags)[0] for _ in range(150)]
+    )
+    dof = innovation_check(rng.normal(size=(n, 2)), z, lags)[1]
+    assert dof == 12
+    # chi-square(12): mean 12, sd of the mean of 300 draws 0.28 (measured 12.0)
+    assert abs(white.mean() - 12.0) < 1.0
+    # false alarms at 0.01: 3 expected of 300 (measured 1)
+    assert np.sum(white > scipy.stats.chi2.isf(0.01, 12)) <= 8
+    # coloured: an AR(1), rho 0.3, N rho^2 = 90 above the chi-square's mean
+    u = rng.normal(size=(n + 1, 1))
+    ar = u[1:] + 0.3 * scipy.signal.lfilter([1.0], [1.0, -0.3], u[:-1], axis=0)
+    s_ar = innovation_check(ar, z, lags)[0][0]
+    assert 0.7 * 102 < s_ar < 1.3 * 102, s_ar  # measured 81
+    # predictable from a regressor: c = 0.3 gives N 0.09 / 1.09 = 83 above
+    mixed = rng.normal(size=(n, 1)) + 0.3 * z[:, :1]
+    s_mix = innovation_check(mixed, z, lags)[0][0]
+    assert 0.7 * 95 < s_mix < 1.3 * 95, s_mix  # measured 105
