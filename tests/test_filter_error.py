@@ -268,3 +268,44 @@ def test_innovation_check_white_coloured_and_predictable():
     mixed = rng.normal(size=(n, 1)) + 0.3 * z[:, :1]
     s_mix = innovation_check(mixed, z, lags)[0][0]
     assert 0.7 * 95 < s_mix < 1.3 * 95, s_mix  # measured 105
+
+
+def test_survivor_threshold_from_white_innovations():
+    """The threshold a finding must pass at the filter-error fit comes from the
+    fit's own innovations (sieve bootstrap, `survivor_threshold`): on white
+    innovations and one candidate it is near the chi-square point (6.6 at 0.01;
+    the studentised statistic's tails are a little heavier), and the statistic it
+    judges is the score test's (`score_at_filter_error`) to rounding."""
+    import types
+
+    from diffpegasus._diagnose._calibration import statistics
+    from diffpegasus._diagnose._process_noise import (
+        _filter_error_parts,
+        ProcessNoiseRule,
+        score_at_filter_error,
+        survivor_threshold,
+    )
+
+    rng = np.random.default_rng(3)
+    n, outputs, unknowns = 600, 2, 4  # 2 free parameters, 1 held, 1 intensity
+    jac = rng.normal(size=(1, n, outputs, unknowns))
+    e = rng.normal(size=(1, n, outputs))
+    model = types.SimpleNamespace(parameters=("a", "b", "c"))
+    fem = types.SimpleNamespace(
+        model=model,
+        records=(types.SimpleNamespace(t=np.arange(n)),),
+        free=np.array([True, True, False]),
+        F=np.array([0.1]),
+        params=np.array([1.0, 2.0, 0.0]),
+        jacobian=jac,
+        whitened=e,
+    )
+    cal = survivor_threshold(fem, ["c"], ProcessNoiseRule(replicates=500, seed=1))
+    # measured 6.8 (500 replicates at level 0.01)
+    assert 5.0 < cal.threshold < 10.0, cal.threshold
+    rows, res, s, g, basis, _ = _filter_error_parts(fem, ["c"])
+    # the basis is orthonormal over the free unknowns' sensitivities
+    flat = basis.reshape(-1, basis.shape[-1])
+    np.testing.assert_allclose(flat.T @ flat, np.eye(3), atol=1e-12)
+    stat = score_at_filter_error(fem, ["c"])[0]["statistic"]
+    np.testing.assert_allclose(statistics(rows, res, s, g)[0], stat, rtol=1e-9)
