@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import scipy.linalg as sl
 import scipy.signal
+import scipy.stats
 
 from diffpegasus._estimate._filter_error import (
     fit_filter_error,
@@ -242,8 +243,6 @@ def test_innovation_check_white_coloured_and_predictable():
     degrees of freedom on white noise; on an AR(1) of coefficient rho, N rho^2
     more; with a share c of a regressor of unit variance mixed in, about
     N c^2 / (1 + c^2) more."""
-    import scipy.stats
-
     from diffpegasus._diagnose._process_noise import innovation_check
 
     rng = np.random.default_rng(0)
