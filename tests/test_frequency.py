@@ -139,11 +139,14 @@ def test_unstable_aircraft_without_integration(tmp_path):
     fd = dp.estimate(spec.model, rec, dp.FrequencyOutputError(band=(0.0, 2.0)))
     est = fd.free
     z = (fd.params - td.params)[est] / td.stderr_corrected[est]
-    # a nearly noise-free simulation: both optima agree within 0.93 standard errors
-    # (Mq; measured with the end terms held; deterministic data). Against the
-    # independent optimum (experiments/frequency_reference.py) the multiple-shooting
-    # fit is itself 3.2 and the frequency domain 2.5 of its standard errors off (Mw)
-    assert np.all(np.abs(z) < 1.0), z
+    # a nearly noise-free simulation whose residuals are mostly deterministic
+    # misfit, which the two domains weigh differently: measured |z| 0.30-1.68
+    # (Mw) of the time domain's corrected standard errors. The time domain (multiple
+    # shooting settled on single shooting's optimum) is 0.16 of the independent
+    # optimum's standard errors off it (experiments/frequency_reference.py), the
+    # frequency domain 2.5 (Mw)
+    assert np.all(np.abs(z) < 1.8), z
+    assert np.abs(z).max() > 1.0, z  # not within one: the guide says so
     paths = dp.plot_bode(fd, tmp_path, units={"az": "m/s^2", "w": "m/s", "q": "rad/s"})
     assert all(p.stat().st_size > 10_000 for p in paths)
 

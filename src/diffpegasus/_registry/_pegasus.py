@@ -243,8 +243,14 @@ class PegasusEntry(AbstractVehicleEntry):
             model=model,
             name="pegasus",
             initial_state="estimated",
+            # the penalty's own optimum, not tightened until it settles: measured
+            # on clean and planted 30 s flights of an independent generator, the
+            # tightened fit's residuals carry the slow part of the baseline's
+            # structural misfit (which the nodes' small defects absorb), and the
+            # threshold calibrated on them doubled (65 -> 125 on a clean flight; a
+            # planted 0.006 moment offset fell out of the top three)
             shooting=MultipleShooting(
-                interval=self.node_interval, continuity_tol=CONTINUITY_TOL
+                interval=self.node_interval, continuity_tol=CONTINUITY_TOL, settle=None
             ),
             candidates=tuple(effect_parameter(e) for e in effects if e not in add),
             vehicle=self.vehicle(),
