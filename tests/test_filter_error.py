@@ -7,6 +7,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 import scipy.linalg as sl
+import scipy.signal
+import scipy.stats
 
 from diffpegasus._estimate._filter_error import (
     fit_filter_error,
@@ -232,3 +234,77 @@ def test_without_process_noise_both_methods_agree():
     assert np.all(np.abs(fem.params - oem.params) < 1.5 * oem.stderr)
     assert np.all(fem.kc < 0.05)
     np.testing.assert_allclose(fem.cost, oem.cost, rtol=0.01)
+
+
+def test_innovation_check_white_coloured_and_predictable():
+    """The process-noise candidate's check of a filter's innovations
+    (`innovation_check`: N R^2 of each innovation on its own lags and on signals
+    known before it) against closed forms: chi-square with `lags + regressors`
+    degrees of freedom on white noise; on an AR(1) of coefficient rho, N rho^2
+    more; with a share c of a regressor of unit variance mixed in, about
+    N c^2 / (1 + c^2) more."""
+    from diffpegasus._diagnose._process_noise import innovation_check
+
+    rng = np.random.default_rng(0)
+    n, lags = 1000, 10
+    t = np.arange(n)
+    z = np.column_stack([np.sin(t / 50.0), np.cos(t / 37.0)]) * np.sqrt(2.0)
+    white = np.concatenate(
+        [innovation_check(rng.normal(size=(n, 2)), z, lags)[0] for _ in range(150)]
+    )
+    dof = innovation_check(rng.normal(size=(n, 2)), z, lags)[1]
+    assert dof == 12
+    # chi-square(12): mean 12, sd of the mean of 300 draws 0.28 (measured 12.0)
+    assert abs(white.mean() - 12.0) < 1.0
+    # false alarms at 0.01: 3 expected of 300 (measured 1)
+    assert np.sum(white > scipy.stats.chi2.isf(0.01, 12)) <= 8
+    # coloured: an AR(1), rho 0.3, N rho^2 = 90 above the chi-square's mean
+    u = rng.normal(size=(n + 1, 1))
+    ar = u[1:] + 0.3 * scipy.signal.lfilter([1.0], [1.0, -0.3], u[:-1], axis=0)
+    s_ar = innovation_check(ar, z, lags)[0][0]
+    assert 0.7 * 102 < s_ar < 1.3 * 102, s_ar  # measured 81
+    # predictable from a regressor: c = 0.3 gives N 0.09 / 1.09 = 83 above
+    mixed = rng.normal(size=(n, 1)) + 0.3 * z[:, :1]
+    s_mix = innovation_check(mixed, z, lags)[0][0]
+    assert 0.7 * 95 < s_mix < 1.3 * 95, s_mix  # measured 105
+
+
+def test_survivor_threshold_from_white_innovations():
+    """The threshold a finding must pass at the filter-error fit comes from the
+    fit's own innovations (sieve bootstrap, `survivor_threshold`): on white
+    innovations and one candidate it is near the chi-square point (6.6 at 0.01;
+    the studentised statistic's tails are a little heavier), and the statistic it
+    judges is the score test's (`score_at_filter_error`) to rounding."""
+    import types
+
+    from diffpegasus._diagnose._calibration import statistics
+    from diffpegasus._diagnose._process_noise import (
+        _filter_error_parts,
+        ProcessNoiseRule,
+        score_at_filter_error,
+        survivor_threshold,
+    )
+
+    rng = np.random.default_rng(3)
+    n, outputs, unknowns = 600, 2, 4  # 2 free parameters, 1 held, 1 intensity
+    jac = rng.normal(size=(1, n, outputs, unknowns))
+    e = rng.normal(size=(1, n, outputs))
+    model = types.SimpleNamespace(parameters=("a", "b", "c"))
+    fem = types.SimpleNamespace(
+        model=model,
+        records=(types.SimpleNamespace(t=np.arange(n)),),
+        free=np.array([True, True, False]),
+        F=np.array([0.1]),
+        params=np.array([1.0, 2.0, 0.0]),
+        jacobian=jac,
+        whitened=e,
+    )
+    cal = survivor_threshold(fem, ["c"], ProcessNoiseRule(replicates=500, seed=1))
+    # measured 6.8 (500 replicates at level 0.01)
+    assert 5.0 < cal.threshold < 10.0, cal.threshold
+    rows, res, s, g, basis, _ = _filter_error_parts(fem, ["c"])
+    # the basis is orthonormal over the free unknowns' sensitivities
+    flat = basis.reshape(-1, basis.shape[-1])
+    np.testing.assert_allclose(flat.T @ flat, np.eye(3), atol=1e-12)
+    stat = score_at_filter_error(fem, ["c"])[0]["statistic"]
+    np.testing.assert_allclose(statistics(rows, res, s, g)[0], stat, rtol=1e-9)

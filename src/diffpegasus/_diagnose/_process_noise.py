@@ -3,33 +3,44 @@
 Offered data flown through turbulence, an output-error fit leaves coloured residuals
 that several deterministic candidates can each partly explain; the honest answer is
 that the model is driven by random gusts, which the filter-error method estimates.
-So a diagnosis can also score *process noise* (`x' = f + F w` on the named states):
+So a diagnosis can also score *process noise* (`x' = f + F w` on the named states).
+Process noise can only take findings away, never add one: a deterministic term is
+named only if the calibrated output-error rule ([`DecisionRule`][]) named it.
 
 1. **Is there process noise?** The filter-error fit of the same model (the same held
    candidates; started from the output-error estimates and from the model's start
-   values, the better kept) against the output-error fit
-   by the likelihood ratio of the two maximum-likelihood fits (both with R relaxed,
-   diagonal): `LR = N ln(det R_OEM / det R_FEM)` over the `N` samples, against a
-   chi-square with as many degrees of freedom as intensities (the intensities sit on
-   their boundary 0 under the null, which makes the chi-square conservative). The
-   filter-error optimiser does not drive the intensities to exactly zero on data
-   without process noise (at `F = 0` its cost is flat in `F`), so it stops a few
-   percent above the output-error det(R) there: `LR` is clipped at 0. Significant
-   when the Bonferroni-corrected p-value is below the level and `LR` exceeds a
-   penalty (`min_statistic`, see [`ProcessNoiseRule`][]).
+   values, the better kept) against the output-error fit by the likelihood ratio
+   of the two maximum-likelihood fits (both with R relaxed, diagonal):
+   `LR = N ln(det R_OEM / det R_FEM)` over the `N` samples, against a chi-square
+   with as many degrees of freedom as intensities (Bonferroni over the candidates
+   and this test; the intensities sit on their boundary 0 under the null, which
+   makes the chi-square conservative; the filter-error optimiser stops a little
+   above the output-error det(R) on data without process noise, so `LR` is clipped
+   at 0). The likelihood ratio alone cannot tell gusts from a structural misfit of
+   the model, which a filter absorbs too (on calm flights of a launch vehicle
+   flown by another simulator, 3-7 per sample, more than in gusts). So process
+   noise is named only if, besides, the **filter explains the record**: its
+   innovations are what its model says, white and unpredictable from anything
+   known before each sample (its own past, the filter's predicted outputs, the
+   inputs), by [`innovation_check`][] on every output against its chi-square.
+   A misfit is a function of the flight: the filter's corrections follow it, and
+   its innovations stay predictable from the flight's own signals.
 2. **Is a term missing even so?** Process noise absorbs any misfit, a missing term's
-   too. So every deterministic candidate is score-tested again *at the filter-error
+   too. So every output-error finding is score-tested again *at the filter-error
    fit* (on the innovations, with the exact Jacobian the fit already has and the
-   Morelli-Klein variance for what colour remains): a candidate that is significant
-   there (`survives`) is a missing term that turbulence does not explain; it ranks
-   ahead of process noise, and process noise is then not declared significant (the
-   missing term's misfit inflates its likelihood ratio too): add the term and
-   diagnose again.
+   Morelli-Klein variance for what colour remains), against a threshold from that
+   fit's own innovations ([`survivor_threshold`][]: the sieve bootstrap of the
+   output-error rule): one above it `survives`, is a missing term that turbulence
+   does not explain, ranks ahead of process noise, and process noise is then not
+   declared significant (the missing term's misfit inflates its likelihood ratio
+   too): add the term and diagnose again. One below it is taken away, and said to
+   be hard to tell from the gusts on this record.
 
-The ranking: candidates that survive process noise (by cost fall), then
-`process_noise` when significant, then the rest by cost fall. When process noise is
-significant and nothing survives, the verdict is "the residuals are explained by
-turbulence (process noise), not by a missing term; use the filter-error estimates".
+The ranking: the findings that survive process noise, then `process_noise` when
+present, then the rest by cost fall; without process noise, the output-error
+ranking with `process_noise` last. When process noise is present and nothing
+survives, the verdict is "the residuals are explained by turbulence (process
+noise), not by a missing term; use the filter-error estimates".
 """
 
 import dataclasses
@@ -47,6 +58,7 @@ from .._estimate._filter_error import (
 )
 from .._estimate._fit import Fit
 from .._estimate._score import score_variance
+from ._calibration import calibrate, Calibration
 
 
 PROCESS_NOISE = "process_noise"
@@ -58,47 +70,97 @@ TURBULENCE_VERDICT = (
 
 @dataclasses.dataclass(frozen=True)
 class ProcessNoiseRule:
-    """`significance`: family-wise level (Bonferroni over the candidates and the
-    process-noise test); `min_statistic`: the likelihood-ratio penalty process
-    noise must exceed; `min_survivor`: the score statistic (at the filter-error
-    fit) a deterministic candidate must exceed to count as missing even with
-    process noise allowed.
+    """`significance`: the family-wise false-alarm level of the process-noise test
+    (Bonferroni over the candidates and the process-noise test for the likelihood
+    ratio; over the outputs for the innovations' check) and of the survivors'
+    threshold; `lags`: lagged innovations in the innovations' check (default
+    `ceil(10 log10 N)`, at most `N / 4`); `replicates` and `seed` of the survivors'
+    sieve bootstrap (at least `5 / significance` replicates).
 
-    Measured (`experiments/turbulence_diagnosis.py`; 30 s HFB-320 flights at 10 Hz,
-    the vehicle's 12 candidates, 12 seeds each): on clean flights the filter-error
-    det(R) never fell below the output-error one (LR 0 after clipping: no false
-    alarm; the penalty 50 leaves room for a structural misfit's colour); in Dryden
-    gusts of 0.3 m/s LR 1700-2700 and the largest deterministic score at the
-    filter-error fit 9.1; with CMq held at zero in gusts of 0.1 (0.05) m/s LR
-    370-660 (120-200) and the missing damping (pitch or alpha-dot) scores 27-55
-    (25-41) there. The penalty 16 sits between (a factor 1.55 below the smallest,
-    1.75 above the largest).
-
-    `min_log_ratio`: besides, the filter must lower det(R) at least `e^2` = 7.4
-    times (`LR > 2 N`). On clean flights of the independent HFB-320 generator (true
-    elevator steps between samples, which the model's linear interpolation cannot
-    follow) the filter absorbs that structural misfit as process noise: LR 254 over
-    301 samples (det(R) 2.3 times lower), far above the chi-square penalty but a
-    factor 0.43 of this one; in the 0.3 m/s gusts above ln(ratio) is 5.7-9.1, on the
-    real HFB-320 record 16. Turbulence weaker than the model's own structural misfit
-    (e.g. 0.1 m/s on this vehicle) is not called turbulence: this test cannot tell it
-    from model error.
-    """
+    No constant here is tuned on a simulator: the likelihood ratio is judged by its
+    chi-square, the innovations' check by its chi-square, the survivors by a
+    threshold from the filter-error fit's own innovations."""
 
     significance: float = 0.01
-    min_statistic: float = 50.0
-    min_survivor: float = 16.0
-    min_log_ratio: float = 2.0
+    lags: int | None = None
+    replicates: int = 2000
+    seed: int = 0
 
-    def judge(self, lr: float, samples: int, dof: int, tests: int):
-        """`(p, passes, strong)`: the Bonferroni-corrected p-value of `lr` on `dof`
-        degrees of freedom among `tests` tests; whether it passes the chi-square
-        and its penalty (then the deterministic candidates are judged at the
-        filter-error fit); whether det(R) falls enough for turbulence to be named
-        (`lr > min_log_ratio * samples` as well)."""
-        p = float(min(1.0, scipy.stats.chi2.sf(lr, dof) * tests))
-        passes = bool(p < self.significance and lr > self.min_statistic)
-        return p, passes, bool(passes and lr > self.min_log_ratio * samples)
+
+def innovation_check(
+    innovations: np.ndarray, regressors: np.ndarray, lags: int
+) -> tuple[np.ndarray, int]:
+    """Whether a filter's innovations are what its model says they are: a white
+    sequence that nothing known before the sample predicts. Per output, the
+    Lagrange-multiplier statistic `N R^2` of the regression of the innovation on
+    its own `lags` previous values and on `regressors` (each known before the
+    sample: the filter's predicted outputs, the inputs), chi-square with
+    `lags + regressors` degrees of freedom when the model holds (Breusch-Godfrey's
+    test with the regressors added).
+
+    **Arguments:** `innovations` `(samples, outputs)`; `regressors` `(samples,
+    columns)`; `lags`.
+
+    **Returns:** `(statistics (outputs,), dof)`."""
+    e = np.asarray(innovations, float)
+    z = np.asarray(regressors, float)
+    n, m = e.shape
+    z = z[:, np.std(z, axis=0) > 0]
+    z = (z - z.mean(axis=0)) / z.std(axis=0)
+    stats = np.zeros(m)
+    dof = lags + z.shape[1]
+    for i in range(m):
+        y = e[:, i] - e[:, i].mean()
+        if not np.any(y):
+            continue
+        own = np.column_stack(
+            [np.concatenate([np.zeros(j), y[:-j]]) for j in range(1, lags + 1)]
+        )
+        x = np.column_stack([np.ones(n), own, z])
+        q, _ = np.linalg.qr(x)
+        fitted = q @ (q.T @ y)
+        stats[i] = n * float(fitted @ fitted) / float(y @ y)
+    return stats, dof
+
+
+def turbulence_evidence(result: Fit, fem: FilterErrorFit, rule: ProcessNoiseRule):
+    """Whether the filter-error model explains the record: process noise is named
+    only if its filter leaves innovations that pass [`innovation_check`][] on every
+    output (Bonferroni at `rule.significance`). A structural misfit of the model
+    is a function of the state and the inputs: a filter absorbs part of it as
+    process noise, but its corrections then follow the flight and its
+    innovations stay predictable from the flight's own signals; gusts are not.
+
+    **Returns:** `{"passes", "statistic" (largest over outputs), "output",
+    "threshold", "dof", "lags", "text"}`."""
+    n = sum(len(r.t) for r in fem.records)
+    lags = rule.lags or int(min(np.ceil(10.0 * np.log10(n)), n // 4))
+    # records are independent: their statistics and degrees of freedom add
+    stat = np.zeros(len(fem.model.outputs))
+    dof = 0
+    for rec, nu, y in zip(fem.records, fem.innovations, fem.outputs, strict=True):
+        s, d = innovation_check(
+            np.asarray(nu), np.column_stack([np.asarray(y), rec.inputs]), lags
+        )
+        stat, dof = stat + s, dof + d
+    outputs = fem.model.outputs
+    threshold = float(scipy.stats.chi2.isf(rule.significance / len(outputs), dof))
+    worst = int(np.argmax(stat))
+    passes = bool(stat[worst] <= threshold)
+    return {
+        "passes": passes,
+        "statistic": float(stat[worst]),
+        "output": outputs[worst],
+        "threshold": threshold,
+        "dof": int(dof),
+        "lags": int(lags),
+        "text": (
+            f"the filter's innovations {'pass' if passes else 'fail'} the whiteness "
+            f"and orthogonality check (largest N R^2 {stat[worst]:.3g}, on "
+            f"{outputs[worst]}, against {threshold:.3g}, the chi-square point on "
+            f"{dof} dof at {rule.significance:g} over {len(outputs)} outputs)"
+        ),
+    }
 
 
 def likelihood_ratio(oem: Fit, fem: FilterErrorFit) -> tuple[float, float]:
@@ -111,27 +173,27 @@ def likelihood_ratio(oem: Fit, fem: FilterErrorFit) -> tuple[float, float]:
     return lr, 1.0 - ratio
 
 
-def score_at_filter_error(fem: FilterErrorFit, candidates: Sequence[str]) -> list[dict]:
-    """Score test of held parameters `candidates` at the filter-error fit `fem`, on
-    its innovations: per candidate its `statistic` (chi-square, 1 dof; variance
-    with the innovations' remaining colour and covariance between outputs, as the
-    output-error score's, [`score_variance`][]), raw `p_value`, the one
-    Gauss-Newton step's `estimate` and `stderr`, with every free parameter and
-    process-noise intensity re-adjusted (projected out). Same order as
-    `candidates`."""
+def _filter_error_parts(fem: FilterErrorFit, candidates: Sequence[str]):
+    """What a score test of held parameters `candidates` at the filter-error fit
+    needs, valid samples only, in time order (records one after the other):
+    `(rows (samples, outputs, k), residuals (samples, outputs), curvature (k,),
+    slope (k,), basis (samples, outputs, free), z)` as [`calibrate`][] takes them:
+    each candidate's whitened innovation sensitivity with every free parameter and
+    intensity projected out, the whitened innovations, the information and score
+    of each projected direction, and an orthonormal basis of the free unknowns'
+    sensitivities (a linearised refit leaves `e - basis basis^T e`)."""
     names = list(fem.model.parameters)
     free = np.concatenate([fem.free, np.ones(len(fem.F), bool)])
     jw = np.asarray(fem.jacobian)
     ew = np.asarray(fem.whitened)
     n_z = jw.shape[-1]
-    rows = jw.reshape(-1, jw.shape[-2], n_z)  # (samples, outputs, unknowns)
-    e = ew.reshape(-1, ew.shape[-1])
+    lengths = [len(r.t) for r in fem.records]
+    rows = np.concatenate([jw[i, :n] for i, n in enumerate(lengths)])
+    e = np.concatenate([ew[i, :n] for i, n in enumerate(lengths)])
     flat = rows.reshape(-1, n_z)
     h = flat.T @ flat
-    g = flat.T @ e.reshape(-1)
     ff = np.flatnonzero(free)
-    out = []
-    z = np.concatenate([fem.params, fem.F])
+    directions = []
     for c in candidates:
         if c not in names:
             raise ValueError(f"candidate {c!r} is not a parameter of the model")
@@ -143,8 +205,31 @@ def score_at_filter_error(fem: FilterErrorFit, candidates: Sequence[str]) -> lis
         d = np.zeros(n_z)
         d[i] = 1.0
         d[ff] -= np.linalg.lstsq(h[np.ix_(ff, ff)], h[ff, i], rcond=None)[0]
-        s = float(d @ h @ d)
-        slope = float(d @ g)
+        directions.append(d)
+    d = np.stack(directions, axis=1) if directions else np.zeros((n_z, 0))
+    projected = rows @ d  # (samples, outputs, k)
+    curvature = np.einsum("nok,nok->k", projected, projected)
+    slope = np.einsum("nok,no->k", projected, e)
+    q, r = np.linalg.qr(flat[:, ff])
+    keep = np.abs(np.diag(r)) > 1e-10 * np.max(np.abs(np.diag(r)), initial=0.0)
+    basis = q[:, keep].reshape(rows.shape[0], rows.shape[1], -1)
+    return projected, e, curvature, slope, basis, np.concatenate([fem.params, fem.F])
+
+
+def score_at_filter_error(fem: FilterErrorFit, candidates: Sequence[str]) -> list[dict]:
+    """Score test of held parameters `candidates` at the filter-error fit `fem`, on
+    its innovations: per candidate its `statistic` (chi-square, 1 dof; variance
+    with the innovations' remaining colour and covariance between outputs, as the
+    output-error score's, [`score_variance`][]), raw `p_value`, the one
+    Gauss-Newton step's `estimate` and `stderr`, with every free parameter and
+    process-noise intensity re-adjusted (projected out). Same order as
+    `candidates`."""
+    names = list(fem.model.parameters)
+    rows, e, curvature, slope, _, z = _filter_error_parts(fem, candidates)
+    out = []
+    for j, c in enumerate(candidates):
+        i = names.index(c)
+        s, g = float(curvature[j]), float(slope[j])
         if not s > 0:
             out.append(
                 {
@@ -156,22 +241,59 @@ def score_at_filter_error(fem: FilterErrorFit, candidates: Sequence[str]) -> lis
                 }
             )
             continue
-        step = -slope / s
-        col = rows @ d
+        # the step that lowers sum e^2: e - step * col
+        step = g / s
+        col = rows[..., j]
         var = max(
-            float(score_variance(jnp.asarray(col), jnp.asarray(e + step * col))), s
+            float(score_variance(jnp.asarray(col), jnp.asarray(e - step * col))), s
         )
-        stat = slope**2 / var
+        stat = g**2 / var
         out.append(
             {
                 "parameter": c,
                 "statistic": stat,
                 "p_value": float(scipy.stats.chi2.sf(stat, 1)),
-                "estimate": float(z[i] + step),
+                "estimate": float(z[i] - step),
                 "stderr": float(np.sqrt(var) / s),
             }
         )
     return out
+
+
+def survivor_threshold(
+    fem: FilterErrorFit, candidates: Sequence[str], rule: "ProcessNoiseRule"
+) -> Calibration | None:
+    """The statistic a deterministic finding must exceed at the filter-error fit to
+    survive process noise, from the fit's own innovations: the sieve bootstrap of
+    [`calibrate`][] (the `1 - significance` point of the largest statistic over
+    `candidates`, the output-error findings, when the whitened innovations are
+    drawn from the autoregression fitted to them, the free parameters and
+    intensities refitted to first order), as the output-error rule judges its
+    residuals. `None` without candidates."""
+    if not candidates:
+        return None
+    rows, e, curvature, slope, basis, _ = _filter_error_parts(fem, candidates)
+    ok = curvature > 0
+    if not ok.any():
+        return None
+    rows, curvature, slope = rows[..., ok], curvature[ok], slope[ok]
+    top = int(np.argmax(slope**2 / curvature))
+    # the null resamples the innovations the fit would leave with the strongest
+    # finding freed: its own signature does not widen its null
+    resample = e - (slope[top] / curvature[top]) * rows[..., top]
+    import jax
+
+    return calibrate(
+        rows,
+        e,
+        curvature,
+        slope,
+        level=rule.significance,
+        replicates=rule.replicates,
+        key=jax.random.key(rule.seed),
+        resample=resample,
+        basis=basis,
+    )
 
 
 def best_filter_error(result: Fit, process_noise, **fem_options) -> FilterErrorFit:
@@ -257,18 +379,21 @@ def process_noise_candidate(
 
     **Returns:** `(fem, ranking, message)`: the filter-error fit of `result`'s model
     (candidates held; the better of two starts, [`best_filter_error`][]), the new
-    ranking (every deterministic row gains
-    `statistic_under_process_noise`, `p_value_under_process_noise` (Bonferroni) and
-    `survives_process_noise`; one `process_noise` row with `statistic` (LR),
-    `dof`, `p_value` (Bonferroni), `cost_reduction` (measured, not predicted),
+    ranking (every deterministic row gains `statistic_under_process_noise`, and for
+    an output-error finding when process noise is present
+    `threshold_under_process_noise` and `p_value_under_process_noise` (family-wise,
+    from the filter-error fit's bootstrap), `survives_process_noise` and
+    `significant_output_error` (the calibrated output-error verdict); `significant`
+    is that verdict, taken away when process noise is present and the term does not
+    survive; one `process_noise` row with `statistic` (LR), `dof`, `p_value`
+    (Bonferroni), `likelihood_ratio_passes`, `turbulence_evidence` (the
+    innovations' check, [`turbulence_evidence`][], when the likelihood ratio
+    passes), `process_noise_present`, `cost_reduction` (measured, not predicted),
     `intensities` and `intensities_stderr` by state, `filter_error_estimates` and
-    `filter_error_stderr`, `constraint_active`; its `estimate`/`stderr`/
-    `parameter` are those of the intensity best determined, `F[state]`), and the
-    verdict when the likelihood ratio passes (`None` otherwise: the deterministic
-    verdict stands). When it passes, a deterministic row's `significant` becomes
-    whether it survives process noise (the output-error test's flag, misled by the
-    noise, is kept as `significant_output_error`), and `process_noise` is
-    significant only when no term survives."""
+    `filter_error_stderr`, `constraint_active`, `hard_to_tell_from` (findings
+    taken away); its `estimate`/`stderr`/`parameter` are those of the intensity
+    best determined, `F[state]`), and the verdict when process noise is present
+    (`None` otherwise: the output-error verdict stands)."""
     if result.bias_outputs:
         raise ValueError(
             "the filter-error method has no output biases: score process noise at "
@@ -279,11 +404,23 @@ def process_noise_candidate(
     k = len(cands) + 1
     lr, fall = likelihood_ratio(result, fem) if fem.converged else (0.0, 0.0)
     dof = len(fem.F)
-    p, present, strong = rule.judge(lr, sum(len(r.t) for r in result.records), dof, k)
+    p = float(min(1.0, scipy.stats.chi2.sf(lr, dof) * k))
+    evidence = (
+        turbulence_evidence(result, fem, rule)
+        if fem.converged and p < rule.significance
+        else None
+    )
+    present = evidence is not None and evidence["passes"]
     under = (
         {r["parameter"]: r for r in score_at_filter_error(fem, cands)}
         if fem.converged
         else {}
+    )
+    # only a term the calibrated output-error rule named can be named at the end;
+    # process noise may take it away (it does not survive at the filter-error fit)
+    findings = [r["parameter"] for r in ranking if r["significant"]]
+    survivors = (
+        survivor_threshold(fem, findings, rule) if present and fem.converged else None
     )
     rows = []
     for r in ranking:
@@ -294,32 +431,40 @@ def process_noise_candidate(
             row.update(
                 statistic_under_process_noise=None,
                 p_value_under_process_noise=None,
-                survives_process_noise=False,
+                threshold_under_process_noise=None,
+                survives_process_noise=bool(r["significant"] and not present),
             )
         else:
-            pu = float(min(1.0, u["p_value"] * k))
+            threshold = None if survivors is None else survivors.threshold
             row.update(
                 statistic_under_process_noise=u["statistic"],
-                p_value_under_process_noise=pu,
+                p_value_under_process_noise=(
+                    float(survivors.p_values(u["statistic"])[0])
+                    if survivors is not None and r["significant"]
+                    else None
+                ),
+                threshold_under_process_noise=threshold,
                 # a sub-sample delay is the log's resolution, not physics, at
                 # either fit (the shared rule, _diagnose/_rule.py)
                 survives_process_noise=bool(
-                    pu < rule.significance
-                    and u["statistic"] > rule.min_survivor
+                    r["significant"]
                     and not r.get("resolution_limit", False)
+                    and (
+                        not present
+                        or (threshold is not None and u["statistic"] > threshold)
+                    )
                 ),
             )
-        if present:
-            row["significant_output_error"] = r["significant"]
-            row["significant"] = row["survives_process_noise"]
+        row["significant_output_error"] = r["significant"]
+        row["significant"] = bool(r["significant"] and row["survives_process_noise"])
         rows.append(row)
     first = sorted(
-        (r for r in rows if r["survives_process_noise"]),
+        (r for r in rows if r["significant"]),
         key=lambda r: -r["cost_reduction"],
     )
     # a missing term makes the filter-error fit look better too: process noise is
     # significant only when no term survives it (else re-test after adding it)
-    significant = strong and not first
+    significant = present and not first
     z_scores = np.abs(fem.F) / np.where(fem.F_stderr > 0, fem.F_stderr, np.inf)
     best = int(np.argmax(z_scores)) if len(fem.F) else 0
     pn = {
@@ -332,17 +477,16 @@ def process_noise_candidate(
         "estimate": float(fem.F[best]),
         "stderr": float(fem.F_stderr[best]),
         "significant": significant,
-        "likelihood_ratio_passes": present,
-        "turbulence_sized": strong,
+        "likelihood_ratio_passes": bool(p < rule.significance),
+        "turbulence_evidence": evidence,
+        "process_noise_present": present,
         "resolution_limit": False,
-        # terms significant at the filter-error fit but below the penalty (what
-        # gusts can imitate, e.g. an offset where the held initial state is off)
+        # the output-error findings that do not survive at the filter-error fit:
+        # what the gusts can imitate on this record
         "hard_to_tell_from": [
             r["effect"]
             for r in rows
-            if r["p_value_under_process_noise"] is not None
-            and r["p_value_under_process_noise"] < rule.significance
-            and not r["survives_process_noise"]
+            if present and r["significant_output_error"] and not r["significant"]
         ],
         "intensities": dict(zip(fem.process_noise, fem.F.tolist(), strict=True)),
         "intensities_stderr": dict(
@@ -357,14 +501,13 @@ def process_noise_candidate(
     }
     if present:
         rest = sorted(
-            (r for r in rows if not r["survives_process_noise"]),
+            (r for r in rows if not r["significant"]),
             key=lambda r: -r["cost_reduction"],
         )
         new = [*first, pn, *rest]
     else:
-        new = sorted(
-            [*rows, pn], key=lambda r: (not r["significant"], -r["cost_reduction"])
-        )
+        # no process noise: the output-error ranking stands, process noise last
+        new = [*rows, pn]
     message = None
     if present:
         if first:
@@ -372,31 +515,23 @@ def process_noise_candidate(
             message = (
                 f"{top['effect']} is missing even with process noise allowed (score "
                 f"statistic {top['statistic_under_process_noise']:.0f} at the "
-                f"filter-error fit, p {top['p_value_under_process_noise']:.2g}): "
-                f"{top['parameter']} = {top['estimate']:.4g} +/- {top['stderr']:.2g} "
-                f"by output error. Process noise (likelihood ratio {lr:.0f} on "
-                f"{dof} dof) absorbs a missing term's misfit too: diagnose again "
-                "with the term added to tell whether turbulence remains"
-            )
-        elif not strong:
-            message = (
-                f"no candidate is significant: process noise lowers det(R) "
-                f"{100 * fall:.0f}% (likelihood ratio {lr:.0f} on {dof} dof), less "
-                f"than the {np.exp(rule.min_log_ratio):.1f}-fold fall that tells "
-                "turbulence from the model's own structural misfit, and no term "
-                "survives at the filter-error fit"
+                f"filter-error fit, threshold {top['threshold_under_process_noise']:.3g} "
+                f"from its innovations): {top['parameter']} = {top['estimate']:.4g} "
+                f"+/- {top['stderr']:.2g} by output error. Process noise (likelihood "
+                f"ratio {lr:.0f} on {dof} dof) absorbs a missing term's misfit too: "
+                "diagnose again with the term added to tell whether turbulence remains"
             )
         else:
             message = (
                 f"{TURBULENCE_VERDICT} (likelihood ratio {lr:.0f} on {dof} dof, "
-                f"p {p:.2g}; det(R) {100 * fall:.0f}% lower; no candidate term "
-                "survives at the filter-error fit)"
+                f"p {p:.2g}; det(R) {100 * fall:.0f}% lower; {evidence['text']}; no "
+                "output-error finding survives at the filter-error fit)"
             )
             if pn["hard_to_tell_from"]:
                 message += (
                     "; the gusts cannot be told apart from "
                     + ", ".join(pn["hard_to_tell_from"])
-                    + " on this record (significant at the filter-error fit, "
-                    f"below the penalty {rule.min_survivor:g})"
+                    + " on this record (named by output error, below the "
+                    "filter-error fit's threshold)"
                 )
     return fem, new, message
