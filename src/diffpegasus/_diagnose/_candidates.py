@@ -129,8 +129,9 @@ def diagnose_model(
     With `process_noise` (states, or a dict of start intensities), process noise
     is a candidate too, scored by the filter-error fit's likelihood ratio, and the
     deterministic candidates are tested again at that fit (see
-    [`process_noise_candidate`][]; its row's `verdict` is the message when its
-    likelihood ratio passes). Keyword arguments go to [`fit`][]."""
+    [`process_noise_candidate`][]: process noise may only take an output-error
+    finding away; its row's `verdict` is the message when process noise is
+    present). Keyword arguments go to [`fit`][]."""
     fixed = tuple(dict.fromkeys(tuple(model.fixed) + tuple(candidates)))
     result = fit(model.replace(fixed=fixed), records, **fit_options)
     ranking = score_candidates(result, candidates, level)
