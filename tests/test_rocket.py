@@ -465,7 +465,9 @@ def test_fit_rocket_keeps_the_lowest_det_r_of_its_tries(monkeypatch):
 
     def fake_fit(model, record, **options):
         cost, converged = next(costs)
-        freed.append({n for n, f in zip(model.parameters, model.free) if f})
+        freed.append(
+            {n for n, f in zip(model.parameters, model.free, strict=True) if f}
+        )
         return types.SimpleNamespace(
             model=model,
             params=np.asarray(model.start, float),

@@ -561,9 +561,9 @@ def test_knot_choice_keeps_four_functions_for_a_cubic_in_mach():
 
 def test_knot_choice_finds_the_resolution_a_spline_truth_needs():
     from diffpegasus._vehicle._mach_spline import (
-        MachSplineAerodynamics,
         choose_knots,
         mach_breakpoints,
+        MachSplineAerodynamics,
     )
 
     t, mach, alpha, de, rng = _sweep(seed=1)

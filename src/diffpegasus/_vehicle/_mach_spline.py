@@ -277,7 +277,9 @@ def choose_knots(
         part = MachSplineAerodynamics(
             knots=k, alpha_order=alpha_order, alpha_elevator=alpha_elevator
         )
-        a = part.regressors(mach, np.asarray(alpha, float), np.asarray(de, float), breaks)
+        a = part.regressors(
+            mach, np.asarray(alpha, float), np.asarray(de, float), breaks
+        )
         if a.shape[1] >= len(mach) - max(f.sum() for f in folds):
             break
         # normal equations less each segment's share: one pass over the record
@@ -286,7 +288,9 @@ def choose_knots(
         sse = np.zeros((len(folds), y.shape[1]))
         for i, out in enumerate(folds):
             ao = a[out]
-            theta = np.linalg.lstsq(gram - ao.T @ ao, rhs - ao.T @ y[out], rcond=None)[0]
+            theta = np.linalg.lstsq(gram - ao.T @ ao, rhs - ao.T @ y[out], rcond=None)[
+                0
+            ]
             sse[i] = np.sum((y[out] - ao @ theta) ** 2, axis=0)
         counts.append(k)
         per_fold.append(sse)
