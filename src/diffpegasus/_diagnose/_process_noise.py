@@ -58,7 +58,8 @@ from .._estimate._filter_error import (
 )
 from .._estimate._fit import Fit
 from .._estimate._score import score_variance
-from ._calibration import calibrate, Calibration
+from ._calibration import Calibration
+from ._rule import DecisionRule
 
 
 PROCESS_NOISE = "process_noise"
@@ -281,19 +282,8 @@ def survivor_threshold(
     # the null resamples the innovations the fit would leave with the strongest
     # finding freed: its own signature does not widen its null
     resample = e - (slope[top] / curvature[top]) * rows[..., top]
-    import jax
-
-    return calibrate(
-        rows,
-        e,
-        curvature,
-        slope,
-        level=rule.significance,
-        replicates=rule.replicates,
-        key=jax.random.key(rule.seed),
-        resample=resample,
-        basis=basis,
-    )
+    same = DecisionRule(rule.significance, rule.replicates, rule.seed)
+    return same.calibrate(rows, e, curvature, slope, resample, basis)
 
 
 def best_filter_error(result: Fit, process_noise, **fem_options) -> FilterErrorFit:
