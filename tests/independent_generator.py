@@ -465,13 +465,20 @@ HFB_NOISE = {
 }
 
 
-def _hfb_evaluate(x, de, thrust, bias_az=0.0):
+def _hfb_evaluate(x, de, thrust, cla2=0.0):
     c = HFB
     p = HFB_AERO
     v, alpha, theta, q = x
     qbar = 0.5 * c["rho"] * v**2
     cd = p["CD0"] + p["CDV"] * v / c["v0"] + p["CDa"] * alpha
-    cl = p["CL0"] + p["CLV"] * v / c["v0"] + p["CLa"] * alpha
+    # with alpha^2 lift, CL0 moves so that the initial state stays trimmed
+    alpha0 = c["x0"][1]
+    cl = (
+        p["CL0"]
+        + p["CLV"] * v / c["v0"]
+        + p["CLa"] * alpha
+        + cla2 * (alpha**2 - alpha0**2)
+    )
     cm = (
         p["CM0"]
         + p["CMV"] * v / c["v0"]
@@ -501,9 +508,51 @@ def _hfb_evaluate(x, de, thrust, bias_az=0.0):
         "q": q,
         "qdot": qdot,
         "ax": c["s_over_m"] * qbar * cx + f_m * np.cos(c["sigma_t"]),
-        "az": c["s_over_m"] * qbar * cz - f_m * np.sin(c["sigma_t"]) + bias_az,
+        "az": c["s_over_m"] * qbar * cz - f_m * np.sin(c["sigma_t"]),
     }
     return np.array([vdot, alphadot, q, qdot]), out
+
+
+HFB_EFFECTS = ("actuator_delay", "lift_alpha_squared") + tuple(
+    f"sensor_bias:{name}" for name in HFB_NOISE
+)
+
+
+def _hfb_gusty_rates(t, y, de, gusts, cla2):
+    """Inertial body-axis velocity `(u, w)`, `theta`, `q` through the wind
+    `gusts(t) -> (u_g, w_g)` (earth axes, w_g down): the forces from the
+    air-relative velocity, the kinematics from the inertial one. With no wind
+    this is the book's (V, alpha) model rewritten in body axes."""
+    u, w, theta, q = y
+    ug, wg = gusts(t)
+    ua = u - (ug * np.cos(theta) - wg * np.sin(theta))
+    wa = w - (ug * np.sin(theta) + wg * np.cos(theta))
+    air = np.array([np.hypot(ua, wa), np.arctan2(wa, ua), theta, q])
+    rates, out = _hfb_evaluate(air, de, HFB["thrust"], cla2)
+    g = HFB["g"]
+    return np.array(
+        [
+            out["ax"] - q * w - g * np.sin(theta),
+            out["az"] + q * u + g * np.cos(theta),
+            q,
+            rates[3],
+        ]
+    ), air
+
+
+def _uniform_spline(spline):
+    """`spline` (a CubicSpline on a uniform grid) evaluated at one time by its
+    piecewise polynomial directly: a tenth of the call's cost, which the
+    integrator pays ~1e5 times a flight."""
+    c, x = spline.c, spline.x
+    step, last = x[1] - x[0], len(x) - 2
+
+    def at(t):
+        i = min(max(int((t - x[0]) / step), 0), last)
+        d = t - x[i]
+        return ((c[0, i] * d + c[1, i]) * d + c[2, i]) * d + c[3, i]
+
+    return at
 
 
 def generate_hfb320(
@@ -513,17 +562,26 @@ def generate_hfb320(
     effects: dict[str, float] | None = None,
     noise: bool = True,
     actuator: float | None = None,
+    gust_sigma: float = 0.0,
 ) -> tuple[dict[str, np.ndarray], dict]:
     """One HFB-320 flight: `(channels, metadata)`, channels `t, de, thrust, V,
     alpha, theta, q, qdot, ax, az` (SI, rad). A 3-2-1-1 of +/- 0.01 rad steps
     (1 s unit) from 2 s plus a random fraction of a sample: true steps of the
     logged surface, or with `actuator` (time constant, s) commanded steps that the
-    surface (logged) follows as a first-order lag; effects: only
-    `sensor_bias:az`."""
+    surface (logged) follows as a first-order lag. Effects (`HFB_EFFECTS`):
+    `actuator_delay` (s: the surface moves that much after the logged one),
+    `lift_alpha_squared` (CL += value alpha^2, CL0 -= value alpha0^2: the
+    initial state stays trimmed), `sensor_bias:<output>` (channel
+    units). `gust_sigma` (m/s): the flight through `gust_field`'s gusts (both
+    components, 533 m scale) instead of still air; V and alpha are air-relative."""
     effects = dict(effects or {})
-    unknown = set(effects) - {"sensor_bias:az"}
+    unknown = set(effects) - set(HFB_EFFECTS)
     if unknown:
         raise ValueError(f"unknown effects {sorted(unknown)} for the HFB-320")
+    delay = effects.get("actuator_delay", 0.0)
+    if delay and actuator is not None:
+        raise ValueError("actuator_delay with an actuator lag is not modelled")
+    cla2 = effects.get("lift_alpha_squared", 0.0)
     rng = np.random.default_rng(30_000 + seed)
     start = 2.0 + rng.uniform(0.0, 1.0) / sample_rate
     times = start + np.array([0.0, 3.0, 5.0, 6.0, 7.0])
@@ -532,18 +590,29 @@ def generate_hfb320(
     levels = np.concatenate([[HFB["de_trim"]], levels])
     n = int(round(duration * sample_rate)) + 1
     t = np.arange(n) / sample_rate
-    edges = np.concatenate([times, [duration]])
+    acting = times + np.where(times > 0.0, delay, 0.0)
+    edges = np.concatenate([acting, [duration]])
+    gusts = None
     x = np.array([*HFB["x0"], HFB["de_trim"]], float)
+    if gust_sigma > 0.0:
+        gusts = _uniform_spline(gust_field(seed, duration, gust_sigma, HFB["x0"][0]))
+        ug, wg = gusts(0.0)
+        v, alpha, theta = HFB["x0"][:3]
+        # the aircraft starts trimmed in the moving air mass
+        x[0] = v * np.cos(alpha) + ug * np.cos(theta) - wg * np.sin(theta)
+        x[1] = v * np.sin(alpha) + ug * np.sin(theta) + wg * np.cos(theta)
     states = np.empty((n, 5))
     for a, b, de in zip(edges[:-1], edges[1:], levels, strict=True):
         sel = (t >= a) & ((t < b) | ((b == duration) & (t <= b)))
 
-        def rhs(_, y, de=de):
-            if actuator is None:
-                return np.append(_hfb_evaluate(y[:4], de, HFB["thrust"])[0], 0.0)
-            return np.append(
-                _hfb_evaluate(y[:4], y[4], HFB["thrust"])[0], (de - y[4]) / actuator
-            )
+        def rhs(tt, y, de=de):
+            surface = de if actuator is None else y[4]
+            if gusts is None:
+                rates = _hfb_evaluate(y[:4], surface, HFB["thrust"], cla2)[0]
+            else:
+                rates = _hfb_gusty_rates(tt, y[:4], surface, gusts, cla2)[0]
+            lag = 0.0 if actuator is None else (de - y[4]) / actuator
+            return np.append(rates, lag)
 
         if actuator is None:
             x[4] = de
@@ -552,19 +621,44 @@ def generate_hfb320(
             (a, b),
             x,
             method="DOP853",
-            rtol=1e-11,
-            atol=1e-12,
+            # the gust spline is only C2 at its 10 ms knots: a tighter tolerance
+            # there costs minutes and no accuracy the noise could show
+            rtol=1e-11 if gusts is None else 1e-9,
+            atol=1e-12 if gusts is None else 1e-10,
             dense_output=True,
         )
         if sel.any():
             states[sel] = sol.sol(t[sel]).T
         x = sol.y[:, -1]
-    de = states[:, 4]
-    _, out = _hfb_evaluate(
-        states[:, :4].T, de, HFB["thrust"], effects.get("sensor_bias:az", 0.0)
-    )
-    channels = {"t": t, "de": de, "thrust": np.full(n, HFB["thrust"])}
+    surface = states[:, 4]
+    if gusts is None:
+        air = states[:, :4].T
+    else:
+        air = np.stack(
+            [
+                _hfb_gusty_rates(tk, yk, 0.0, gusts, cla2)[1]
+                for tk, yk in zip(t, states[:, :4], strict=True)
+            ],
+            axis=1,
+        )
+    _, out = _hfb_evaluate(air, surface, HFB["thrust"], cla2)
+    out["q"] = states[:, 3]
+    if gusts is not None:
+        # qdot from the inertial q's equation at the surface actually acting
+        out["qdot"] = np.array(
+            [
+                _hfb_gusty_rates(tk, yk, dk, gusts, cla2)[0][3]
+                for tk, yk, dk in zip(t, states[:, :4], surface, strict=True)
+            ]
+        )
+    logged = surface
+    if delay:
+        logged = levels[np.searchsorted(times, t, side="right") - 1]
+    channels = {"t": t, "de": logged, "thrust": np.full(n, HFB["thrust"])}
     channels.update({k: np.asarray(v, float) for k, v in out.items()})
+    for name, value in effects.items():
+        if name.startswith("sensor_bias:"):
+            channels[name.split(":", 1)[1]] = channels[name.split(":", 1)[1]] + value
     if noise:
         rng = np.random.default_rng([seed, int(round(sample_rate)), 320])
         for name, sigma in HFB_NOISE.items():
@@ -581,6 +675,12 @@ def generate_hfb320(
         "hidden_effects": effects,
         "simulator": "tests/independent_generator.py",
     }
+    if gusts is not None:
+        metadata["turbulence"] = {
+            "sigma": gust_sigma,
+            "length_m": GUST_LENGTH,
+            "model": "Gauss-Markov",
+        }
     return channels, metadata
 
 
