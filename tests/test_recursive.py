@@ -413,3 +413,89 @@ def test_least_squares_ladder_is_batch_means_at_every_block_length():
         np.testing.assert_allclose(
             blocks[j], share.sum(0) ** 2 / (share**2).sum(0), rtol=1e-9
         )
+
+
+def test_fourier_bound_is_the_leakage_sandwich_written_here():
+    """The recursive Fourier transform's bound against the batch sandwich written
+    here in NumPy after the flight: the transforms as rectangle sums, the leakage
+    correlation of two frequencies as the direct sum `mean_i z^i`, the
+    cross-frequency products `kappa_fg (|e_f|^2 + |e_g|^2) / 2`, the fitted
+    residuals' loss solved for, Satterthwaite's degrees of freedom."""
+    h, y, o = _regression(n=200)
+    y = y + jnp.asarray(_ar1(np.random.default_rng(3), 200, 0.8, 0.05).T)
+    freqs = np.arange(0.1, 1.51, 0.07)  # closer than 1/T = 0.125 Hz: leakage
+    est = dp.RecursiveFourier(
+        frequencies=tuple(freqs.tolist()), forgetting=1.0, derivative=(False,), dt=DT
+    )
+    out = dp.replay(est, h, y, o, jnp.zeros(3), at=(199,))
+    n = 200
+    ph = np.exp(-2j * np.pi * freqs[:, None] * np.arange(n)[None, :] * DT) * DT
+    a = ph @ np.asarray(h[:, 0, :])  # (f, p)
+    b = ph @ np.asarray(y[:, 0])
+    info = 2 * np.real(a.conj().T @ a)
+    pm = np.linalg.inv(info)
+    theta = pm @ (2 * np.real(a.conj().T @ b))
+    e = b - a @ theta
+    diff = freqs[:, None] - freqs[None, :]
+    kappa = np.mean(np.exp(-2j * np.pi * diff[..., None] * DT * np.arange(n)), -1)
+    power = np.abs(e) ** 2
+    middle = np.zeros((3, 3))
+    k = np.zeros((9, 9))
+    for f in range(len(freqs)):
+        for g in range(len(freqs)):
+            outer = np.outer(a[f].conj(), a[g])
+            middle += np.real(kappa[f, g] * outer) * (power[f] + power[g])
+            # T_f misses a_f V a_f^H (and T_g a_g V a_g^H): the row-major vec
+            # of A V B is kron(A, B^T) vec V
+            kf = np.kron(np.outer(a[f].conj(), a[f]), np.outer(a[f].conj(), a[g]).T)
+            kg = np.kron(np.outer(a[f].conj(), a[g]), np.outer(a[g].conj(), a[g]).T)
+            k += np.real(kappa[f, g] * (kf + kg))
+    v = np.linalg.solve(np.eye(9) - np.kron(pm, pm) @ k, (pm @ middle @ pm).ravel())
+    np.testing.assert_allclose(out.theta[0], theta, rtol=1e-6)
+    np.testing.assert_allclose(
+        out.stderr_corrected[0] ** 2, np.diag(v.reshape(3, 3)), rtol=1e-6
+    )
+    share = np.array(
+        [np.diag(pm @ (2 * np.real(np.outer(x.conj(), x))) @ pm) for x in a]
+    )
+    corr = np.abs(kappa) ** 2
+    dof = 2 * share.sum(0) ** 2 / np.einsum("fa,fg,ga->a", share, corr, share)
+    np.testing.assert_allclose(out.dof[0], dof, rtol=1e-8)
+
+
+def test_fourier_bands_cover_over_a_monte_carlo():
+    """200 records of a regression with coloured noise (correlation time 10
+    samples, 600 samples each), the transforms at frequencies closer than the
+    record resolves: the 95% bands hold the truth 90-98% of the time for every
+    parameter."""
+    flights, n = 200, 600
+    rng = np.random.default_rng(11)
+    t = np.arange(n) * DT
+    hh = np.stack([np.sin(1.3 * t) + 0.3 * np.sin(0.4 * t), np.cos(2.9 * t)], axis=1)
+    truth = np.array([1.5, -0.7])
+    y = hh @ truth + _ar1(rng, n, np.exp(-0.1), 0.1, flights)
+    est = dp.RecursiveFourier(
+        frequencies=tuple(np.arange(0.05, 0.6, 0.015).tolist()),
+        forgetting=1.0,
+        derivative=(False,),
+        dt=DT,
+    )
+    run = jax.jit(
+        jax.vmap(
+            lambda yy: dp.replay(
+                est,
+                jnp.asarray(hh[:, None, :]),
+                yy[:, None],
+                jnp.zeros((n, 1)),
+                jnp.zeros(2),
+                at=(n - 1,),
+            )
+        )
+    )
+    out = run(jnp.asarray(y))
+    err = np.abs(np.asarray(out.theta[:, 0]) - truth)
+    cover = np.mean(err <= np.asarray(out.halfwidth[:, 0]), axis=0)
+    # measured 95.5%, 94.0% (white 56%, 58.5%; with the 0/1 window of
+    # frequencies closer than 1/T and no fitted-residual correction, the bound
+    # before, 78.5% and 68%); over 200 flights a binomial standard error of 1.5%
+    assert np.all((cover >= 0.90) & (cover <= 0.98)), cover

@@ -37,11 +37,12 @@ G_b V G_b` is solved for. `stderr` is the bound of single samples (white residua
 band (`halfwidth`) the Student-t quantile at their number less what taking the
 residuals at the estimate costs (`_centering_loss`: one block without
 forgetting, about 0.2 with it) times it. For the
-recursive Fourier transform the residual transforms at different frequencies are
-nearly independent, so the bound is the per-frequency sandwich of the batch method
-([`frequency_equation_error`][]), with the scores of frequencies closer than the
-memory resolves (`1 / T`) summed first, and the band the Student-t quantile at the
-effective number of independent frequencies. With `bandwidth`, the differenced
+recursive Fourier transform the bound is the per-frequency sandwich of the batch
+method ([`frequency_equation_error`][]) with the cross-frequency terms the finite
+transform's leakage makes (`_leakage`: `kappa_fg (T_f + T_g) / 2`, `T_f` the
+residual transforms' products), the fitted residuals' loss solved for as for least
+squares, and the band the Student-t quantile at Satterthwaite's degrees of freedom
+of that sum. With `bandwidth`, the differenced
 state equations are low-passed on both sides, so that their noise (whose power
 grows with frequency) does not swamp the band of the dynamics.
 """
@@ -582,28 +583,71 @@ class RecursiveFourier(AbstractRecursiveEstimator):
         power = jnp.maximum(power, 1e-8 * jnp.max(power))
         w = jnp.where(n_rows > 0, 1.0 / jnp.maximum(power, 1e-300), 0.0)
         theta, cov, known, e, _ = solve(w)
-        # the transforms at frequencies closer than the memory's resolution
-        # (1 / T, T the time span or the forgetting's time constant) are
-        # correlated: their scores are summed before the outer product
-        f = jnp.asarray(self.frequencies)
-        span = jnp.maximum(state.count * self.dt, self.dt)
-        if self.forgetting < 1.0:
-            span = jnp.minimum(span, self.dt / (1.0 - self.forgetting))
-        near = (jnp.abs(f[:, None] - f[None, :]) < 1.0 / span).astype(float)
-        v = 2.0 * jnp.einsum("q,fqa,fq->fa", w, fh.conj(), e)  # (f, p)
-        middle = 0.5 * jnp.real(jnp.einsum("fa,fg,gb->ab", v, near, v.conj()))
-        cov_c = cov @ middle @ cov
+        # the transforms of the equation errors at two frequencies are
+        # correlated through the leakage of the finite (or forgetting-weighted)
+        # transform: for residuals of locally flat spectrum, E[E_f E_g^H] =
+        # kappa_fg S with kappa the normalised kernel `sum_i w_i^2 exp(-2 pi j
+        # (f - g) t_i) / sum_i w_i^2` (1 on the diagonal); the cross-frequency
+        # products are estimated as kappa_fg (T_f + T_g) / 2, T_f = e_f e_f^H
+        kappa = _leakage(
+            jnp.asarray(self.frequencies), self.dt, self.forgetting, state.count
+        )
+        hw = w[None, :, None] * fh  # (f, q, p)
+        ak = jnp.einsum("fg,gqb->fqb", kappa, hw)  # (f, q, p)
+        t_f = jnp.einsum("fq,fr->fqr", e, e.conj())
+        first = jnp.real(jnp.einsum("fqa,fqr,frb->ab", hw.conj(), t_f, ak))
+        middle = first + first.T
+        # the residuals are taken at the estimate, not at the truth: T_f misses
+        # about H_f V H_f^H (V the estimate's covariance), so the middle misses
+        # K(V), linear in V; `V = P (M + K(V)) P` is solved for `V` as least
+        # squares' `_fitted_sandwich` does for its blocks
+        x_f = jnp.einsum("fqa,fqc->fac", hw.conj(), fh)  # (f, p, p)
+        y_f = jnp.einsum("frd,frb->fdb", fh.conj(), ak)  # (f, p, p)
+        k1 = jnp.real(jnp.einsum("fac,fdb->abcd", x_f, y_f))
+        k_op = (k1 + k1.transpose(1, 0, 2, 3)).reshape(p * p, p * p)
+        pm = jnp.where(jnp.outer(known, known), cov, 0.0)
+        a_op = jnp.eye(p * p) - jnp.kron(pm, pm) @ k_op
+        cov_c = jnp.linalg.solve(a_op, (pm @ middle @ pm).reshape(p * p)).reshape(p, p)
         var = jnp.where(known, jnp.clip(jnp.diag(cov), 0.0), jnp.inf)
         var_c = jnp.diag(cov_c)
         var_c = jnp.where(known & (var_c > 0), var_c, var)
-        # degrees of freedom: the frequencies' shares of the variance give an
-        # effective count of independent transforms
-        share = jnp.abs(jnp.einsum("ab,fb->fa", cov, v)) ** 2  # (f, p)
-        dof = jnp.sum(share, 0) ** 2 / jnp.maximum(jnp.sum(share**2, 0), 1e-300)
+        # degrees of freedom (Satterthwaite): the bound is a sum over
+        # frequencies of complex scores (two real degrees of freedom each),
+        # frequency f contributing about s_f = c^T C_f c (C_f = 2 H_f^H W H_f,
+        # c the parameter's row of P) and correlated with g by |kappa_fg|^2
+        c = 2.0 * jnp.einsum("q,fqa,fqb->fab", w, fh.conj(), fh)
+        share = jnp.real(jnp.einsum("ba,fbc,ca->fa", pm, c, pm))  # (f, p)
+        dof = (
+            2.0
+            * jnp.sum(share, 0) ** 2
+            / jnp.maximum(
+                jnp.einsum("fa,fg,ga->a", share, jnp.abs(kappa) ** 2, share), 1e-300
+            )
+        )
         # the bound is a sum over about `dof` independent frequencies' scores:
         # the band is the Student-t quantile at that dof (measured within a
         # factor 2 of the bound's spread over 200 simulated flights)
         return _finish(theta, var, var_c, dof, student=True)
+
+
+def _leakage(frequencies, dt, forgetting, count):
+    """`(f, f)` complex: the correlation `sum_i w_i^2 z^i / sum_i w_i^2`, `z =
+    exp(-2 pi j (f - g) dt)`, of the running transforms at two frequencies of a
+    white signal, `w_i = lam^(count - 1 - i)` over the `count` samples absorbed."""
+    n = jnp.maximum(count, 1).astype(float)
+    diff = frequencies[:, None] - frequencies[None, :]
+    z = jnp.exp(-2j * jnp.pi * diff * dt)
+    zn = jnp.exp(-2j * jnp.pi * diff * dt * n)
+    lam2 = forgetting**2
+    same = jnp.abs(diff) < 1e-12
+    safe = jnp.where(same, 0.5, z)
+    if forgetting == 1.0:
+        total = n
+        num = (1.0 - zn) / (1.0 - safe)
+    else:
+        total = (1.0 - lam2**n) / (1.0 - lam2)
+        num = (lam2**n - zn) / (lam2 - safe)
+    return jnp.where(same, 1.0, num / total)
 
 
 class RecursiveHistory(eqx.Module):
