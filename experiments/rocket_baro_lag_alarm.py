@@ -75,7 +75,8 @@ def main():
             r = rows[name]
             print(
                 f"{folder.name} {name}: {r['statistic']:.1f} / {r['threshold']:.1f} "
-                f"estimate {r['estimate']:+.4g}" + (" NAMED" if r["significant"] else ""),
+                f"estimate {r['estimate']:+.4g}"
+                + (" NAMED" if r["significant"] else ""),
                 flush=True,
             )
         print(

@@ -453,8 +453,8 @@ def test_fit_rocket_keeps_the_lowest_det_r_of_its_tries(monkeypatch):
     The multiple-shooting tries are followed by single shooting (one segment over
     the record) from the best of them, kept when lower (a simulated flight with 5%
     more thrust: 28.5 by multiple shooting, 0.021 by single shooting from there);
-    none when the fit is single shooting already. Held parameters (`hold`) are not
-    estimated in any try."""
+    none when the fit is single shooting already or `single=False`. Held
+    parameters (`hold`) are not estimated in any try."""
     import types
 
     from diffpegasus._rocket import _identify
@@ -509,6 +509,14 @@ def test_fit_rocket_keeps_the_lowest_det_r_of_its_tries(monkeypatch):
     costs = iter([(50.0, True), (28.5, True), (0.021, True)])
     kept = _identify.fit_rocket(problem, free=("static_error",), throw=False)
     assert kept.cost == 0.021 and len(freed) == 4 + 4 + 4 + 3
+
+    # single=False (the apogee prediction's short record): multiple shooting only
+    intervals.clear()
+    costs = iter([(50.0, True), (28.5, True)])
+    kept = _identify.fit_rocket(
+        problem, free=("static_error",), single=False, throw=False
+    )
+    assert kept.cost == 28.5 and intervals == [2.0, 2.0]
 
     # single shooting asked for: no second single-shooting try
     intervals.clear()

@@ -347,6 +347,7 @@ def fit_rocket(
     shooting_interval: float = 2.0,
     hold_temperature: bool = False,
     hold: tuple[str, ...] = (),
+    single: bool = True,
     throw: bool = True,
 ) -> RocketFit:
     """Fit the rocket's model to the ascent, by continuation: the start curve's
@@ -378,6 +379,8 @@ def fit_rocket(
     - `hold`: parameters otherwise estimated (the thrust scale, the motor time, the
       accelerometer's offset, the day's atmosphere) held at their start values: what
       a diagnosis tests as absent.
+    - `single`: follow the multiple-shooting tries by single shooting from the
+      best of them (the lower det(R) kept).
     - `throw`: raise on a failed fit (else the fit carries its result code).
 
     **Returns:** a [`RocketFit`][].
@@ -406,7 +409,9 @@ def fit_rocket(
     if until is not None:
         record = record_until(record, until)
 
-    tried = _tries(problem, record, values, scaled, estimated, free, shooting_interval)
+    tried = _tries(
+        problem, record, values, scaled, estimated, free, shooting_interval, single
+    )
     # the lowest det(R), converged or not: a fit still creeping down a valley when
     # its budget ran out lies below one that converged in another basin (a
     # simulated clean flight: 0.029 unconverged against 1.11 converged), and its
@@ -418,7 +423,9 @@ def fit_rocket(
     return trajectory(problem.rocket, problem.flight, result, record, problem.outputs)
 
 
-def _tries(problem, record, values, scaled, estimated, free, interval) -> dict:
+def _tries(
+    problem, record, values, scaled, estimated, free, interval, single_try=True
+) -> dict:
     """The fits [`fit_rocket`][] chooses from, by label: the continuation by
     multiple shooting (nodes every `interval` s), then single shooting (one segment
     from the pad) from the best of those, to the constrained optimum in the basin
@@ -464,7 +471,7 @@ def _tries(problem, record, values, scaled, estimated, free, interval) -> dict:
     # 28.5); single shooting from there reaches the constrained optimum (0.021),
     # the one single shooting from the start reaches too, in a fraction of its time
     finite = [f for f in tried.values() if np.isfinite(f.cost)]
-    if interval < single and finite:
+    if single_try and interval < single and finite:
         best = min(finite, key=lambda f: f.cost)
         named = dict(zip(best.model.parameters, best.params, strict=True))
         tried["single from multiple"] = run(named, estimated, single)
