@@ -93,7 +93,13 @@ BEFORE = {
     "hedy": (-0.14, 19.3),
 }
 # measured by benchmarks/rocket_fit_time.py (its JSON's prometheus_2022 entry)
-FIT_TIME = "took 3.4 s before the single-shooting try, cold 35 s at load 3 to 8"
+FIT_TIME = (
+    "(17 parameters, 2906 samples, 31 iterations over the tries) took 80.5 s, "
+    "cold 693 s, run at the lowest priority at load 15 to 17: not a measure of "
+    "the fit on a quiet machine (before the single-shooting try: 3.4 s warm, "
+    "35 s cold, at load 3 to 8; the single-shooting try itself takes 1 to 2 s "
+    "warm on RocketPy's flights)"
+)
 
 
 def moved(rows):
