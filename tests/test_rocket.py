@@ -450,7 +450,11 @@ def test_fit_rocket_keeps_the_lowest_det_r_of_its_tries(monkeypatch):
     (det(R) 0.029, not converged) lies below the direct fit converged in another
     basin (1.11), as on a simulated clean 20 Hz flight, and is the one kept, its
     result code saying it did not converge; a try that blew up (NaN) never is.
-    Held parameters (`hold`) are not estimated in any try."""
+    The multiple-shooting tries are followed by single shooting (one segment over
+    the record) from the best of them, kept when lower (a simulated flight with 5%
+    more thrust: 28.5 by multiple shooting, 0.021 by single shooting from there);
+    none when the fit is single shooting already or `single=False`. Held
+    parameters (`hold`) are not estimated in any try."""
     import types
 
     from diffpegasus._rocket import _identify
@@ -458,19 +462,20 @@ def test_fit_rocket_keeps_the_lowest_det_r_of_its_tries(monkeypatch):
     problem = dr.prepare(
         dr.read_rocket(SIM / "clean" / "rocket.toml"), sim_log("clean")
     )
-    costs = iter(
-        [(5.0, True), (0.029, False), (1.11, True)]  # scaled, continued, direct
-    )
-    freed = []
+    span = float(problem.record.t[-1] - problem.record.t[0])
+    costs = iter([])
+    freed, intervals, starts = [], [], []
 
     def fake_fit(model, record, **options):
         cost, converged = next(costs)
         freed.append(
             {n for n, f in zip(model.parameters, model.free, strict=True) if f}
         )
+        intervals.append(options["shooting"].interval)
+        starts.append(np.asarray(model.start, float))
         return types.SimpleNamespace(
             model=model,
-            params=np.asarray(model.start, float),
+            params=np.asarray(model.start, float) + len(starts),
             cost=cost,
             converged=converged,
             reason="still falling",
@@ -478,18 +483,48 @@ def test_fit_rocket_keeps_the_lowest_det_r_of_its_tries(monkeypatch):
 
     monkeypatch.setattr(_identify, "fit", fake_fit)
     monkeypatch.setattr(_identify, "trajectory", lambda *a, **k: a[2])
+
+    # scaled, continued, direct (multiple shooting); single from the best
+    costs = iter([(5.0, True), (0.029, False), (1.11, True), (0.5, True)])
     kept = _identify.fit_rocket(
         problem, free=("static_error",), hold=("thrust_scale",), throw=False
     )
     assert (kept.cost, kept.converged) == (0.029, False)
-    assert len(freed) == 3 and all("thrust_scale" not in f for f in freed)
+    assert len(freed) == 4 and all("thrust_scale" not in f for f in freed)
     assert "static_error" in freed[1] and "motor_time" in freed[1]
+    assert intervals[:3] == [2.0] * 3 and intervals[3] == pytest.approx(span + 1)
+    # single shooting starts where the best multiple-shooting try (the second
+    # fit, params = its start + 2) ended, with the same parameters free
+    np.testing.assert_allclose(starts[3], starts[1] + 2)
+    assert freed[3] == freed[1]
+
     with pytest.raises(RuntimeError, match="still falling"):
-        costs = iter([(5.0, True), (0.029, False), (1.11, True)])
+        costs = iter([(5.0, True), (0.029, False), (1.11, True), (0.5, True)])
         _identify.fit_rocket(problem, free=("static_error",))
-    costs = iter([(5.0, True), (np.nan, False), (1.11, True)])
+    costs = iter([(5.0, True), (np.nan, False), (1.11, True), (np.nan, False)])
     kept = _identify.fit_rocket(problem, free=("static_error",), throw=False)
     assert (kept.cost, kept.converged) == (1.11, True)
+
+    # multiple shooting stopped above its noise: single shooting's optimum kept
+    costs = iter([(50.0, True), (28.5, True), (0.021, True)])
+    kept = _identify.fit_rocket(problem, free=("static_error",), throw=False)
+    assert kept.cost == 0.021 and len(freed) == 4 + 4 + 4 + 3
+
+    # single=False (the apogee prediction's short record): multiple shooting only
+    intervals.clear()
+    costs = iter([(50.0, True), (28.5, True)])
+    kept = _identify.fit_rocket(
+        problem, free=("static_error",), single=False, throw=False
+    )
+    assert kept.cost == 28.5 and intervals == [2.0, 2.0]
+
+    # single shooting asked for: no second single-shooting try
+    intervals.clear()
+    costs = iter([(5.0, True), (0.02, True)])
+    kept = _identify.fit_rocket(
+        problem, free=("static_error",), shooting_interval=span + 1, throw=False
+    )
+    assert kept.cost == 0.02 and len(intervals) == 2
 
 
 def test_diagnose_judges_the_thrust_scale_in_the_candidates_family(monkeypatch):
