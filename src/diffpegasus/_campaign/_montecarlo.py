@@ -162,6 +162,14 @@ def _network(campaign: Campaign, out: pathlib.Path, record):
     return net
 
 
+@functools.cache
+def _oem_chunk_at(max_iter: int):
+    # one function object per iteration cap: `map_over_devices` keeps one compiled
+    # program per function, so a partial made afresh for every chunk compiled the
+    # OEM chunk once per chunk and once per resumed run
+    return functools.partial(_oem_chunk, max_iter=max_iter)
+
+
 def run_campaign(
     campaign: Campaign, out: str | os.PathLike, *, progress: bool = True
 ) -> dict:
@@ -307,9 +315,7 @@ def run_campaign(
                 setups.append(setup)
             stacked = jax.tree_util.tree_map(lambda *x: jnp.stack(x), *setups)
             v, sd, ok, conv, its = jax.block_until_ready(
-                map_over_devices(
-                    functools.partial(_oem_chunk, max_iter=campaign.max_iter), stacked
-                )
+                map_over_devices(_oem_chunk_at(campaign.max_iter), stacked)
             )
             finish("oem", c, t0, v, sd, ok, converged=conv, iterations=its, **common)
         if group.count > 1:

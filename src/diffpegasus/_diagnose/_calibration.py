@@ -204,21 +204,45 @@ class Calibration(eqx.Module):
 
 class _Spectra(eqx.Module):
     # what every replicate shares: the candidates' sensitivities in the frequency
-    # domain (one-sided, `weight` counting each bin's mirror) and their products
+    # domain (one-sided, `weight` counting each bin's mirror, zero-padded to an
+    # even FFT length of small prime factors, at least `2 samples - 1`, so that
+    # every product is a linear, not circular, correlation) and the sums over
+    # frequency and time that do not depend on the residuals
     rows: Float[Array, "samples outputs k"]
     spectrum: Array  # (bins, outputs, k), complex
     power: Float[Array, "bins outputs k"]
     spectrum_power: Array  # spectrum x power
     weight: Float[Array, " bins"]
-    joint_power: Float[Array, "bins k"]
     curvature: Float[Array, " k"]
     offset: Float[Array, " k"]
     basis: Float[Array, "samples outputs unknowns"] | None
+    by_output: Float[Array, "outputs k"]  # sum over samples of rows^2
+    power_sq: Float[Array, "outputs k"]  # sum_f weight power^2
+    power_pairs: Float[Array, "outputs outputs k"]  # sum_f weight power power'
+    length: int = eqx.field(static=True)  # of the FFT
+
+
+def _fft_length(n: int) -> int:
+    # the smallest even length >= 2n - 1 of prime factors 2, 3 and 5: a log's 2n
+    # (3002 = 2 x 19 x 79 at 1501 samples) transforms several times slower
+    length = 2 * n
+    m = length - 2 if length > 2 else length
+    while m < 2 * n - 1:
+        m += 2
+    while True:
+        rest = m
+        for f in (2, 3, 5):
+            while rest % f == 0:
+                rest //= f
+        if rest == 1:
+            return m
+        m += 2
 
 
 def _spectra(rows, curvature, offset, basis=None) -> _Spectra:
     n = rows.shape[0]
-    spectrum = jnp.fft.rfft(rows, n=2 * n, axis=0)
+    length = _fft_length(n)
+    spectrum = jnp.fft.rfft(rows, n=length, axis=0)
     weight = jnp.full(spectrum.shape[0], 2.0).at[0].set(1.0).at[-1].set(1.0)
     power = jnp.abs(spectrum) ** 2
     return _Spectra(
@@ -227,10 +251,13 @@ def _spectra(rows, curvature, offset, basis=None) -> _Spectra:
         power,
         spectrum * power,
         weight,
-        jnp.sum(power, axis=1),
         curvature,
         offset,
         basis,
+        jnp.einsum("nok,nok->ok", rows, rows),
+        jnp.einsum("f,fok->ok", weight, power**2),
+        jnp.einsum("f,fok,fpk->opk", weight, power, power),
+        length,
     )
 
 
@@ -268,10 +295,9 @@ def _statistics(sp: _Spectra, e_star, refit: bool = False):
         v = jnp.ones(e_star.shape[1])
     slope = jnp.einsum("nok,no,o->k", sp.rows, e_star, v) + sp.offset
     # the curvature's part from the outputs is reweighted; the defects' part not
-    by_output = jnp.einsum("nok,nok->ok", sp.rows, sp.rows)
-    curvature = sp.curvature + jnp.einsum("o,ok->k", v - 1.0, by_output)
+    curvature = sp.curvature + jnp.einsum("o,ok->k", v - 1.0, sp.by_output)
     a = -slope / curvature
-    e_f = jnp.fft.rfft(e_star, n=2 * n, axis=0) * v[None, :]  # reweighted
+    e_f = jnp.fft.rfft(e_star, n=sp.length, axis=0) * v[None, :]  # reweighted
     w = sp.weight
     # joint: sum_f |sum_o v (conj(E) R + a |R|^2)|^2
     cross = jnp.einsum("fo,fok->fk", jnp.conj(e_f), sp.spectrum)
@@ -279,17 +305,22 @@ def _statistics(sp: _Spectra, e_star, refit: bool = False):
     joint = (
         jnp.einsum("f,fk->k", w, jnp.abs(cross) ** 2)
         + 2.0 * a * jnp.einsum("f,fk,fk->k", w, jnp.real(cross), q)
-        + a**2 * jnp.einsum("f,fk->k", w, q**2)
+        + a**2 * jnp.einsum("o,p,opk->k", v, v, sp.power_pairs)
     )
     # own: sum_f sum_o v^2 |conj(E) R + a |R|^2|^2
+    wv = w[:, None] * v[None, :]
     own = (
-        jnp.einsum("f,fo,fok->k", w, jnp.abs(e_f) ** 2, sp.power)
+        jnp.einsum("fo,fok->k", w[:, None] * jnp.abs(e_f) ** 2, sp.power)
         + 2.0
         * a
-        * jnp.real(jnp.einsum("f,fo,o,fok->k", w, jnp.conj(e_f), v, sp.spectrum_power))
-        + a**2 * jnp.einsum("f,o,fok->k", w, v**2, sp.power**2)
+        * (
+            jnp.einsum("fo,fok->k", wv * jnp.real(e_f), jnp.real(sp.spectrum_power))
+            + jnp.einsum("fo,fok->k", wv * jnp.imag(e_f), jnp.imag(sp.spectrum_power))
+        )
+        + a**2 * jnp.einsum("o,ok->k", v**2, sp.power_sq)
     )
-    variance = jnp.maximum(joint, own) / (2.0 * n * n)
+    # the sums over the FFT's bins are `length` times the sums over lags
+    variance = jnp.maximum(joint, own) / (sp.length * n)
     return slope**2 / jnp.maximum(variance, curvature)
 
 
@@ -441,7 +472,7 @@ def calibrate(
         key,
         None if basis is None else jnp.asarray(basis, float),
         replicates=int(replicates),
-        chunk=8,
+        chunk=64,
     )
     maxima = np.asarray(maxima)
     threshold = float(np.quantile(maxima, 1.0 - level, method="higher"))

@@ -270,30 +270,35 @@ class Trim(eqx.Module):
     thrust: Float[Array, ""]
 
 
+def _trim_state(z, speed, altitude):
+    alpha = z[0]
+    y = jnp.zeros(12)
+    y = y.at[0].set(speed * jnp.cos(alpha)).at[2].set(speed * jnp.sin(alpha))
+    return y.at[7].set(alpha).at[11].set(altitude)
+
+
+@jax.jit
+def _trim(aircraft, speed, altitude):
+    # one compiled program for every aircraft of one structure, speed and altitude
+    # (a jitted closure was traced and compiled again on every call)
+    def residual(z):
+        c = Controls(de=z[1], da=jnp.zeros(()), dr=jnp.zeros(()), thrust=z[2])
+        rates = sixdof_rates(_trim_state(z, speed, altitude), c, aircraft)
+        return jnp.stack([rates[0], rates[2], rates[4]])
+
+    def newton(_, z):
+        return z - jnp.linalg.solve(jax.jacfwd(residual)(z), residual(z))
+
+    z = jnp.stack([jnp.array(0.1), jnp.array(0.0), 0.1 * aircraft.mass * G])
+    z = jax.lax.fori_loop(0, 20, newton, z)
+    return Trim(y=_trim_state(z, speed, altitude), de=z[1], thrust=z[2])
+
+
 def trim(aircraft: Aircraft, speed: float, altitude: float = 1000.0) -> Trim:
     """Level, wings-level, unaccelerated flight at `speed` (m/s): Newton on
     `udot = wdot = qdot = 0` over angle of attack (= pitch attitude), elevator and
     thrust (converges in a few iterations: the equations are nearly linear)."""
-
-    def state(z):
-        alpha = z[0]
-        y = jnp.zeros(12)
-        y = y.at[0].set(speed * jnp.cos(alpha)).at[2].set(speed * jnp.sin(alpha))
-        return y.at[7].set(alpha).at[11].set(altitude)
-
-    def residual(z):
-        c = Controls(de=z[1], da=jnp.zeros(()), dr=jnp.zeros(()), thrust=z[2])
-        rates = sixdof_rates(state(z), c, aircraft)
-        return jnp.stack([rates[0], rates[2], rates[4]])
-
-    @jax.jit
-    def newton(z):
-        return z - jnp.linalg.solve(jax.jacfwd(residual)(z), residual(z))
-
-    z = jnp.array([0.1, 0.0, 0.1 * aircraft.mass * G])
-    for _ in range(20):
-        z = newton(z)
-    return Trim(y=state(z), de=z[1], thrust=z[2])
+    return _trim(aircraft, jnp.asarray(speed, float), jnp.asarray(altitude, float))
 
 
 @eqx.filter_jit
