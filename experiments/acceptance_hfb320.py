@@ -87,7 +87,9 @@ def flight(folder, rate, seed, planted, value):
         fix = ["--fix", PITCH[1]]
     elif planted:
         effects = {planted: value}
-    csv = folder / f"hfb320_{int(rate)}_{seed}_{planted or 'clean'}.csv".replace(":", "_")
+    csv = folder / f"hfb320_{int(rate)}_{seed}_{planted or 'clean'}.csv".replace(
+        ":", "_"
+    )
     gen.write(csv, *gen.generate_hfb320(seed, rate, effects=effects, gust_sigma=gust))
     diag, proc, seconds = _cli(
         "diagnose", str(csv), "--vehicle", "hfb320", *fix, "--json"

@@ -41,9 +41,7 @@ def test_planted_bias_and_delay():
     assert meta["hidden_effects"] == {"sensor_bias:q": 0.002}
     np.testing.assert_allclose(biased["q"] - clean["q"], 0.002, rtol=0, atol=1e-15)
     np.testing.assert_array_equal(biased["az"], clean["az"])
-    late, _ = gen.generate_hfb320(
-        5, 10.0, noise=False, effects={"actuator_delay": 0.1}
-    )
+    late, _ = gen.generate_hfb320(5, 10.0, noise=False, effects={"actuator_delay": 0.1})
     np.testing.assert_array_equal(late["de"], clean["de"])
     first = np.flatnonzero(np.diff(clean["de"]))[0] + 1
     np.testing.assert_allclose(late["q"][:first], clean["q"][:first], rtol=1e-9)
