@@ -269,7 +269,8 @@ def summary():
             + " | ".join(cells)
             + " |"
         )
-    (OUT.parent / "turbulence_check.json").write_text(json.dumps(rows, indent=1))
+    if rows:  # the pickles are not kept in the repository: keep the last summary
+        (OUT.parent / "turbulence_check.json").write_text(json.dumps(rows, indent=1))
 
 
 def main():
