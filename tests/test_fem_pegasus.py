@@ -44,7 +44,9 @@ def test_diagnose_names_turbulence_on_a_turbulent_launch_vehicle_flight(flights)
     assert report["filter_error"]["converged"]
     # measured: likelihood ratio 1388 on 4 dof, det(R) 99.6% lower, the
     # filter-error fit converged in 9 iterations; the innovations' check fails
-    # (223 on h against 71.2): not named, the output-error verdict (nothing) stands
+    # (223 on h against 71.2; on the outputs the noisy states enter, V 134 and
+    # alpha 102: the generator's gusts are coloured, the filter's noise white):
+    # not named, the output-error verdict (nothing) stands
     assert row["likelihood_ratio_passes"]
     assert row["significant"], report["message"]
     assert report["ranking"][0]["effect"] == "process_noise"
