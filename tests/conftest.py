@@ -99,8 +99,9 @@ KNOWN_FAILING: dict[str, str] = {
     "tests/test_fem_pegasus.py::test_diagnose_names_turbulence_on_a_turbulent_"
     "launch_vehicle_flight": (
         "the filter does not explain this record (its innovations stay "
-        "predictable, measured N R^2 223 on h against 71.2), so process noise is "
-        "not named; the baseline's structural misfit against this generator"
+        "predictable, measured N R^2 223 on h against 71.2, and V 134 and alpha "
+        "102 on the outputs the process noise enters), so process noise is not "
+        "named: the gusts are coloured, the filter's process noise white"
     ),
     "tests/test_trust.py::test_planted_effect_is_first_significant_and_recovered"
     "[pitch_damping--3.0-1000.0-0]": (
