@@ -304,6 +304,25 @@ def _ar1(rng, n, rho, sigma, flights=1):
     return e
 
 
+def _replay_flights(est, hh, y):
+    """`est` replayed over each flight's record `y` `(flights, n)` with the
+    regressors `hh` `(n, 2)` from a zero start, vmapped; its state at the end."""
+    n = hh.shape[0]
+    run = jax.jit(
+        jax.vmap(
+            lambda yy: dp.replay(
+                est,
+                jnp.asarray(hh[:, None, :]),
+                yy[:, None],
+                jnp.zeros((n, 1)),
+                jnp.zeros(2),
+                at=(n - 1,),
+            )
+        )
+    )
+    return run(jnp.asarray(y))
+
+
 def test_least_squares_bound_is_the_batch_means_written_here():
     """The recursive bound against batch means computed after the flight in NumPy:
     scores at the final estimate summed over blocks of 32 samples (the last one
@@ -351,19 +370,7 @@ def test_least_squares_bands_cover_over_a_monte_carlo():
     truth = np.array([1.5, -0.7])
     y = hh @ truth + _ar1(rng, n, np.exp(-0.1), 0.1, flights)
     est = dp.RecursiveLeastSquares(forgetting=1.0, derivative=(False,), dt=DT, levels=8)
-    run = jax.jit(
-        jax.vmap(
-            lambda yy: dp.replay(
-                est,
-                jnp.asarray(hh[:, None, :]),
-                yy[:, None],
-                jnp.zeros((n, 1)),
-                jnp.zeros(2),
-                at=(n - 1,),
-            )
-        )
-    )
-    out = run(jnp.asarray(y))
+    out = _replay_flights(est, hh, y)
     err = np.abs(np.asarray(out.theta[:, 0]) - truth)
     cover = np.mean(err <= np.asarray(out.halfwidth[:, 0]), axis=0)
     white = np.mean(err <= 1.96 * np.asarray(out.stderr[:, 0]), axis=0)
@@ -481,19 +488,7 @@ def test_fourier_bands_cover_over_a_monte_carlo():
         derivative=(False,),
         dt=DT,
     )
-    run = jax.jit(
-        jax.vmap(
-            lambda yy: dp.replay(
-                est,
-                jnp.asarray(hh[:, None, :]),
-                yy[:, None],
-                jnp.zeros((n, 1)),
-                jnp.zeros(2),
-                at=(n - 1,),
-            )
-        )
-    )
-    out = run(jnp.asarray(y))
+    out = _replay_flights(est, hh, y)
     err = np.abs(np.asarray(out.theta[:, 0]) - truth)
     cover = np.mean(err <= np.asarray(out.halfwidth[:, 0]), axis=0)
     # measured 95.5%, 94.0% (white 56%, 58.5%; with the 0/1 window of
