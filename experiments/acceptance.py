@@ -121,27 +121,19 @@ def _effect(row):
     return row.get("effect") or row["parameter"].split(".")[0]
 
 
-def flight(folder, kind, rate, seed, planted, value):
-    vehicle = "pegasus" if kind == "pegasus" else "hfb320"
-    csv = _log(folder, kind, rate, seed, planted, value)
-    diag, proc, seconds = _cli("diagnose", str(csv), "--vehicle", vehicle, "--json")
-    row = {
-        "kind": kind,
-        "rate": rate,
-        "seed": seed,
-        "planted": planted,
-        "value": value,
-        "diagnose_seconds": round(seconds, 1),
-    }
+def judge(row, diag, proc, planted, alike=()):
+    """Fill `row` from one `diagnose --json` report: the threshold, what was named,
+    the top three, the planted effect's statistic, and whether the verdict is
+    right (nothing named on a clean flight; else the planted effect, or one the
+    report or `alike` says it cannot be told from, and nothing else). Returns the
+    significant effects, or None when the command failed (`row` says why)."""
     if diag is None:
         row.update(error=proc.stderr.strip().splitlines()[-3:], right=False)
-        return row
+        return None
     ranking = diag["ranking"]
     significant = [_effect(r) for r in ranking if r["significant"]]
     rule = diag.get("rule", {})
     row.update(
-        converged=diag["fit"]["converged"],
-        iterations=diag["fit"].get("iterations"),
         threshold=rule.get(
             "threshold", ranking[0].get("threshold") if ranking else None
         ),
@@ -167,12 +159,33 @@ def flight(folder, kind, rate, seed, planted, value):
     if mine:
         row["planted_statistic"] = mine[0]["statistic"]
         row["planted_score_estimate"] = [mine[0].get("estimate"), mine[0].get("stderr")]
-    alike = set(mine[0].get("hard_to_tell_from", [])) if mine else set()
-    ok = {planted, *alike} if planted else set()
+    ok = {planted, *alike, *(mine[0].get("hard_to_tell_from") or [] if mine else [])}
     if planted is None:
         row["right"] = not significant
     else:
         row["right"] = bool(set(significant) & ok) and not (set(significant) - ok)
+    return significant
+
+
+def flight(folder, kind, rate, seed, planted, value):
+    vehicle = "pegasus" if kind == "pegasus" else "hfb320"
+    csv = _log(folder, kind, rate, seed, planted, value)
+    diag, proc, seconds = _cli("diagnose", str(csv), "--vehicle", vehicle, "--json")
+    row = {
+        "kind": kind,
+        "rate": rate,
+        "seed": seed,
+        "planted": planted,
+        "value": value,
+        "diagnose_seconds": round(seconds, 1),
+    }
+    significant = judge(row, diag, proc, planted)
+    if significant is None:
+        return row
+    row.update(
+        converged=diag["fit"]["converged"],
+        iterations=diag["fit"].get("iterations"),
+    )
     if significant:
         top = significant[0]
         fit, proc, fsec = _cli(

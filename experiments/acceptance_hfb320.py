@@ -30,7 +30,7 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 sys.path.insert(0, str(HERE))
 
 import independent_generator as gen  # noqa: E402
-from acceptance import _cli, _effect  # noqa: E402
+from acceptance import _cli, judge  # noqa: E402
 
 
 OUT = HERE / "results" / "acceptance_hfb320.json"
@@ -101,35 +101,11 @@ def flight(folder, rate, seed, planted, value):
         "value": value,
         "diagnose_seconds": round(seconds, 1),
     }
-    if diag is None:
-        row.update(error=proc.stderr.strip().splitlines()[-3:], right=False)
+    # the look-alike a short-period record cannot split
+    alike = ("alpha_dot_damping",) if planted == PITCH[0] else ()
+    significant = judge(row, diag, proc, planted, alike)
+    if significant is None:
         return row
-    ranking = diag["ranking"]
-    significant = [_effect(r) for r in ranking if r["significant"]]
-    row.update(
-        threshold=diag.get("rule", {}).get("threshold"),
-        significant=significant,
-        top=[
-            {
-                "effect": _effect(r),
-                **{
-                    k: r.get(k)
-                    for k in ("statistic", "estimate", "stderr", "hard_to_tell_from")
-                },
-            }
-            for r in ranking[:3]
-        ],
-    )
-    mine = [r for r in ranking if planted and _effect(r) == planted]
-    if mine:
-        row["planted_statistic"] = mine[0]["statistic"]
-    ok = {planted, *(mine[0].get("hard_to_tell_from") or [])} if mine else {planted}
-    if planted == PITCH[0]:
-        ok.add("alpha_dot_damping")  # the look-alike a short-period record cannot split
-    if planted is None:
-        row["right"] = not significant
-    else:
-        row["right"] = bool(set(significant) & ok) and not set(significant) - ok
     top = significant[0] if significant else None
     if top and top != GUSTS:
         fit, proc, fsec = _cli(
