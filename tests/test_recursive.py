@@ -174,9 +174,9 @@ def test_hfb320_converges_within_one_short_period_cycle(which):
     p = dict(zip(reg.parameters, np.asarray(hist.theta[-1]), strict=True))
     period = _short_period_period(np.array([[p["Za"], 1.0], [p["Ma"], p["Mq"]]]))
     onset = rec.t[np.argmax(np.abs(np.diff(rec.inputs[:, 0])) > 1e-3)]
-    # the pitching-moment derivatives (least squares measured 0.21, 0.34, 0.55);
-    # the recursive Fourier transform also has Za within its band after one
-    # cycle (0.25); least squares' Za after 1.5 cycles (measured z = 1.35 at one
+    # the pitching-moment derivatives (least squares measured 0.21, 0.34, 0.55;
+    # the recursive Fourier transform 0.09, 0.14, 0.55), which also has Za
+    # within its band after one cycle (0.25); least squares' Za after 1.5 cycles (measured z = 1.35 at one
     # cycle, 0.32 at 1.5: not confounding with ZV, Z0 (correlations 0.30, -0.33)
     # but the az equation lacking the elevator's lift, which Za takes up during
     # the doublet; with Zde * de in the model z = 0.51)
@@ -205,7 +205,7 @@ def test_unstable_aircraft_converges_within_one_short_period_cycle(which):
     th = np.asarray(hist.theta)
     # a nearly noise-free simulation: one cycle in, every estimate is within 2% of
     # the one from all the data (measured: least squares 0.7% or less, the Fourier
-    # transform 1.0% or less; the equation-error optimum itself is 6% from output
+    # transform 0.75% or less; the equation-error optimum itself is 6% from output
     # error's on Zde: the measured w in the az equation)
     rel = np.abs(th[k] - th[-1]) / np.abs(th[-1])
     assert np.all(rel < 0.02), dict(zip(reg.parameters, rel.round(4), strict=False))

@@ -37,7 +37,9 @@ G_b V G_b` is solved for. `stderr` is the bound of single samples (white residua
 band (`halfwidth`) the Student-t quantile at their number less what taking the
 residuals at the estimate costs (`_centering_loss`: one block without
 forgetting, about 0.2 with it) times it. For the
-recursive Fourier transform the bound is the per-frequency sandwich of the batch
+recursive Fourier transform the state equations' two end terms (the
+differenced state's transform telescopes to its ends) are estimated with the
+parameters, and the bound is the per-frequency sandwich of the batch
 method ([`frequency_equation_error`][]) with the cross-frequency terms the finite
 transform's leakage makes (`_leakage`: `kappa_fg (T_f + T_g) / 2`, `T_f` the
 residual transforms' products), the fitted residuals' loss solved for as for least
