@@ -37,7 +37,9 @@ G_b V G_b` is solved for. `stderr` is the bound of single samples (white residua
 band (`halfwidth`) the Student-t quantile at their number less what taking the
 residuals at the estimate costs (`_centering_loss`: one block without
 forgetting, about 0.2 with it) times it. For the
-recursive Fourier transform the bound is the per-frequency sandwich of the batch
+recursive Fourier transform the state equations' two end terms (the
+differenced state's transform telescopes to its ends) are estimated with the
+parameters, and the bound is the per-frequency sandwich of the batch
 method ([`frequency_equation_error`][]) with the cross-frequency terms the finite
 transform's leakage makes (`_leakage`: `kappa_fg (T_f + T_g) / 2`, `T_f` the
 residual transforms' products), the fitted residuals' loss solved for as for least
@@ -552,15 +554,57 @@ class RecursiveFourier(AbstractRecursiveEstimator):
         phasor = phasor / jnp.abs(phasor)
         return eqx.tree_at(lambda s: (s.fh, s.fy, s.phasor), state, (fh, fy, phasor))
 
+    def _end_terms(self, state, active):
+        """`(f, q, 2 d)` the columns of the end terms of the `d` state equations,
+        and `(2 d,)` which of them are used.
+
+        A state equation's regressand is differenced, and its running transform
+        telescopes: `sum_k lam^(K-k) z^k (x_k - x_(k-1)) = x_K z^K - lam^(K-1)
+        z x_0 + sum_(0<k<K) x_k lam^(K-k-1) z^k (lam - z)`. The regressors'
+        transforms carry the true state's ends; the measurement noise at the
+        two ends (state units) enters the residuals through these two columns
+        only: coherent across the frequencies (not the leakage of a locally flat
+        spectrum the bound models), and at the lowest frequencies more power
+        than the noise of the whole rest of the record, differenced (`|1 -
+        z|^2` per sample). Both are estimated with the parameters, as the batch
+        method estimates its end term `x(T) - x(0)`.
+        Per equation the pair is orthogonalised (the second column dropped when
+        it is nearly the first: at times when every frequency fits a whole
+        number of cycles, and once the forgetting has erased the start).
+        """
+        rows = [i for i, d in enumerate(self.derivative) if d]
+        f, q = state.fy.shape
+        if not rows:
+            return jnp.zeros((f, q, 0), state.fy.dtype), jnp.zeros(0, bool)
+        last = state.phasor * jnp.conj(state.rotation)  # z^K, K = count - 1
+        age = jnp.maximum(state.count - 2, 0).astype(float)
+        first = -jnp.power(self.forgetting, age) * state.rotation  # -lam^(K-1) z
+        norm = jnp.real(jnp.vdot(last, last))
+        second = first - last * jnp.real(jnp.vdot(last, first)) / norm
+        keep = jnp.real(jnp.vdot(second, second)) > 1e-8 * norm
+        cols, used = [], []
+        for i in rows:
+            on = active[i] & (state.count >= 2)
+            for c, k in ((last, on), (second, on & keep)):
+                cols.append(jnp.zeros((f, q), c.dtype).at[:, i].set(c * k))
+                used.append(k)
+        return jnp.stack(cols, axis=-1), jnp.stack(used)
+
     def estimates(self, state):
-        fh, fy = state.fh, state.fy  # (f, q, p), (f, q)
-        p = fh.shape[-1]
-        n_rows = jnp.sum(jnp.any(jnp.abs(fh) > 0, axis=-1), axis=0)  # (q,)
+        fh0, fy = state.fh, state.fy  # (f, q, p), (f, q)
+        p0 = fh0.shape[-1]
+        n_rows = jnp.sum(jnp.any(jnp.abs(fh0) > 0, axis=-1), axis=0)  # (q,)
 
         # which parameters the data move yet, judged without weights (a
         # noise-free equation's weight would dwarf every other column)
-        plain = jnp.real(jnp.einsum("fqa,fqa->a", fh.conj(), fh))
-        known = plain > 1e-12 * jnp.max(plain)
+        plain = jnp.real(jnp.einsum("fqa,fqa->a", fh0.conj(), fh0))
+        ends, used = self._end_terms(state, n_rows > 0)
+        fh = jnp.concatenate([fh0, ends], axis=-1)  # (f, q, p): the end terms last
+        p = fh.shape[-1]
+        known = jnp.concatenate([plain > 1e-12 * jnp.max(plain), used])
+        # complex degrees of freedom each equation's end terms take
+        n_end = jnp.sum(jnp.any(jnp.abs(ends) > 0, axis=0), axis=-1)  # (q,)
+        start = jnp.concatenate([state.theta, jnp.zeros(p - p0)])
 
         def solve(w):
             info = 2.0 * jnp.real(jnp.einsum("q,fqa,fqb->ab", w, fh.conj(), fh))
@@ -570,10 +614,10 @@ class RecursiveFourier(AbstractRecursiveEstimator):
             cov = jnp.linalg.inv(
                 info / jnp.outer(scale, scale) + jnp.diag(~known * 1.0)
             ) / jnp.outer(scale, scale)
-            theta = jnp.where(known, cov @ rhs, state.theta)
+            theta = jnp.where(known, cov @ rhs, start)
             e = fy - jnp.einsum("fqa,a->fq", fh, theta)
             power = jnp.sum(jnp.abs(e) ** 2, axis=0) / jnp.maximum(
-                n_rows - 0.5 * p, 1.0
+                n_rows - 0.5 * p0 - 0.5 * n_end, 1.0
             )
             return theta, cov, known, e, power
 
@@ -627,7 +671,7 @@ class RecursiveFourier(AbstractRecursiveEstimator):
         # the bound is a sum over about `dof` independent frequencies' scores:
         # the band is the Student-t quantile at that dof (measured within a
         # factor 2 of the bound's spread over 200 simulated flights)
-        return _finish(theta, var, var_c, dof, student=True)
+        return _finish(theta[:p0], var[:p0], var_c[:p0], dof[:p0], student=True)
 
 
 def _leakage(frequencies, dt, forgetting, count):
