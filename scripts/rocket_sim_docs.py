@@ -131,9 +131,10 @@ def coverage_sources(counts):
     return [
         "Where each flight's count was measured: "
         + "; ".join(parts)
-        + ". The flights re-run with this fit kept their counts but "
-        "`clean-s3-20hz` (11 of 20 by single shooting from the flat start, 9 "
-        "here). Coverage is not 90%: at their optima the bands are narrow (4 "
+        + ". Against the counts before (153 of 200, from the fit of then by this "
+        "command, by `experiments/rocket_shooting_tries.py` and by single shooting "
+        "from the flat start), every flight keeps its count but `clean-s3-20hz` "
+        "(11 of 20 by single shooting from the flat start, 9 here). Coverage is not 90%: at their optima the bands are narrow (4 "
         "to 7% of CD) and on the flights flown through RocketPy's atmosphere "
         "table the drag carries what the day's temperature and lapse rate bend "
         "to follow it (above). `wind-s6` keeps 5 of 20: the wind along the "
