@@ -202,7 +202,7 @@ SMOOTH_MEASURED = [
     "temperature with more freedom cannot remove the table's share: RocketPy's "
     "pressure table is not in hydrostatic balance with its temperature, and a "
     "hydrostatic atmosphere that follows the barometer more closely takes the "
-    "wrong density with it (the layered temperature below: 131 of 200). On the "
+    "wrong density with it (the layered temperature above: 131 of 200). On the "
     "three flights with a barometer lag of 0.15 s planted, the exact atmosphere "
     "does not separate it: it is estimated 0.013 to 0.022 s, the lapse -10.6 to "
     "-11.8 K/km for -6.5 (a lag and a height-dependent barometer error are one "
@@ -398,8 +398,9 @@ def main():
         "-3.6); with the wind estimated (3.7 ± 4.4 m/s where there is none), the "
         "middle is covered and both ends lie 1.9 to 3.2 bands high. The "
         "same flight with the exact standard-atmosphere pressure (`clean-smooth`) "
-        "is covered at every point, but from a local minimum with wide bands (see "
-        "below).",
+        "was then covered at every point, from a local minimum with wide bands; "
+        "with this fit at 18 of 20 with narrow ones (the section on RocketPy's "
+        "atmosphere table below).",
         "- **Pressure altitude** is geopotential in the standard atmosphere, in "
         "RocketPy's and in flight computers' formula (`44330.8 (1 - (p / "
         "101325)^0.190263)`). The model's barometer now reads it so (it had read "
