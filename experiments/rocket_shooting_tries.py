@@ -41,7 +41,7 @@ def main():
     def kept_tries(*a, **k):
         seconds.clear()
         out = tries(*a, **k)
-        seen["tries"], seen["seconds"] = out, list(seconds)
+        (seen["tries"], seen["flown"]), seen["seconds"] = out, list(seconds)
         return out
 
     _identify._tries, _identify.fit = kept_tries, timed_fit
@@ -67,6 +67,8 @@ def main():
             )
             rows[label] = {
                 "cost": float(f.cost),
+                # det(R) of its parameters flown from the pad: what the fit compares
+                "flown_cost": float(seen["flown"][label]),
                 "converged": bool(f.converged),
                 "inside_95": inside,
                 "half_width_pct": float(np.mean(1.96 * sd / cd) * 100),

@@ -14,7 +14,9 @@ Planted effects per flight: a drag curve, a thrust scale (the motor file holds t
 catalogue curve, RocketPy flies the scaled one), constant wind, barometer lag
 (first-order), static-pressure error (per dynamic pressure) and white noise on both
 channels. Run: `python scripts/make_rocket_fixtures.py` (RocketPy from PyPI); with
-`--validation DIR` it writes the benchmark's further flights (`VALIDATION`) to DIR.
+`--validation DIR` it writes the benchmark's further flights (`VALIDATION`) to DIR;
+`--validation DIR --smooth` the committed two and those, each through the exact
+standard-atmosphere pressure instead of RocketPy's table (`clean-smooth`'s option).
 """
 
 import pathlib
@@ -285,7 +287,16 @@ if __name__ == "__main__":
     import sys
 
     if len(sys.argv) > 2 and sys.argv[1] == "--validation":
-        for name, spec in VALIDATION.items():
+        # `--smooth`: every flight (the committed two too) through the exact
+        # standard-atmosphere pressure instead of RocketPy's table
+        flights = VALIDATION
+        if "--smooth" in sys.argv:
+            flights = {
+                name: dict(spec, smooth_pressure=True)
+                for name, spec in {**FLIGHTS, **VALIDATION}.items()
+                if name != "clean-smooth"  # `clean` is that flight here
+            }
+        for name, spec in flights.items():
             flight(name, spec, pathlib.Path(sys.argv[2]))
     else:
         for name, spec in FLIGHTS.items():

@@ -483,6 +483,13 @@ def test_fit_rocket_keeps_the_lowest_det_r_of_its_tries(monkeypatch):
 
     monkeypatch.setattr(_identify, "fit", fake_fit)
     monkeypatch.setattr(_identify, "trajectory", lambda *a, **k: a[2])
+    # tries compared as the stand-ins say (flown from the pad: test below)
+    monkeypatch.setattr(
+        _identify,
+        "flown_cost",
+        lambda p, r, f: f.cost if np.isfinite(f.cost) else np.inf,
+    )
+    monkeypatch.setattr(dataclasses, "replace", lambda obj, **k: obj)
 
     # scaled, continued, direct (multiple shooting); single from the best
     costs = iter([(5.0, True), (0.029, False), (1.11, True), (0.5, True)])
@@ -525,6 +532,52 @@ def test_fit_rocket_keeps_the_lowest_det_r_of_its_tries(monkeypatch):
         problem, free=("static_error",), shooting_interval=span + 1, throw=False
     )
     assert kept.cost == 0.02 and len(intervals) == 2
+
+
+def test_tries_compared_on_their_parameters_flown_from_the_pad():
+    """`flown_cost`, the measure `fit_rocket`'s tries are compared on, is det(R) of
+    the parameters flown from the pad, not the try's own (a multiple-shooting fit's
+    segments restart at node states that take up misfit). Reference: a record made
+    by the model itself with white noise of known draws, half the accelerometer's
+    samples missing; at the parameters it was made with, det(R) is the product of
+    the draws' mean squares over the record's samples (the engine's R: missing
+    samples count as zero residual), exactly; a 1% stronger motor flown from the pad
+    misses by far more, whatever its own det(R) says; a failed try is never kept."""
+    import types
+
+    from diffpegasus._model import Record
+    from diffpegasus._rocket import _identify
+    from diffpegasus._vehicle._rocket import rocket_model
+
+    problem = dr.prepare(
+        dr.read_rocket(SIM / "clean" / "rocket.toml"), sim_log("clean")
+    )
+    rec = problem.record
+    model = rocket_model(problem.flight, problem.outputs, problem.start, ())
+    params = np.asarray(model.start, float)
+    clean = dr.simulate_flight(problem)
+    n = len(rec.t)
+    np.testing.assert_allclose(clean.t[:n], rec.t, atol=1e-9)
+    rng = np.random.default_rng(7)
+    noise = rng.normal(0.0, [0.5, 0.3], (n, 2))
+    inputs = rec.inputs.copy()
+    inputs[1::2, 2] = 0.0  # every other accelerometer sample missing
+    noise[inputs[:, 1:] == 0] = 0.0  # and none before liftoff (the record's pad)
+    measured = np.column_stack([clean.baro[:n], clean.accel[:n]]) + noise
+    measured[inputs[:, 1:] == 0] = 0.0
+    record = Record(rec.t, inputs, measured, x0=rec.x0)
+
+    def try_(p, cost=1.0):
+        return types.SimpleNamespace(model=model, params=p, cost=cost)
+
+    expected = np.prod(np.sum(noise**2, axis=0) / n)
+    assert _identify.flown_cost(problem, record, try_(params)) == pytest.approx(
+        expected, rel=1e-9
+    )
+    stronger = params.copy()
+    stronger[model.parameters.index("thrust_scale")] *= 1.01
+    assert _identify.flown_cost(problem, record, try_(stronger, 1e-9)) > 10 * expected
+    assert _identify.flown_cost(problem, record, try_(params, np.nan)) == np.inf
 
 
 def test_diagnose_judges_the_thrust_scale_in_the_candidates_family(monkeypatch):

@@ -40,7 +40,9 @@ class RocketFit:
     [`Fit`][]), `record`, `outputs`, `t` `(samples,)` s, `states` `(samples, 6)`
     (east, north, up m; velocities m/s), `baro` `(samples,)` m the model's
     barometric altitude, `accel` `(samples,)` m/s^2 its axial specific force, `mach`
-    `(samples,)`, `apogee` m (barometric, as the log reports it), `apogee_time` s.
+    `(samples,)`, `apogee` m (barometric, as the log reports it), `apogee_time` s,
+    `tries` (label -> `(det(R) of the try's own fit, det(R) of its parameters
+    flown from the pad, converged)`, the fits [`fit_rocket`][] chose from).
     """
 
     rocket: Rocket
@@ -55,6 +57,7 @@ class RocketFit:
     mach: np.ndarray
     apogee: float
     apogee_time: float
+    tries: dict = dataclasses.field(default_factory=dict)
 
     @property
     def knots(self) -> DragKnots:
@@ -409,26 +412,54 @@ def fit_rocket(
     if until is not None:
         record = record_until(record, until)
 
-    tried = _tries(
+    tried, flown = _tries(
         problem, record, values, scaled, estimated, free, shooting_interval, single
     )
-    # the lowest det(R), converged or not: a fit still creeping down a valley when
-    # its budget ran out lies below one that converged in another basin (a
-    # simulated clean flight: 0.029 unconverged against 1.11 converged), and its
-    # result code says it did not converge
-    finite = [f for f in tried.values() if np.isfinite(f.cost)] or list(tried.values())
-    result = min(finite, key=lambda f: f.cost)
+    # the lowest det(R) flown from the pad, converged or not: a fit still creeping
+    # down a valley when its budget ran out lies below one that converged in
+    # another basin (a simulated clean flight: 0.029 unconverged against 1.11
+    # converged), and its result code says it did not converge
+    label = min(tried, key=lambda k: flown[k])
+    result = tried[label]
     if throw and not result.converged:
         raise RuntimeError(result.reason)
-    return trajectory(problem.rocket, problem.flight, result, record, problem.outputs)
+    return dataclasses.replace(
+        trajectory(problem.rocket, problem.flight, result, record, problem.outputs),
+        tries={
+            k: (float(f.cost), float(flown[k]), bool(f.converged))
+            for k, f in tried.items()
+        },
+    )
+
+
+def flown_cost(problem: Problem, record, result) -> float:
+    """det(R) of `result`'s parameters flown from the pad (one segment over
+    `record`, RK4 at its step): the measure the fits [`fit_rocket`][] tries are
+    compared on. A multiple-shooting fit's own det(R) is that of segments restarted
+    at estimated node states, which take up misfit that its parameters, flown from
+    the pad, leave; compared on their own det(R), multiple shooting looks better
+    than it flies. `inf` for a try that failed (not finite)."""
+    if not np.isfinite(result.cost):
+        return np.inf
+    t, x, inputs = _flown(result.model, result.params, record)
+    ys = np.asarray(
+        _observed(problem.flight, t, x, inputs, result.params, result.model.parameters)
+    )
+    n = len(record.t)
+    has = record.inputs[:, 1:] > 0
+    e = np.where(has, record.measured - ys[:n, : has.shape[1]], 0.0)
+    # as the engine's R: mean square over the record's samples, per channel
+    cost = float(np.prod(np.sum(e**2, axis=0) / n))
+    return cost if np.isfinite(cost) else np.inf
 
 
 def _tries(
     problem, record, values, scaled, estimated, free, interval, single_try=True
 ) -> dict:
-    """The fits [`fit_rocket`][] chooses from, by label: the continuation by
-    multiple shooting (nodes every `interval` s), then single shooting (one segment
-    from the pad) from the best of those, to the constrained optimum in the basin
+    """The fits [`fit_rocket`][] chooses from, by label, and each one's det(R)
+    flown from the pad ([`flown_cost`][]), by label: the continuation by multiple
+    shooting (nodes every `interval` s), then single shooting (one segment from the
+    pad) from the best of those flown, to the constrained optimum in the basin
     multiple shooting found (none when one segment already spans the record)."""
     knots = problem.flight.knots
     single = float(record.t[-1] - record.t[0]) + 1.0
@@ -470,12 +501,16 @@ def _tries(
     # can stop far above its noise (a simulated flight with 5% more thrust: det(R)
     # 28.5); single shooting from there reaches the constrained optimum (0.021),
     # the one single shooting from the start reaches too, in a fraction of its time
-    finite = [f for f in tried.values() if np.isfinite(f.cost)]
-    if single_try and interval < single and finite:
-        best = min(finite, key=lambda f: f.cost)
-        named = dict(zip(best.model.parameters, best.params, strict=True))
+    flown = {k: flown_cost(problem, record, f) for k, f in tried.items()}
+    best = min(tried, key=lambda k: flown[k])
+    if single_try and interval < single and np.isfinite(flown[best]):
+        fitted = tried[best]
+        named = dict(zip(fitted.model.parameters, fitted.params, strict=True))
         tried["single from multiple"] = run(named, estimated, single)
-    return tried
+        flown["single from multiple"] = flown_cost(
+            problem, record, tried["single from multiple"]
+        )
+    return tried, flown
 
 
 def simulate_flight(problem: Problem, start: dict | None = None) -> RocketFit:
@@ -501,18 +536,11 @@ def trajectory(
     """The fitted flight integrated from the pad past the apogee (`extra` s beyond
     the record, stopped at the top), with its barometric altitude, axial specific
     force and Mach number."""
-    from .._model import Record
-
-    dt = record.dt
-    n = len(record.t) + int(extra / dt)
-    t = record.t[0] + dt * np.arange(n)
-    inputs = np.zeros((n, record.inputs.shape[1]))
-    inputs[:, 0] = np.interp(t, record.t, record.inputs[:, 0], right=0.0)
-    inputs[:, 1:] = 1.0
-    long = Record(t, inputs, np.zeros((n, len(outputs))), x0=record.x0)
     model = result.model if model is None else model
     params = result.params if params is None else params
-    x = simulate(model, long, params)
+    t, x, inputs = _flown(model, params, record, extra)
+    n = len(t)
+    dt = record.dt
     ys = np.asarray(_observed(flight, t, x, inputs, params, model.parameters))
     baro, accel, mach = ys[:, 0], ys[:, 1], ys[:, 2]
     falling = np.flatnonzero((x[:, 5] <= 0) & (t > 1.0))
@@ -533,6 +561,22 @@ def trajectory(
         apogee=float(baro[peak]),
         apogee_time=float(t[peak]),
     )
+
+
+def _flown(model, params, record, extra=30.0):
+    """`(t, states, inputs)` of `model` flown with `params` from the record's start
+    over the record and `extra` s beyond it (every channel flagged), RK4 at the
+    record's step."""
+    from .._model import Record
+
+    dt = record.dt
+    n = len(record.t) + int(extra / dt)
+    t = record.t[0] + dt * np.arange(n)
+    inputs = np.zeros((n, record.inputs.shape[1]))
+    inputs[:, 0] = np.interp(t, record.t, record.inputs[:, 0], right=0.0)
+    inputs[:, 1:] = 1.0
+    long = Record(t, inputs, np.zeros((n, inputs.shape[1] - 1)), x0=record.x0)
+    return t, simulate(model, long, params), inputs
 
 
 _OBSERVED: dict = {}

@@ -95,6 +95,12 @@ def run_flight(rocket, log, out=None, *, free=None) -> dict:
         for k, est in zip(model.parameters, model.free, strict=True)
         if est and k not in problem.flight.knots.names and k != "cd_scale"
     }
+    # the fits the fit chose from: det(R) of each one's own fit and of its
+    # parameters flown from the pad (what they are compared on)
+    row["tries"] = {
+        label: {"det_r": own, "det_r_flown": flown, "converged": ok}
+        for label, (own, flown, ok) in result.tries.items()
+    }
     if out is not None:
         ee = equation_error_drag(result)
         figures(problem, result, prediction, team, ee, out)
