@@ -17,7 +17,7 @@ METHODS = ("lse", "nn", "oem")
 # `linear`'s OEM time.
 ESTIMATOR_SETTINGS = {
     "lse": {"window_s": 0.5, "tol": 1e-2},
-    "nn": {"width": 10, "depth": 1, "derivatives": "lse", "inputs": "loads+qbar"},
+    "nn": {"width": 10, "depth": 1, "derivatives": "lse", "inputs": "loads/qbar+qbar"},
     "oem": {"parameters": "hybrid", "start": "lse", "axes": "body", "rtol": 1e-5},
 }
 LABELS = {"lse": "LSE", "nn": "NN+LSE", "oem": "OEM"}

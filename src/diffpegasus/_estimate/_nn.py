@@ -1,9 +1,10 @@
 """Neural model plus least squares (thesis chapter 4).
 
 An equinox MLP maps measured quantities to `[CL, CD, CM]` (one hidden layer of 10
-tanh units by default): by default the measured aerodynamic loads (the thesis's
-accelerations `ax, az, qdot` times the log's mass and inertia, less its thrust, the
-moment moved to the cp station with the log's CG) and `[q, V, alpha, de, qbar]`; the
+tanh units by default): by default the measured aerodynamic loads over the measured
+dynamic pressure (the thesis's accelerations `ax, az, qdot` times the log's mass and
+inertia, less its thrust, the moment moved to the cp station with the log's CG) and
+`[q, V, alpha, de, qbar]`; the
 thesis's `[ax, az, qdot, q, V, alpha, de]` with `inputs=NN_INPUTS`. Min-max
 normalisation of inputs
 and outputs to [0, 1] kept inside the model. It is trained by Levenberg-Marquardt
@@ -39,12 +40,26 @@ NN_INPUTS = ("ax", "az", "qdot", "q", "V", "alpha", "de")  # thesis eq 4.1
 # times the flight's own mass and inertia, less its thrust, the moment moved from its
 # own CG to the cp station.
 LOAD_INPUTS = ("X_aero", "Z_aero", "M_cp")
-# The thesis's set with its accelerations replaced by the loads, plus the measured
-# dynamic pressure: the targets are these loads over qbar S (and c). Mass, thrust,
-# inertia and CG differ from flight to flight but are functions of time on every
-# training flight, so a network given accelerations can only apply the training
-# flights' values to them (see docs/validation/thesis.md).
-DEFAULT_INPUTS = ("X_aero", "Z_aero", "M_cp", "q", "V", "alpha", "de", "qbar")
+# The same loads over the measured dynamic pressure (m^2, m^2, m^3): the targets up
+# to the constant S (and c), so the network is left with the rotation through alpha.
+PER_QBAR_INPUTS = ("X_per_qbar", "Z_per_qbar", "M_per_qbar")
+# The thesis's set with its accelerations replaced by the loads over the measured
+# dynamic pressure, plus qbar: the targets are these inputs over S (and c), rotated
+# through alpha. Mass, thrust, inertia and CG differ from flight to flight but are
+# functions of time on every training flight, so a network given accelerations can
+# only apply the training flights' values to them; and a network given the loads
+# and qbar apart has to learn their ratio, whose error it passes to the derivatives
+# (CMa 3.6x LSE's over 100 flights; see docs/validation/thesis.md).
+DEFAULT_INPUTS = (
+    "X_per_qbar",
+    "Z_per_qbar",
+    "M_per_qbar",
+    "q",
+    "V",
+    "alpha",
+    "de",
+    "qbar",
+)
 NN_OUTPUTS = ("CL", "CD", "CM")
 
 
@@ -115,9 +130,11 @@ def network_inputs(
     """The input matrix `(n, len(names))`: each name a channel of the log or one of
     `LOAD_INPUTS`."""
     loads = {}
-    if any(n in LOAD_INPUTS for n in names):
+    if any(n in LOAD_INPUTS + PER_QBAR_INPUTS for n in names):
         ch = {k: jnp.asarray(v) for k, v in channels.items()}
         loads = dict(zip(LOAD_INPUTS, aerodynamic_loads(ch), strict=True))
+        for name, load in zip(PER_QBAR_INPUTS, aerodynamic_loads(ch), strict=True):
+            loads[name] = load / ch["qbar"]
     return jnp.stack(
         [loads[c] if c in loads else jnp.asarray(channels[c]) for c in names], axis=-1
     )
