@@ -247,7 +247,12 @@ def process_noise_diagnosis(spec: ModelSpec, result, ranking, report: dict, name
 
     names = tuple(names)
     _say(f"scoring process noise on {', '.join(names)} (filter-error fit)")
-    fem, new, message = process_noise_candidate(result, ranking, names, gain=None)
+    from .._estimate._gust import Gust
+
+    gust = None if spec.gust is None else Gust(tuple(spec.gust))
+    fem, new, message = process_noise_candidate(
+        result, ranking, names, gain=None, gust=gust
+    )
     for row in new:
         row["hard_to_tell_from"] = [n.split(".")[0] for n in row["hard_to_tell_from"]]
     report["ranking"] = new
