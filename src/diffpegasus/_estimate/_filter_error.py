@@ -58,8 +58,8 @@ from ._engine import (
 )
 from ._estimator import AbstractFit
 from ._filter_gain import AbstractFilterGain, SteadyStateGain
-from ._gust import Gust, with_gust
 from ._fit import layout as _layout, output_error, simulate, SingleShooting
+from ._gust import Gust, with_gust
 from ._riccati import discretise, solve_filter_riccati
 
 

@@ -48,7 +48,9 @@ class Gust(eqx.Module):
         if len(set(self.states)) != len(self.states):
             raise ValueError(f"a gust names a state twice: {self.states}")
         if not self.tau > 0:
-            raise ValueError(f"the gust's correlation time must be positive: {self.tau}")
+            raise ValueError(
+                f"the gust's correlation time must be positive: {self.tau}"
+            )
 
     @property
     def names(self) -> tuple[str, ...]:
