@@ -645,9 +645,7 @@ def fit_filter_error(
     )
 
 
-def residual_intensities(
-    model: Model, records, residuals, theta, noise_states, x0=None
-):
+def residual_intensities(model: Model, records, residuals, theta, noise_states):
     """Start intensities (state units / sqrt(s)) scaled to a fit's residuals.
 
     Each output's residual rms `sigma_i` (over all records) is carried to the
@@ -658,14 +656,11 @@ def residual_intensities(
     drift over the record is the size of what the fit left unexplained: small when
     the model already fits (the residuals are the sensors' noise), large when
     turbulence moved the states. The steps of the fit then move it by factors.
-    `x0` `(states,)`: the first record's initial state (default its `x0`, else
-    its first measured sample).
     """
     e = np.concatenate([np.asarray(r) for r in residuals])
     sigma = np.sqrt(np.mean(e**2, axis=0))
     rec = records[0]
-    if x0 is None:
-        x0 = rec.x0 if rec.x0 is not None else rec.measured_states(model, [0])[0]
+    x0 = rec.x0 if rec.x0 is not None else rec.measured_states(model, [0])[0]
     c = np.asarray(
         jax.jacfwd(model.g, argnums=1)(
             float(rec.t[0]),
@@ -755,18 +750,14 @@ def filter_error(
     elif residuals is not None:
         prob = problem(model, records, noise_states, first, x0)
         theta0 = np.asarray(model.start if start is None else start, float)
-        f0 = residual_intensities(
-            model, records, residuals, theta0, noise_states, np.asarray(prob.x0[0])
-        )
+        f0 = residual_intensities(model, records, residuals, theta0, noise_states)
     else:
         theta0, residuals, x_oe = _output_error_start(
             model, records, start, dict(start_fit or {})
         )
         x_start = x0 if x0 is not None else x_oe
         prob = problem(model, records, noise_states, first, x_start)
-        f0 = residual_intensities(
-            model, records, residuals, theta0, noise_states, np.asarray(prob.x0[0])
-        )
+        f0 = residual_intensities(model, records, residuals, theta0, noise_states)
     if np.any(f0 == 0):
         raise ValueError("process-noise start intensities must be non-zero")
     if gain is None and residuals is None:
