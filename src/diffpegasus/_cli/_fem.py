@@ -249,7 +249,15 @@ def process_noise_diagnosis(spec: ModelSpec, result, ranking, report: dict, name
     _say(f"scoring process noise on {', '.join(names)} (filter-error fit)")
     from .._estimate._gust import Gust
 
-    gust = None if spec.gust is None else Gust(tuple(spec.gust))
+    gust = (
+        None
+        if spec.gust is None
+        else Gust(
+            tuple(spec.gust),
+            # a model without the altitude state has no climb rate to keep inertial
+            kinematic=tuple(s for s in spec.gust_kinematic if s in spec.model.states),
+        )
+    )
     fem, new, message = process_noise_candidate(
         result, ranking, names, gain=None, gust=gust
     )

@@ -16,8 +16,10 @@ through the same airflow angle and airspeed they already use, with no change to
 them. The correlation time `tau` (s) is one model parameter, estimated by the
 filter-error fit as `ln tau` (so it stays positive); the intensities `F_s`
 (state units / sqrt(s)) are process-noise intensities like the white ones.
-Where the air data and the kinematics disagree (the climb rate is inertial)
-the shift is an approximation of first order in the gust.
+`x` is the inertial state: the rates of the states a gust names `kinematic`
+(the altitude's climb rate) are evaluated at `x` itself; the conversion of the
+body accelerations into airspeed and angle-of-attack rates at the air's state
+is an approximation of second order in the gust.
 """
 
 import functools
@@ -36,11 +38,14 @@ LOG_TAU = "gust_ln_tau"
 class Gust(eqx.Module):
     """A first-order gust state on the airflow `states` (names of model states,
     e.g. `("V", "alpha")`), sharing one correlation time whose start is `tau`
-    (s, positive). A strategy of [`FilterError`][] and of the diagnosis's
-    process-noise candidate."""
+    (s, positive). `kinematic`: states whose rates are inertial kinematics (e.g.
+    the altitude, `h' = V sin(theta - alpha)` of the inertial velocity): their
+    rates are evaluated at the inertial state `x`, not at the air's. A strategy
+    of [`FilterError`][] and of the diagnosis's process-noise candidate."""
 
     states: tuple[str, ...] = eqx.field(static=True)
     tau: float = eqx.field(static=True, default=1.0)
+    kinematic: tuple[str, ...] = eqx.field(static=True, default=())
 
     def __check_init__(self):
         if not self.states:
@@ -64,7 +69,7 @@ def with_gust(model: Model, gust: Gust) -> Model:
     its parameters (start `ln gust.tau`); its rates and outputs at the air's
     state `x + E g`. Cached: one augmented model (and one compilation) per model
     and gust."""
-    unknown = [s for s in gust.states if s not in model.states]
+    unknown = [s for s in (*gust.states, *gust.kinematic) if s not in model.states]
     if unknown:
         raise ValueError(
             f"gust on {unknown}: not model states ({', '.join(model.states)})"
@@ -81,8 +86,13 @@ def with_gust(model: Model, gust: Gust) -> Model:
     def mine(p):
         return {k: p[k] for k in own}
 
+    kin = np.array([model.states.index(s) for s in gust.kinematic], int)
+
     def rates(t, x, u, p):
         base = jnp.asarray(model.rates(t, air(x), u, mine(p)), float).reshape(-1)
+        if len(kin):
+            inertial = jnp.asarray(model.rates(t, x[:n], u, mine(p)), float)
+            base = base.at[kin].set(inertial.reshape(-1)[kin])
         return jnp.concatenate([base, -x[n:] * jnp.exp(-p[LOG_TAU])])
 
     def observe(t, x, u, p):

@@ -55,6 +55,8 @@ class ModelSpec:
     # the airflow states a coloured gust shifts (the process-noise candidate
     # offers it besides white noise), e.g. ("V", "alpha"); None: white only
     gust: tuple[str, ...] | None = None
+    # the states whose rates are inertial kinematics under a gust (e.g. ("h",))
+    gust_kinematic: tuple[str, ...] = ()
     # what the entry chose from the data (JSON-ready, e.g. the baseline's
     # resolution), reported by the diagnosis
     notes: dict | None = None

@@ -306,6 +306,7 @@ class PegasusEntry(AbstractVehicleEntry):
             # turbulence drives the dynamic states; altitude is kinematic
             process_noise=PROCESS_NOISE,
             gust=GUST,
+            gust_kinematic=("h",),
             notes=notes,
         )
         return spec, records
