@@ -118,3 +118,29 @@ def test_gust_rejects_a_state_the_model_lacks():
         with_gust(MODEL, Gust(("w",)))
     with pytest.raises(ValueError, match="positive"):
         Gust(("alpha",), tau=0.0)
+
+
+def test_kinematic_states_take_their_rates_at_the_inertial_state():
+    """With `kinematic=("h",)` the climb rate is the inertial one, the other
+    rates and every output the air's (closed form on a small model)."""
+
+    def rates(t, x, u, p):
+        v, a, h = x
+        return jnp.stack([p["k"] * a, -a + u[0], v * jnp.sin(-a)])
+
+    def observe(t, x, u, p):
+        return x
+
+    model = Model(
+        ("V", "alpha", "h"), ("de",), ("V", "alpha", "h"), {"k": 2.0}, rates, observe
+    )
+    aug = with_gust(model, Gust(("alpha",), tau=2.0, kinematic=("h",)))
+    x = jnp.asarray([50.0, 0.05, 100.0, 0.01])  # the gust on alpha: 0.01 rad
+    p = aug.named(jnp.asarray(aug.start))
+    f = np.asarray(aug.rates(0.0, x, jnp.asarray([0.2]), p))
+    np.testing.assert_allclose(
+        f, [2.0 * 0.06, -0.06 + 0.2, 50.0 * np.sin(-0.05), -0.01 / 2.0], rtol=1e-14
+    )
+    np.testing.assert_allclose(
+        np.asarray(aug.observe(0.0, x, None, p)), [50.0, 0.06, 100.0], rtol=1e-14
+    )
