@@ -98,10 +98,10 @@ KNOWN_FAILING: dict[str, str] = {
     ),
     "tests/test_fem_pegasus.py::test_diagnose_names_turbulence_on_a_turbulent_"
     "launch_vehicle_flight": (
-        "the filter does not explain this record (its innovations stay "
-        "predictable, measured N R^2 223 on h against 71.2, and V 134 and alpha "
-        "102 on the outputs the process noise enters), so process noise is not "
-        "named: the gusts are coloured, the filter's process noise white"
+        "the filter does not explain this record: with the coloured gust state "
+        "(kept over white noise, det R 10x lower, correlation time 2.64 s) its "
+        "innovations still fail the check on V (N R^2 131 against 71.2; h, 222 "
+        "with white noise, passes now), so process noise is not named"
     ),
     "tests/test_trust.py::test_planted_effect_is_first_significant_and_recovered"
     "[pitch_damping--3.0-1000.0-0]": (

@@ -247,7 +247,20 @@ def process_noise_diagnosis(spec: ModelSpec, result, ranking, report: dict, name
 
     names = tuple(names)
     _say(f"scoring process noise on {', '.join(names)} (filter-error fit)")
-    fem, new, message = process_noise_candidate(result, ranking, names, gain=None)
+    from .._estimate._gust import Gust
+
+    gust = (
+        None
+        if spec.gust is None
+        else Gust(
+            tuple(spec.gust),
+            # a model without the altitude state has no climb rate to keep inertial
+            kinematic=tuple(s for s in spec.gust_kinematic if s in spec.model.states),
+        )
+    )
+    fem, new, message = process_noise_candidate(
+        result, ranking, names, gain=None, gust=gust
+    )
     for row in new:
         row["hard_to_tell_from"] = [n.split(".")[0] for n in row["hard_to_tell_from"]]
     report["ranking"] = new

@@ -120,6 +120,7 @@ def diagnose_model(
     *,
     level: float = 0.01,
     process_noise: Sequence[str] | Mapping[str, float] | None = None,
+    gust=None,
     **fit_options,
 ) -> tuple[Fit, list[dict]]:
     """Fit `model` with the `candidates` (parameter names) held at their start
@@ -131,7 +132,8 @@ def diagnose_model(
     deterministic candidates are tested again at that fit (see
     [`process_noise_candidate`][]: process noise may only take an output-error
     finding away; its row's `verdict` is the message when process noise is
-    present). Keyword arguments go to [`fit`][]."""
+    present; with a [`Gust`][] `gust`, coloured turbulence is offered besides
+    white noise and the log chooses). Keyword arguments go to [`fit`][]."""
     fixed = tuple(dict.fromkeys(tuple(model.fixed) + tuple(candidates)))
     result = fit(model.replace(fixed=fixed), records, **fit_options)
     ranking = score_candidates(result, candidates, level)
@@ -141,7 +143,11 @@ def diagnose_model(
         from ._process_noise import process_noise_candidate, ProcessNoiseRule
 
         _, ranking, message = process_noise_candidate(
-            result, ranking, process_noise, rule=ProcessNoiseRule(significance=level)
+            result,
+            ranking,
+            process_noise,
+            rule=ProcessNoiseRule(significance=level),
+            gust=gust,
         )
         for row in ranking:
             if row.get("effect") == "process_noise":

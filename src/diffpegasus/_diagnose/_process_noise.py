@@ -57,6 +57,7 @@ from .._estimate._filter_error import (
     residual_intensities,
 )
 from .._estimate._fit import Fit
+from .._estimate._gust import Gust, LOG_TAU
 from .._estimate._score import score_variance
 from ._calibration import Calibration
 from ._rule import DecisionRule
@@ -286,16 +287,13 @@ def survivor_threshold(
     return same.calibrate(rows, e, curvature, slope, resample, basis)
 
 
-def best_filter_error(result: Fit, process_noise, **fem_options) -> FilterErrorFit:
-    """The filter-error fit of `result`'s model and records from two starts, the
-    output-error estimates and the model's start values, whichever reaches the
-    lower det(R) (a converged one first). One start is not enough in turbulence:
-    the output-error estimates can be far off (on 2 of 12 simulated HFB-320 flights
-    in 0.3 m/s gusts CMq -630 and -290 for -27) and the filter-error fit from there
-    stops in a local optimum with 10x the det(R)."""
+def _starts(result: Fit, process_noise, fem_options):
+    """What every filter-error fit of the candidate shares: its keywords (the
+    gain chosen once, at the output-error fit, see `choose_gain`), the
+    output-error residuals that scale the start intensities (no refit from each
+    start) and the initial states (the output-error fit's when it estimated
+    them)."""
     options = {"throw": False, **fem_options}
-    # the output-error fit's residuals scale the start intensities (no refit from
-    # each start); its initial states start the filter when it estimated them
     residuals = [
         rec.measured - y for rec, y in zip(result.records, result.outputs, strict=True)
     ]
@@ -308,7 +306,6 @@ def best_filter_error(result: Fit, process_noise, **fem_options) -> FilterErrorF
     if isinstance(process_noise, Mapping):
         residuals = None
     elif options.get("gain", 0) is None:
-        # one choice for both starts (see `choose_gain`), at the output-error fit
         noise_states = tuple(result.model.states.index(s) for s in process_noise)
         x_start = (
             x0
@@ -334,6 +331,17 @@ def best_filter_error(result: Fit, process_noise, **fem_options) -> FilterErrorF
             f0,
             residuals,
         )
+    return options, residuals, x0
+
+
+def best_filter_error(result: Fit, process_noise, **fem_options) -> FilterErrorFit:
+    """The filter-error fit of `result`'s model and records from two starts, the
+    output-error estimates and the model's start values, whichever reaches the
+    lower det(R) (a converged one first). One start is not enough in turbulence:
+    the output-error estimates can be far off (on 2 of 12 simulated HFB-320 flights
+    in 0.3 m/s gusts CMq -630 and -290 for -27) and the filter-error fit from there
+    stops in a local optimum with 10x the det(R)."""
+    options, residuals, x0 = _starts(result, process_noise, fem_options)
     fits = [
         fit_filter_error(
             result.model,
@@ -346,10 +354,75 @@ def best_filter_error(result: Fit, process_noise, **fem_options) -> FilterErrorF
         )
         for start in (result.params, result.model.start)
     ]
-    return min(
-        fits,
-        key=lambda f: (not f.converged, f.cost if np.isfinite(f.cost) else np.inf),
+    return min(fits, key=_rank)
+
+
+def _rank(f: FilterErrorFit):
+    return (not f.converged, f.cost if np.isfinite(f.cost) else np.inf)
+
+
+def _unknowns(f: FilterErrorFit) -> int:
+    """The estimated unknowns of a filter-error fit: free parameters (the gust's
+    correlation time among them) and intensities."""
+    return int(np.sum(f.free)) + len(f.F)
+
+
+def white_or_coloured(
+    result: Fit, process_noise, gust: Gust | None, **fem_options
+) -> tuple[FilterErrorFit, dict]:
+    """The filter-error fit the process-noise candidate judges: white process
+    noise on `process_noise` ([`best_filter_error`][]), or, with a [`Gust`][],
+    that white noise plus the coloured gust states, fitted from the white fit's
+    estimates, whichever the log prefers by Akaike's criterion on the two
+    maximum likelihoods, `N ln det R + 2 k` (`N` samples, `k` estimated
+    unknowns): the coloured model is kept when it lowers `N ln det R` by more
+    than twice the unknowns it adds (the gust intensities and its correlation
+    time).
+
+    **Returns:** `(fit, choice)`, `choice` JSON-ready: `model` (`"white"` or
+    `"coloured"`), the two fits' `det_R`, `unknowns` and `converged`, and the
+    coloured fit's correlation time `tau` (s)."""
+    white = best_filter_error(result, process_noise, **fem_options)
+    choice = {
+        "model": "white",
+        "white": {
+            "det_R": float(white.cost),
+            "unknowns": _unknowns(white),
+            "converged": bool(white.converged),
+        },
+    }
+    if gust is None:
+        return white, choice
+    options, residuals, x0 = _starts(result, process_noise, fem_options)
+    start = white.params if white.converged else result.params
+    coloured = fit_filter_error(
+        result.model,
+        result.records,
+        process_noise=process_noise,
+        start=start,
+        residuals=residuals,
+        x0=x0,
+        gust=gust,
+        **options,
     )
+    tau = float(np.exp(coloured.params[coloured.model.parameters.index(LOG_TAU)]))
+    choice["coloured"] = {
+        "det_R": float(coloured.cost),
+        "unknowns": _unknowns(coloured),
+        "converged": bool(coloured.converged),
+        "tau": tau,
+    }
+    n = sum(len(r.t) for r in result.records)
+
+    def aic(f):
+        return n * float(np.log(f.cost)) + 2 * _unknowns(f)
+
+    choice["fits"] = {"white": white, "coloured": coloured}
+    if coloured.converged and np.isfinite(coloured.cost) and coloured.cost > 0:
+        if not white.converged or aic(coloured) < aic(white):
+            choice["model"] = "coloured"
+            return coloured, choice
+    return white, choice
 
 
 def process_noise_candidate(
@@ -358,13 +431,16 @@ def process_noise_candidate(
     process_noise: Sequence[str] | Mapping[str, float],
     *,
     rule: ProcessNoiseRule = ProcessNoiseRule(),
+    gust: Gust | None = None,
     **fem_options,
 ) -> tuple[FilterErrorFit, list[dict], str | None]:
     """Score process noise at the output-error fit `result` whose held candidates
     `ranking` ranks (rows of [`score_candidates`][]), see the module.
 
     **Arguments:** `process_noise`: the states with process noise (names, or a dict
-    of start intensities, state units / sqrt(s)); `rule`: the thresholds; further
+    of start intensities, state units / sqrt(s)); `rule`: the thresholds; `gust`:
+    a [`Gust`][] to offer coloured turbulence besides white noise (the log
+    chooses, [`white_or_coloured`][]); further
     keywords go to [`fit_filter_error`][] (`full_R`, `rtol`, `max_iter`).
 
     **Returns:** `(fem, ranking, message)`: the filter-error fit of `result`'s model
@@ -389,11 +465,12 @@ def process_noise_candidate(
             "the filter-error method has no output biases: score process noise at "
             "an output-error fit without them"
         )
-    fem = best_filter_error(result, process_noise, **fem_options)
+    fem, choice = white_or_coloured(result, process_noise, gust, **fem_options)
     cands = [r["parameter"] for r in ranking]
     k = len(cands) + 1
     lr, fall = likelihood_ratio(result, fem) if fem.converged else (0.0, 0.0)
-    dof = len(fem.F)
+    # the coloured model's correlation time is an unknown the null lacks too
+    dof = _unknowns(fem) - int(np.sum(result.free))
     p = float(min(1.0, scipy.stats.chi2.sf(lr, dof) * k))
     evidence = (
         turbulence_evidence(result, fem, rule)
@@ -401,6 +478,15 @@ def process_noise_candidate(
         else None
     )
     present = evidence is not None and evidence["passes"]
+    # the innovations' check of each noise model fitted, for the report
+    for kind, f in choice.pop("fits", {}).items():
+        if f.converged:
+            e = turbulence_evidence(result, f, rule)
+            choice[kind]["innovations"] = {
+                "statistic": e["statistic"],
+                "output": e["output"],
+                "threshold": e["threshold"],
+            }
     under = (
         {r["parameter"]: r for r in score_at_filter_error(fem, cands)}
         if fem.converged
@@ -488,6 +574,7 @@ def process_noise_candidate(
         ),
         "filter_error_converged": fem.converged,
         "constraint_active": fem.constraint_active,
+        "noise_model": choice,
     }
     if present:
         rest = sorted(

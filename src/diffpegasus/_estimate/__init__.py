@@ -58,6 +58,7 @@ __getattr__, __dir__, __all__ = attach(
             "ScheduledGain",
             "SteadyStateGain",
         ),
+        "_gust": ("Gust", "with_gust"),
         "_fit": (
             "Fit",
             "fit",

@@ -59,6 +59,7 @@ from ._engine import (
 from ._estimator import AbstractFit
 from ._filter_gain import AbstractFilterGain, SteadyStateGain
 from ._fit import layout as _layout, output_error, simulate, SingleShooting
+from ._gust import Gust, with_gust
 from ._riccati import discretise, solve_filter_riccati
 
 
@@ -576,6 +577,7 @@ def fit_filter_error(
     start_fit: Mapping | None = None,
     residuals=None,
     x0=None,
+    gust: Gust | None = None,
 ) -> FilterErrorFit:
     """Maximum-likelihood filter-error estimate of `model`'s parameters and the
     process-noise intensities from one or several records (e.g. flown in
@@ -618,6 +620,11 @@ def fit_filter_error(
       already to scale the start intensities (then no output-error fit is made:
       the parameters start at `start`, default `model.start`); `x0` `(records,
       states)` the initial states that fit found.
+    - `gust`: a [`Gust`][] (default `None`: white process noise only): first-order
+      gust states on the airflow states it names, driven by process noise too,
+      with their correlation time estimated; the fit's model is then the
+      augmented one ([`with_gust`][]: states `gust[state]`, parameter
+      `gust_ln_tau`, the natural log of the correlation time in s).
 
     **Returns:** a [`FilterErrorFit`][].
     """
@@ -634,6 +641,7 @@ def fit_filter_error(
         start_fit=start_fit,
         residuals=residuals,
         x0=x0,
+        gust=gust,
     )
 
 
@@ -696,6 +704,7 @@ def filter_error(
     start_fit: Mapping | None = None,
     residuals=None,
     x0=None,
+    gust: Gust | None = None,
 ) -> FilterErrorFit:
     """The filter-error fit behind [`FilterError`][] and [`fit_filter_error`][]
     (arguments as [`fit_filter_error`][]'s; `progress` prints one line per
@@ -703,6 +712,23 @@ def filter_error(
     records = (records,) if isinstance(records, Record) else tuple(records)
     if not records:
         raise ValueError("no records to fit")
+    if gust is not None:
+        return _gust_filter_error(
+            model,
+            records,
+            gust,
+            process_noise=process_noise,
+            start=start,
+            start_fit=start_fit,
+            residuals=residuals,
+            x0=x0,
+            full_R=full_R,
+            rtol=rtol,
+            max_iter=max_iter,
+            throw=throw,
+            progress=progress,
+            gain=gain,
+        )
     names = tuple(process_noise)
     if not names:
         raise ValueError(
@@ -807,6 +833,53 @@ def filter_error(
     if throw and not out.converged:
         raise RuntimeError(f"filter-error fit failed: {out.message}")
     return out
+
+
+def _gust_filter_error(
+    model, records, gust, *, process_noise, start, start_fit, residuals, x0, **options
+):
+    """[`filter_error`][] of `model` with the [`Gust`][] states appended
+    ([`with_gust`][]): white process noise on `process_noise` as without it, and
+    the gust states driven by noise too; the gust states start at 0 (the filter
+    corrects them) and their start intensities are scaled like the white ones
+    (given intensities: the gust on a state starts with that state's)."""
+    if isinstance(process_noise, Mapping):
+        theta0 = np.asarray(model.start if start is None else start, float)
+    elif residuals is None:
+        theta0, residuals, x_oe = _output_error_start(
+            model, records, start, dict(start_fit or {})
+        )
+        x0 = x0 if x0 is not None else x_oe
+    else:
+        theta0 = np.asarray(model.start if start is None else start, float)
+    base = [
+        np.asarray(x0[i], float)
+        if x0 is not None
+        else (rec.x0 if rec.x0 is not None else rec.measured_states(model, [0])[0])
+        for i, rec in enumerate(records)
+    ]
+    x_aug = np.array([np.concatenate([x, np.zeros(len(gust.states))]) for x in base])
+    # each record's initial state, gust states included, for the augmented model
+    records = tuple(
+        Record(rec.t, rec.inputs, rec.measured, x0=x, name=rec.name)
+        for rec, x in zip(records, x_aug, strict=True)
+    )
+    aug = with_gust(model, gust)
+    if isinstance(process_noise, Mapping):
+        noise = dict(process_noise)
+        for s, g in zip(gust.states, gust.names, strict=True):
+            noise[g] = float(process_noise.get(s, next(iter(process_noise.values()))))
+    else:
+        noise = (*process_noise, *gust.names)
+    return filter_error(
+        aug,
+        records,
+        process_noise=noise,
+        start=np.concatenate([theta0, [np.log(gust.tau)]]),
+        residuals=residuals,
+        x0=x_aug,
+        **options,
+    )
 
 
 # the steady-state gain serves a record while the weight the filter gives the

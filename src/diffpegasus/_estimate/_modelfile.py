@@ -52,6 +52,11 @@ class ModelSpec:
     candidates: tuple[str, ...] = ()
     vehicle: object = None
     process_noise: tuple[str, ...] | dict[str, float] | None = None
+    # the airflow states a coloured gust shifts (the process-noise candidate
+    # offers it besides white noise), e.g. ("V", "alpha"); None: white only
+    gust: tuple[str, ...] | None = None
+    # the states whose rates are inertial kinematics under a gust (e.g. ("h",))
+    gust_kinematic: tuple[str, ...] = ()
     # what the entry chose from the data (JSON-ready, e.g. the baseline's
     # resolution), reported by the diagnosis
     notes: dict | None = None

@@ -68,6 +68,7 @@ class HFB320Entry(AbstractModelEntry):
                 x0=X0,
                 candidates=tuple(effect_parameter(e) for e in effects if e not in add),
                 process_noise=dict(PROCESS_NOISE),
+                gust=("V", "alpha"),
                 vehicle=HFB320,
             )
         )

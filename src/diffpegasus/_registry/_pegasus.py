@@ -40,6 +40,9 @@ NOT_IDENTIFIABLE = ("sensor_bias:h",)
 # States whose equations get process noise in `fit --method fem` and the
 # diagnosis's process-noise candidate.
 PROCESS_NOISE = ("V", "alpha", "theta", "q")
+# The airflow states a coloured (first-order) gust shifts: airspeed and angle of
+# attack, what the aerodynamics sees of a horizontal and a vertical gust.
+GUST = ("V", "alpha")
 
 
 def block_weights(step: int) -> np.ndarray:
@@ -302,6 +305,8 @@ class PegasusEntry(AbstractVehicleEntry):
             vehicle=entry.vehicle(),
             # turbulence drives the dynamic states; altitude is kinematic
             process_noise=PROCESS_NOISE,
+            gust=GUST,
+            gust_kinematic=("h",),
             notes=notes,
         )
         return spec, records

@@ -7,6 +7,7 @@ import equinox as eqx
 from .._estimator import AbstractEstimator
 from .._filter_error import filter_error, FilterErrorFit
 from .._filter_gain import AbstractFilterGain, SteadyStateGain
+from .._gust import Gust
 from ._output_error import OutputError
 
 
@@ -34,6 +35,9 @@ class FilterError(AbstractEstimator):
       shooting from the held initial state; multiple shooting for long records
       of a vehicle a simulation from one state cannot follow, with
       `estimate_initial_state=True` its initial states start the filter).
+    - `gust`: a [`Gust`][] (default `None`: white process noise only): coloured
+      turbulence, first-order gust states on the airflow states it names with
+      their correlation time estimated, besides the white noise.
 
     Returns a [`FilterErrorFit`][].
     """
@@ -44,6 +48,7 @@ class FilterError(AbstractEstimator):
     rtol: float = eqx.field(static=True, default=1e-6)
     gain: AbstractFilterGain = SteadyStateGain()
     start: OutputError = OutputError()
+    gust: Gust | None = None
 
     def __check_init__(self):
         if self.intensities is not None and (
@@ -81,4 +86,5 @@ class FilterError(AbstractEstimator):
                 if self.start.estimate_initial_state
                 else "fixed",
             },
+            gust=self.gust,
         )

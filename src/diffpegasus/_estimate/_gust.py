@@ -1,0 +1,118 @@
+"""A coloured gust state for the filter-error method.
+
+White process noise (`x' = f(x) + F w`) kicks a state's rate; turbulence is not
+white: a vertical gust of the atmosphere keeps its sign for about `L / V` seconds
+(length scale over airspeed) and moves the airflow the vehicle sees, so the
+aerodynamic forces and the air data (alpha vane, accelerometers) respond to it at
+once, not through an integrated rate. A filter whose noise is white leaves the
+innovations of such a flight coloured. [`Gust`][] adds, per airflow state `s`
+it names (e.g. `alpha`, `V`), a first-order Gauss-Markov state `g_s`
+
+    g_s' = -g_s / tau + F_s w          (w unit white noise)
+
+and the model's rates and outputs are evaluated at the state the air sees,
+`x + E g` (`E` puts `g_s` on state `s`): the vehicle's own parts see the gust
+through the same airflow angle and airspeed they already use, with no change to
+them. The correlation time `tau` (s) is one model parameter, estimated by the
+filter-error fit as `ln tau` (so it stays positive); the intensities `F_s`
+(state units / sqrt(s)) are process-noise intensities like the white ones.
+`x` is the inertial state: the rates of the states a gust names `kinematic`
+(the altitude's climb rate) are evaluated at `x` itself; the conversion of the
+body accelerations into airspeed and angle-of-attack rates at the air's state
+is an approximation of second order in the gust.
+"""
+
+import functools
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from .._model import Model
+
+
+# the correlation-time parameter of the augmented model: ln(tau / 1 s)
+LOG_TAU = "gust_ln_tau"
+
+
+class Gust(eqx.Module):
+    """A first-order gust state on the airflow `states` (names of model states,
+    e.g. `("V", "alpha")`), sharing one correlation time whose start is `tau`
+    (s, positive). `kinematic`: states whose rates are inertial kinematics (e.g.
+    the altitude, `h' = V sin(theta - alpha)` of the inertial velocity): their
+    rates are evaluated at the inertial state `x`, not at the air's. A strategy
+    of [`FilterError`][] and of the diagnosis's process-noise candidate."""
+
+    states: tuple[str, ...] = eqx.field(static=True)
+    tau: float = eqx.field(static=True, default=1.0)
+    kinematic: tuple[str, ...] = eqx.field(static=True, default=())
+
+    def __check_init__(self):
+        if not self.states:
+            raise ValueError("a gust needs at least one airflow state")
+        if len(set(self.states)) != len(self.states):
+            raise ValueError(f"a gust names a state twice: {self.states}")
+        if not self.tau > 0:
+            raise ValueError(
+                f"the gust's correlation time must be positive: {self.tau}"
+            )
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The gust states' names, `gust[state]`."""
+        return tuple(f"gust[{s}]" for s in self.states)
+
+
+@functools.lru_cache(maxsize=32)
+def with_gust(model: Model, gust: Gust) -> Model:
+    """`model` with the gust states appended to its states and `gust_ln_tau` to
+    its parameters (start `ln gust.tau`); its rates and outputs at the air's
+    state `x + E g`. Cached: one augmented model (and one compilation) per model
+    and gust."""
+    unknown = [s for s in (*gust.states, *gust.kinematic) if s not in model.states]
+    if unknown:
+        raise ValueError(
+            f"gust on {unknown}: not model states ({', '.join(model.states)})"
+        )
+    if LOG_TAU in model.parameters:
+        raise ValueError(f"the model already has a parameter {LOG_TAU!r}")
+    n = len(model.states)
+    idx = np.array([model.states.index(s) for s in gust.states])
+    own = model.parameters
+
+    def air(x):
+        return x[:n].at[idx].add(x[n:])
+
+    def mine(p):
+        return {k: p[k] for k in own}
+
+    kin = np.array([model.states.index(s) for s in gust.kinematic], int)
+
+    def rates(t, x, u, p):
+        base = jnp.asarray(model.rates(t, air(x), u, mine(p)), float).reshape(-1)
+        if len(kin):
+            inertial = jnp.asarray(model.rates(t, x[:n], u, mine(p)), float)
+            base = base.at[kin].set(inertial.reshape(-1)[kin])
+        return jnp.concatenate([base, -x[n:] * jnp.exp(-p[LOG_TAU])])
+
+    def observe(t, x, u, p):
+        return model.observe(t, air(x), u, mine(p))
+
+    delays = None if model.delays is None else (lambda p: model.delays(mine(p)))
+    scale = (
+        None
+        if model.state_scale is None
+        else (*model.state_scale, *(model.state_scale[i] for i in idx))
+    )
+    return Model(
+        (*model.states, *gust.names),
+        model.inputs,
+        model.outputs,
+        (*model.parameters, LOG_TAU),
+        rates,
+        observe,
+        start=(*model.start, float(np.log(gust.tau))),
+        fixed=model.fixed,
+        delays=delays,
+        state_scale=scale,
+    )
