@@ -14,6 +14,12 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
 
 
+def worst_z(r):
+    """The flight's largest miss of the planted CD, in standard errors, signed."""
+    z = (np.array(r["cd"]) - np.array(r["planted"])) / np.array(r["stderr"])
+    return f"{z[np.argmax(abs(z))]:+.1f}"
+
+
 def coverage_rows(d):
     lines = [
         "| flight | planted CD inside the 95% band | worst z | thrust scale "
@@ -23,10 +29,7 @@ def coverage_rows(d):
     for name, r in d.items():
         if not isinstance(r, dict):
             continue
-        worst = "-"
-        if "cd" in r:
-            z = (np.array(r["cd"]) - np.array(r["planted"])) / np.array(r["stderr"])
-            worst = f"{z[np.argmax(abs(z))]:+.1f}"
+        worst = worst_z(r) if "cd" in r else "-"
         k, s = r["thrust_scale"]
         w = r.get("estimates", {}).get("wind_along")
         wind = f"{w[0]:.1f} ± {w[1]:.1f}" if w else "-"
@@ -50,14 +53,13 @@ def smooth_rows(smooth, counts):
     for name, r in smooth.items():
         if not isinstance(r, dict):
             continue
-        z = (np.array(r["cd"]) - np.array(r["planted"])) / np.array(r["stderr"])
         e = r["estimates"]
         w = e.get("wind_along")
         wind = f"{w[0]:.1f} ± {w[1]:.1f}" if w else "-"
         table = counts.get(name)
         lines.append(
             f"| {name} | {f'{table[0]} of {table[1]}' if table else '-'} | "
-            f"{r['inside_95']} of {r['points']} | {z[np.argmax(abs(z))]:+.1f} | "
+            f"{r['inside_95']} of {r['points']} | {worst_z(r)} | "
             f"{wind} ({r['planted_effects']['wind_along_m_s']:.1f}) | "
             f"{e['temperature'][0]:.1f} ± {e['temperature'][1]:.1f} | "
             f"{e['lapse_rate'][0]:.2f} ± {e['lapse_rate'][1]:.2f} |"
