@@ -341,20 +341,32 @@ def best_filter_error(result: Fit, process_noise, **fem_options) -> FilterErrorF
     the output-error estimates can be far off (on 2 of 12 simulated HFB-320 flights
     in 0.3 m/s gusts CMq -630 and -290 for -27) and the filter-error fit from there
     stops in a local optimum with 10x the det(R)."""
-    options, residuals, x0 = _starts(result, process_noise, fem_options)
+    shared = _starts(result, process_noise, fem_options)
+    return _best_of_two(result, process_noise, shared)
+
+
+def _best_of_two(result: Fit, process_noise, shared) -> FilterErrorFit:
     fits = [
-        fit_filter_error(
-            result.model,
-            result.records,
-            process_noise=process_noise,
-            start=start,
-            residuals=residuals,
-            x0=x0,
-            **options,
-        )
+        _fit_from(result, process_noise, shared, start)
         for start in (result.params, result.model.start)
     ]
     return min(fits, key=_rank)
+
+
+def _fit_from(result: Fit, process_noise, shared, start, gust=None) -> FilterErrorFit:
+    """One filter-error fit of `result`'s model and records from `start`, with
+    what `_starts` prepared once for every fit of the candidate."""
+    options, residuals, x0 = shared
+    return fit_filter_error(
+        result.model,
+        result.records,
+        process_noise=process_noise,
+        start=start,
+        residuals=residuals,
+        x0=x0,
+        gust=gust,
+        **options,
+    )
 
 
 def _rank(f: FilterErrorFit):
@@ -382,7 +394,8 @@ def white_or_coloured(
     **Returns:** `(fit, choice)`, `choice` JSON-ready: `model` (`"white"` or
     `"coloured"`), the two fits' `det_R`, `unknowns` and `converged`, and the
     coloured fit's correlation time `tau` (s)."""
-    white = best_filter_error(result, process_noise, **fem_options)
+    shared = _starts(result, process_noise, fem_options)
+    white = _best_of_two(result, process_noise, shared)
     choice = {
         "model": "white",
         "white": {
@@ -393,18 +406,8 @@ def white_or_coloured(
     }
     if gust is None:
         return white, choice
-    options, residuals, x0 = _starts(result, process_noise, fem_options)
     start = white.params if white.converged else result.params
-    coloured = fit_filter_error(
-        result.model,
-        result.records,
-        process_noise=process_noise,
-        start=start,
-        residuals=residuals,
-        x0=x0,
-        gust=gust,
-        **options,
-    )
+    coloured = _fit_from(result, process_noise, shared, start, gust)
     tau = float(np.exp(coloured.params[coloured.model.parameters.index(LOG_TAU)]))
     choice["coloured"] = {
         "det_R": float(coloured.cost),
