@@ -6,8 +6,8 @@ CG and cp stations) and size each difference in the pitch acceleration (qdot) an
 in the pitch rate q it leaves over one shooting interval (1 s, the model's node
 spacing).
 
-    nice python experiments/lv_misfit_terms.py [--seeds 13 0 1] [--rate 50]
-        [--out experiments/results/lv_misfit_terms.json]
+    nice python experiments/lv_misfit_terms.py [--seeds 13 0 1] [--rates 50 50 50]
+        [--out experiments/results/lv_misfit_terms.json] [--knot-choices]
 
 Terms (each alone, all else the generator's):
 
@@ -254,12 +254,58 @@ def terms(seed: int, log_rate: float, knot_counts=(6, 8, 12), rate=50.0) -> dict
     return res
 
 
+def knot_choices(seed: int, log_rate: float) -> dict:
+    """How many Mach functions the log supports, as the diagnosis reads it (block
+    means to 50 Hz, coefficients reconstructed from the channels): the choice of
+    `choose_knots` (cross-validation across 1 s segments) on the noise-free and
+    the noisy log, per coefficient, and that of a Bayesian information criterion
+    `n sum_c log(RSS_c / n) + p log n` of the full-record regression (noisy log)."""
+    from diffpegasus._estimate._coefficients import reconstruct_coefficients
+    from diffpegasus._registry._pegasus import block_means
+    from diffpegasus._vehicle._mach_spline import (
+        choose_knots,
+        mach_breakpoints,
+        MachSplineAerodynamics,
+    )
+
+    res = {"seed": seed, "rate": log_rate}
+    for noise in (False, True):
+        ch, _ = gen.generate(seed, log_rate, 30.0, {}, noise)
+        red = {k: block_means(v, int(round(log_rate / 50.0)))[0] for k, v in ch.items()}
+        c = reconstruct_coefficients(red, gen.S_REF, gen.C_REF)
+        y = [np.asarray(v) for v in (c.CL, c.CD, c.CM)]
+        seg = np.floor(red["t"]).astype(int)
+        tag = "noisy" if noise else "noise_free"
+        args = (red["mach"], red["alpha"], red["de"])
+        res[f"choose_knots_{tag}"] = choose_knots(*args, tuple(y), seg).knots
+        if noise:
+            for name, v in zip(("CL", "CD", "CM"), y, strict=True):
+                res[f"choose_knots_{name}_only"] = choose_knots(*args, (v,), seg).knots
+            n, bic = len(seg), {}
+            for k in range(4, 13):
+                part = MachSplineAerodynamics(knots=k)
+                a = part.regressors(*args, mach_breakpoints(red["mach"], k - 2))
+                ys = np.column_stack(y)
+                rss = ((ys - a @ np.linalg.lstsq(a, ys, rcond=None)[0]) ** 2).sum(0)
+                bic[k] = float(n * np.log(rss / n).sum() + 3 * a.shape[1] * np.log(n))
+            res["bic_choice"] = min(bic, key=bic.get)
+    return res
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, nargs="+", default=[13, 0, 1])
     ap.add_argument("--rates", type=float, nargs="+", default=[50.0, 50.0, 50.0])
     ap.add_argument("--out", type=pathlib.Path)
+    ap.add_argument("--knot-choices", action="store_true")
     a = ap.parse_args()
+    if a.knot_choices:
+        rows = [knot_choices(s, r) for s, r in zip(a.seeds, a.rates, strict=True)]
+        for r in rows:
+            print(r)
+        if a.out:
+            a.out.write_text(json.dumps(rows, indent=1))
+        return
     results = [terms(s, r) for s, r in zip(a.seeds, a.rates, strict=True)]
     for r in results:
         print(

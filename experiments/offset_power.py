@@ -3,11 +3,12 @@ flights of the independent generator as `diagnose --vehicle pegasus` does, keep
 each score test's parts, and compare the decision's statistic and null with
 alternatives.
 
-    nice python experiments/offset_power.py fit DIR RATE:SEED[:EFFECT=VALUE][,nonoise] ...
+    nice python experiments/offset_power.py fit DIR RATE:SEED[:EFFECT=VALUE][,nonoise] ... [--knots K]
     nice python experiments/offset_power.py analyse DIR/*.npz [--replicates 4000] [--out F.json]
 
-`fit` writes `DIR/<rate>_<seed>_<effect>[_nonoise].npz` (the score test of the
-baseline fit with every candidate held). `analyse` prints, per flight and
+`fit` writes `DIR/<rate>_<seed>_<effect>[_nonoise][_knotsK].npz` (the score test
+of the baseline fit with every candidate held; `--knots`: Mach functions of the
+baseline, default 6 as `diagnose`). `analyse` prints, per flight and
 candidate: the diagnosis's statistic (coloured variance over all lags) and its
 standard error against the white-noise one (`1 / sqrt(information)`); the
 statistic with the variance from the sieve's autoregressive spectrum instead; the
@@ -47,7 +48,14 @@ FIELDS = (
 )
 
 
-def fit(out: pathlib.Path, rate: float, seed: int, effects: dict, noise: bool):
+def fit(
+    out: pathlib.Path,
+    rate: float,
+    seed: int,
+    effects: dict,
+    noise: bool,
+    knots: int | None = 6,
+):
     import jax.numpy as jnp
 
     from diffpegasus._diagnose._calibration import padded_count
@@ -57,10 +65,11 @@ def fit(out: pathlib.Path, rate: float, seed: int, effects: dict, noise: bool):
 
     tag = "_".join(f"{k}={v}" for k, v in effects.items()) or "clean"
     stem = f"{int(rate)}_{seed}_{tag}{'' if noise else '_nonoise'}".replace(":", "_")
+    stem += "" if knots == 6 else f"_knots{knots}"
     csv = out / f"{stem}.csv"
     gen.write(csv, *gen.generate(seed, rate, 30.0, effects, noise))
     t0 = time.perf_counter()
-    ff = fit_log(PegasusEntry(), str(csv))
+    ff = fit_log(PegasusEntry(knots=knots), str(csv))
     result = ff.result
     candidates = list(ff.spec.candidates)
     names = list(result.model.parameters)
@@ -203,6 +212,9 @@ def main():
     f = sub.add_parser("fit")
     f.add_argument("dir", type=pathlib.Path)
     f.add_argument("flights", nargs="+", help="RATE:SEED[:EFFECT=VALUE][,nonoise]")
+    f.add_argument(
+        "--knots", type=int, default=6, help="Mach functions of the baseline"
+    )
     a = sub.add_parser("analyse")
     a.add_argument("files", nargs="+", type=pathlib.Path)
     a.add_argument("--replicates", type=int, default=4000)
@@ -219,7 +231,7 @@ def main():
                 else:
                     name, value = item.rsplit("=", 1)
                     effects[name] = float(value)
-            fit(args.dir, float(parts[0]), int(parts[1]), effects, noise)
+            fit(args.dir, float(parts[0]), int(parts[1]), effects, noise, args.knots)
         return
     results = []
     for path in args.files:
