@@ -717,9 +717,9 @@ def _smooth_spectrum_bound(fh, hw, e, w, pm, kappa, frequencies):
     sw = jnp.sqrt(w)
     scale = sw[:, None] * sw[None, :]  # (q, q): each equation by its weight
     t_f = jnp.einsum("fq,fr->fqr", e, e.conj())
-    design = (pred * scale).reshape(-1, f * q * q)
+    design = (pred * scale[None, None, None]).reshape(-1, f * q * q)
     design = jnp.concatenate([design.real, design.imag], axis=1).T  # (rows, k m)
-    obs = (t_f * scale).reshape(-1)
+    obs = (t_f * scale[None]).reshape(-1)
     obs = jnp.concatenate([obs.real, obs.imag])
     pinv = jnp.linalg.pinv(design, rtol=1e-10)
     coef = pinv @ obs  # (k m,)
@@ -734,7 +734,7 @@ def _smooth_spectrum_bound(fh, hw, e, w, pm, kappa, frequencies):
     g = jnp.einsum("jr,ja->ar", pinv, jnp.einsum("jaa->ja", cols))  # (p, rows)
     half = f * q * q
     gc = (g[:, :half] + 1j * g[:, half:]).reshape(p, f, q, q)
-    qf = jnp.conj(gc) * scale  # Re sum_ij conj(G_ij) T_ij scale_ij = Re tr(Q T)
+    qf = jnp.conj(gc) * scale[None, None]  # Re sum_ij conj(G_ij) T_ij scale_ij = Re tr(Q T)
     qf = 0.5 * (qf.swapaxes(-1, -2) + jnp.conj(qf))  # Q with Re tr(Q T): Hermitian
     r = jnp.einsum("afij,fjk->afik", qf, s_f)
     mean = jnp.real(jnp.einsum("afii->a", r))
