@@ -678,12 +678,13 @@ def _smooth_spectrum_bound(fh, hw, e, w, pm, kappa, frequencies):
 
     linear in `S` (the hat matrix `H`'s `(I - H) S (I - H)^H` at frequency `f`,
     without taking the spectrum as flat). `S_f` is modelled as a quadratic in
-    frequency with Hermitian coefficients (white noise and differenced white
+    frequency (Bernstein form) with Hermitian coefficients (white noise and differenced white
     noise, `|1 - z|^2` per sample, span it across a band well under the Nyquist
     frequency; a first-order lag's spectrum is smooth there), and the
     coefficients are the least squares fit of that expectation to the residual
-    products `T_f = e_f e_f^H` (each equation scaled by its weight): unbiased
-    for `S` in that family, so `V(S)` is too. The bound is a linear function of
+    products `T_f = e_f e_f^H` (scaled by the local residual power): unbiased
+    for `S` in that family, so `V(S)` is too, unless a coefficient comes out
+    indefinite: it is projected on the positive semi-definite matrices. The bound is a linear function of
     the `T_f`, `V_aa = sum_f Re tr(Q_f T_f)`: Satterthwaite's degrees of
     freedom are `2 (sum_f tr(Q_f S_f))^2 / sum_fg |kappa_fg|^2 tr(Q_f S_f Q_g
     S_g)` (each `T_f` a complex Gaussian's outer product)."""
@@ -691,7 +692,10 @@ def _smooth_spectrum_bound(fh, hw, e, w, pm, kappa, frequencies):
     x = (frequencies - 0.5 * (frequencies[0] + frequencies[-1])) / jnp.maximum(
         0.5 * (frequencies[-1] - frequencies[0]), 1e-12
     )
-    prof = jnp.stack([jnp.ones_like(x), x, x * x])  # (k, f) the spectrum's shape
+    u = 0.5 * (x + 1.0)  # 0 to 1 across the band
+    # the quadratics in Bernstein form: non-negative coefficients keep the
+    # spectrum non-negative across the band
+    prof = jnp.stack([(1.0 - u) ** 2, 2.0 * u * (1.0 - u), u * u])  # (k, f)
     herm = jnp.asarray(_hermitian_basis(q))  # (m, q, q)
     a0 = jnp.einsum("fg,gqb->fqb", kappa, hw)  # sum_g kappa_fg hw_g
     ak = jnp.einsum("fg,kg,gqb->kfqb", kappa, prof, hw)  # ... times b_k(g)
@@ -714,27 +718,44 @@ def _smooth_spectrum_bound(fh, hw, e, w, pm, kappa, frequencies):
         - jnp.conj(fd).swapaxes(-1, -2)
         + jnp.einsum("fqa,kmab,frb->kmfqr", fh, vv.astype(fh.dtype), fh.conj())
     )
-    sw = jnp.sqrt(w)
-    scale = sw[:, None] * sw[None, :]  # (q, q): each equation by its weight
     t_f = jnp.einsum("fq,fr->fqr", e, e.conj())
-    design = (pred * scale[None, None, None]).reshape(-1, f * q * q)
-    design = jnp.concatenate([design.real, design.imag], axis=1).T  # (rows, k m)
-    obs = (t_f * scale[None]).reshape(-1)
-    obs = jnp.concatenate([obs.real, obs.imag])
-    pinv = jnp.linalg.pinv(design, rtol=1e-10)
-    coef = pinv @ obs  # (k m,)
+    norm = jnp.real(jnp.einsum("mqr,mqr->m", herm.conj(), herm))
+    shapes = (prof[:, None, :, None, None] * herm[None, :, None]).reshape(-1, f, q, q)
+
+    def fit(scale):
+        design = (pred * scale[None, None]).reshape(-1, f * q * q)
+        design = jnp.concatenate([design.real, design.imag], axis=1).T
+        obs = (t_f * scale).reshape(-1)
+        pinv = jnp.linalg.pinv(design, rtol=1e-10)  # (k m, rows)
+        coef = pinv @ jnp.concatenate([obs.real, obs.imag])
+        # each coefficient projected on the positive semi-definite matrices
+        # (a spectrum fitted negative somewhere would make the bound negative)
+        theta_k = jnp.einsum("km,mqr->kqr", coef.reshape(-1, herm.shape[0]), herm)
+        ev, vec = jnp.linalg.eigh(theta_k)
+        theta_k = jnp.einsum("kqs,ks,krs->kqr", vec, jnp.clip(ev, 0.0), vec.conj())
+        coef = jnp.real(jnp.einsum("mqr,kqr->km", herm.conj(), theta_k)) / norm[None]
+        return pinv, coef.reshape(-1)
+
+    # first each equation scaled by its weight; then each frequency's products
+    # by the first fit's spectrum there (generalised least squares: the
+    # products' spread grows with the power, and the loud end of the band
+    # must not set the quiet end's coefficients; weights from the whole fit
+    # hardly depend on the product they weight)
+    sw = jnp.sqrt(w)
+    _, coef = fit(jnp.broadcast_to(sw[:, None] * sw[None, :], (f, q, q)))
+    first = jnp.real(jnp.einsum("j,jfqq->fq", coef, shapes))
+    first = jnp.maximum(first, 1e-3 * jnp.max(first, axis=0)[None] + 1e-300)
+    sw = 1.0 / jnp.sqrt(first)
+    scale = sw[:, :, None] * sw[:, None, :]  # (f, q, q)
+    pinv, coef = fit(scale)
     cols = vv.reshape(-1, p, p)
     var_c = jnp.einsum("j,jaa->a", coef, cols)
-    s_f = jnp.einsum(
-        "j,jfqr->fqr",
-        coef,
-        (prof[:, None, :, None, None] * herm[None, :, None]).reshape(-1, f, q, q),
-    )
+    s_f = jnp.einsum("j,jfqr->fqr", coef, shapes)
     # V_aa = g_a . obs: back to Q_f with Re tr(Q_f T_f)
     g = jnp.einsum("jr,ja->ar", pinv, jnp.einsum("jaa->ja", cols))  # (p, rows)
     half = f * q * q
     gc = (g[:, :half] + 1j * g[:, half:]).reshape(p, f, q, q)
-    qf = jnp.conj(gc) * scale[None, None]  # Re sum_ij conj(G_ij) T_ij scale_ij = Re tr(Q T)
+    qf = jnp.conj(gc) * scale[None]  # Re sum_ij conj(G_ij) T_ij scale_ij = Re tr(Q T)
     qf = 0.5 * (qf.swapaxes(-1, -2) + jnp.conj(qf))  # Q with Re tr(Q T): Hermitian
     r = jnp.einsum("afij,fjk->afik", qf, s_f)
     mean = jnp.real(jnp.einsum("afii->a", r))
