@@ -41,10 +41,11 @@ recursive Fourier transform the state equations' two end terms (the
 differenced state's transform telescopes to its ends) are estimated with the
 parameters, and the bound is the per-frequency sandwich of the batch
 method ([`frequency_equation_error`][]) with the cross-frequency terms the finite
-transform's leakage makes (`_leakage`: `kappa_fg (T_f + T_g) / 2`, `T_f` the
-residual transforms' products), the fitted residuals' loss solved for as for least
-squares, and the band the Student-t quantile at Satterthwaite's degrees of freedom
-of that sum. With `bandwidth`, the differenced
+transform's leakage makes (`_leakage`: `kappa_fg (S_f + S_g) / 2`), the residual
+spectrum `S_f` a quadratic in frequency fitted to the residual transforms' products
+through their expectation at the estimate, `(I - H) S (I - H)^H` at each frequency
+(`_smooth_spectrum_bound`), and the band the Student-t quantile at Satterthwaite's
+degrees of freedom of that bound. With `bandwidth`, the differenced
 state equations are low-passed on both sides, so that their noise (whose power
 grows with frequency) does not swamp the band of the dynamics.
 """
@@ -629,10 +630,10 @@ class RecursiveFourier(AbstractRecursiveEstimator):
         theta, cov, known, e, _ = solve(w)
         # the transforms of the equation errors at two frequencies are
         # correlated through the leakage of the finite (or forgetting-weighted)
-        # transform: for residuals of locally flat spectrum, E[E_f E_g^H] =
-        # kappa_fg S with kappa the normalised kernel `sum_i w_i^2 exp(-2 pi j
-        # (f - g) t_i) / sum_i w_i^2` (1 on the diagonal); the cross-frequency
-        # products are estimated as kappa_fg (T_f + T_g) / 2, T_f = e_f e_f^H
+        # transform: for residuals of a spectrum smooth over the kernel's
+        # width, E[E_f E_g^H] = kappa_fg (S_f + S_g) / 2 with kappa the
+        # normalised kernel `sum_i w_i^2 exp(-2 pi j (f - g) t_i) / sum_i
+        # w_i^2` (1 on the diagonal)
         kappa = _leakage(
             jnp.asarray(self.frequencies), self.dt, self.forgetting, state.count
         )
@@ -719,7 +720,6 @@ def _smooth_spectrum_bound(fh, hw, e, w, pm, kappa, frequencies):
         + jnp.einsum("fqa,kmab,frb->kmfqr", fh, vv.astype(fh.dtype), fh.conj())
     )
     t_f = jnp.einsum("fq,fr->fqr", e, e.conj())
-    norm = jnp.real(jnp.einsum("mqr,mqr->m", herm.conj(), herm))
     shapes = (prof[:, None, :, None, None] * herm[None, :, None]).reshape(-1, f, q, q)
 
     def fit(scale):
@@ -727,14 +727,7 @@ def _smooth_spectrum_bound(fh, hw, e, w, pm, kappa, frequencies):
         design = jnp.concatenate([design.real, design.imag], axis=1).T
         obs = (t_f * scale).reshape(-1)
         pinv = jnp.linalg.pinv(design, rtol=1e-10)  # (k m, rows)
-        coef = pinv @ jnp.concatenate([obs.real, obs.imag])
-        # each coefficient projected on the positive semi-definite matrices
-        # (a spectrum fitted negative somewhere would make the bound negative)
-        theta_k = jnp.einsum("km,mqr->kqr", coef.reshape(-1, herm.shape[0]), herm)
-        ev, vec = jnp.linalg.eigh(theta_k)
-        theta_k = jnp.einsum("kqs,ks,krs->kqr", vec, jnp.clip(ev, 0.0), vec.conj())
-        coef = jnp.real(jnp.einsum("mqr,kqr->km", herm.conj(), theta_k)) / norm[None]
-        return pinv, coef.reshape(-1)
+        return pinv, pinv @ jnp.concatenate([obs.real, obs.imag])
 
     # first each equation scaled by its weight; then each frequency's products
     # by the first fit's spectrum there (generalised least squares: the
