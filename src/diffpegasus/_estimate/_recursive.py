@@ -684,8 +684,8 @@ def _smooth_spectrum_bound(fh, hw, e, w, pm, kappa, frequencies):
     frequency; a first-order lag's spectrum is smooth there), and the
     coefficients are the least squares fit of that expectation to the residual
     products `T_f = e_f e_f^H` (scaled by the local residual power): unbiased
-    for `S` in that family, so `V(S)` is too, unless a coefficient comes out
-    indefinite: it is projected on the positive semi-definite matrices. The bound is a linear function of
+    for `S` in that family, so `V(S)` is too (a bound that comes out
+    negative falls back to the white-residual one). The bound is a linear function of
     the `T_f`, `V_aa = sum_f Re tr(Q_f T_f)`: Satterthwaite's degrees of
     freedom are `2 (sum_f tr(Q_f S_f))^2 / sum_fg |kappa_fg|^2 tr(Q_f S_f Q_g
     S_g)` (each `T_f` a complex Gaussian's outer product)."""
