@@ -53,6 +53,14 @@ jax.config.update("jax_enable_x64", True)
 U0, ZQ = 45.0, -1.5
 TRUE = {"Zw": -1.2, "Zde": -4.0, "Mw": -0.06, "Mq": -2.5, "Mde": -15.0}
 NOISE = {"az": 0.05, "w": 0.02, "q": 0.002}  # 1 sigma, SI units
+UNSTABLE_U0, UNSTABLE_ZQ = 44.5695, -1.4768
+UNSTABLE = {
+    "Zw": -1.22871,
+    "Zde": -4.20491,
+    "Mw": 0.116197,
+    "Mq": -2.7067,
+    "Mde": -18.7718,
+}
 COLOUR_TIME = 0.3  # s, correlation time of the az noise
 BAND = 1.5  # Hz: the upper end of the recursive Fourier transform's frequencies
 RLS_BAND = 2.0  # Hz: least squares' low-pass of the state equations
@@ -74,14 +82,19 @@ def observe(t, x, u, p):
     return jnp.stack([p["Zw"] * w + ZQ * q + p["Zde"] * u[0], w, q])
 
 
-MODEL = dp.Model(
-    states=("w", "q"),
-    inputs=("de",),
-    outputs=("az", "w", "q"),
-    parameters={k: 0.5 * v for k, v in TRUE.items()},
-    rates=rates,
-    observe=observe,
-)
+def make_model(true):
+    """The model file, started at half the true values."""
+    return dp.Model(
+        states=("w", "q"),
+        inputs=("de",),
+        outputs=("az", "w", "q"),
+        parameters={k: 0.5 * v for k, v in true.items()},
+        rates=rates,
+        observe=observe,
+    )
+
+
+MODEL = make_model(TRUE)
 
 
 def input_signal(t):
@@ -174,6 +187,12 @@ def main():
     parser.add_argument("--rate", type=float, default=50.0)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
+        "--aircraft",
+        choices=("short-period", "unstable"),
+        default="short-period",
+        help="unstable: the unstable aircraft's short-period derivatives (Mw > 0)",
+    )
+    parser.add_argument(
         "--noise-scale", type=float, default=1.0, help="multiplies every noise level"
     )
     parser.add_argument(
@@ -183,6 +202,12 @@ def main():
         "--out", type=pathlib.Path, default=pathlib.Path("results/recursive_coverage")
     )
     args = parser.parse_args()
+    global U0, ZQ, TRUE, MODEL
+    if args.aircraft == "unstable":
+        # examples/unstable_aircraft.py: a set the bounds were not tuned on
+        U0, ZQ = UNSTABLE_U0, UNSTABLE_ZQ
+        TRUE = UNSTABLE
+        MODEL = make_model(TRUE)
     t, de, measured = simulate(
         args.flights, args.duration, args.rate, args.seed, args.noise_scale
     )
@@ -222,6 +247,7 @@ def main():
         "duration_s": args.duration,
         "rate_hz": args.rate,
         "noise_scale": args.noise_scale,
+        "aircraft": args.aircraft,
         "rls_bandwidth_hz": RLS_BAND,
         "noise": NOISE,
         "az_noise_correlation_time_s": COLOUR_TIME,
@@ -245,7 +271,8 @@ def main():
             replay_chunk(
                 batched, h[i : i + CHUNK], y[i : i + CHUNK], o[i : i + CHUNK],
                 args.out / "chunks" / (
-                    f"{label}_rate{args.rate:g}_noise{args.noise_scale:g}_"
+                    f"{label}_{args.aircraft}_{args.duration:g}s_rate{args.rate:g}_"
+                    f"noise{args.noise_scale:g}_"
                     f"seed{args.seed}_of{args.flights}_{i}.npz"
                 ),
             )

@@ -41,10 +41,11 @@ recursive Fourier transform the state equations' two end terms (the
 differenced state's transform telescopes to its ends) are estimated with the
 parameters, and the bound is the per-frequency sandwich of the batch
 method ([`frequency_equation_error`][]) with the cross-frequency terms the finite
-transform's leakage makes (`_leakage`: `kappa_fg (T_f + T_g) / 2`, `T_f` the
-residual transforms' products), the fitted residuals' loss solved for as for least
-squares, and the band the Student-t quantile at Satterthwaite's degrees of freedom
-of that sum. With `bandwidth`, the differenced
+transform's leakage makes (`_leakage`: `kappa_fg (S_f + S_g) / 2`), the residual
+spectrum `S_f` a quadratic in frequency fitted to the residual transforms' products
+through their expectation at the estimate, `(I - H) S (I - H)^H` at each frequency
+(`_smooth_spectrum_bound`), and the band the Student-t quantile at Satterthwaite's
+degrees of freedom of that bound. With `bandwidth`, the differenced
 state equations are low-passed on both sides, so that their noise (whose power
 grows with frequency) does not swamp the band of the dynamics.
 """
@@ -629,49 +630,133 @@ class RecursiveFourier(AbstractRecursiveEstimator):
         theta, cov, known, e, _ = solve(w)
         # the transforms of the equation errors at two frequencies are
         # correlated through the leakage of the finite (or forgetting-weighted)
-        # transform: for residuals of locally flat spectrum, E[E_f E_g^H] =
-        # kappa_fg S with kappa the normalised kernel `sum_i w_i^2 exp(-2 pi j
-        # (f - g) t_i) / sum_i w_i^2` (1 on the diagonal); the cross-frequency
-        # products are estimated as kappa_fg (T_f + T_g) / 2, T_f = e_f e_f^H
+        # transform: for residuals of a spectrum smooth over the kernel's
+        # width, E[E_f E_g^H] = kappa_fg (S_f + S_g) / 2 with kappa the
+        # normalised kernel `sum_i w_i^2 exp(-2 pi j (f - g) t_i) / sum_i
+        # w_i^2` (1 on the diagonal)
         kappa = _leakage(
             jnp.asarray(self.frequencies), self.dt, self.forgetting, state.count
         )
         hw = w[None, :, None] * fh  # (f, q, p)
-        ak = jnp.einsum("fg,gqb->fqb", kappa, hw)  # (f, q, p)
-        t_f = jnp.einsum("fq,fr->fqr", e, e.conj())
-        first = jnp.real(jnp.einsum("fqa,fqr,frb->ab", hw.conj(), t_f, ak))
-        middle = first + first.T
-        # the residuals are taken at the estimate, not at the truth: T_f misses
-        # about H_f V H_f^H (V the estimate's covariance), so the middle misses
-        # K(V), linear in V; `V = P (M + K(V)) P` is solved for `V` as least
-        # squares' `_fitted_sandwich` does for its blocks
-        x_f = jnp.einsum("fqa,fqc->fac", hw.conj(), fh)  # (f, p, p)
-        y_f = jnp.einsum("frd,frb->fdb", fh.conj(), ak)  # (f, p, p)
-        k1 = jnp.real(jnp.einsum("fac,fdb->abcd", x_f, y_f))
-        k_op = (k1 + k1.transpose(1, 0, 2, 3)).reshape(p * p, p * p)
         pm = jnp.where(jnp.outer(known, known), cov, 0.0)
-        a_op = jnp.eye(p * p) - jnp.kron(pm, pm) @ k_op
-        cov_c = jnp.linalg.solve(a_op, (pm @ middle @ pm).reshape(p * p)).reshape(p, p)
         var = jnp.where(known, jnp.clip(jnp.diag(cov), 0.0), jnp.inf)
-        var_c = jnp.diag(cov_c)
-        var_c = jnp.where(known & (var_c > 0), var_c, var)
-        # degrees of freedom (Satterthwaite): the bound is a sum over
-        # frequencies of complex scores (two real degrees of freedom each),
-        # frequency f contributing about s_f = c^T C_f c (C_f = 2 H_f^H W H_f,
-        # c the parameter's row of P) and correlated with g by |kappa_fg|^2
-        c = 2.0 * jnp.einsum("q,fqa,fqb->fab", w, fh.conj(), fh)
-        share = jnp.real(jnp.einsum("ba,fbc,ca->fa", pm, c, pm))  # (f, p)
-        dof = (
-            2.0
-            * jnp.sum(share, 0) ** 2
-            / jnp.maximum(
-                jnp.einsum("fa,fg,ga->a", share, jnp.abs(kappa) ** 2, share), 1e-300
-            )
+        var_c, dof = _smooth_spectrum_bound(
+            fh, hw, e, w, pm, kappa, jnp.asarray(self.frequencies)
         )
-        # the bound is a sum over about `dof` independent frequencies' scores:
-        # the band is the Student-t quantile at that dof (measured within a
-        # factor 2 of the bound's spread over 200 simulated flights)
+        var_c = jnp.where(known & (var_c > 0), var_c, var)
         return _finish(theta[:p0], var[:p0], var_c[:p0], dof[:p0], student=True)
+
+
+def _hermitian_basis(q):
+    """`(q * q, q, q)` complex: a real basis of the Hermitian `q x q` matrices."""
+    out = []
+    for i in range(q):
+        for j in range(i, q):
+            m = np.zeros((q, q), complex)
+            if i == j:
+                m[i, i] = 1.0
+                out.append(m)
+            else:
+                m[i, j] = m[j, i] = 1.0
+                out.append(m.copy())
+                m[i, j], m[j, i] = 1j, -1j
+                out.append(m)
+    return np.stack(out)
+
+
+def _smooth_spectrum_bound(fh, hw, e, w, pm, kappa, frequencies):
+    """The variance `(p,)` of the estimate and its Satterthwaite degrees of freedom
+    `(p,)` from the residual spectrum estimated unbiased at the estimate.
+
+    The equation errors' transforms `E_f` `(q,)` have the spectral covariance
+    `S_f` `(q, q)`, across frequencies `E[E_f E_g^H] = kappa_fg (S_f + S_g) / 2`;
+    the estimate's error is `delta = P 2 Re sum_g hw_g^H E_g`, its covariance
+    `V(S) = P M(S) P`, `M(S) = Re sum_fg kappa_fg hw_f^H (S_f + S_g) hw_g`. The
+    residuals at the estimate, `e_f = E_f - fh_f delta`, have
+
+        E[e_f e_f^H] = S_f - fh_f D_f - D_f^H fh_f^H + fh_f V(S) fh_f^H,
+        D_f = E[delta E_f^H] = P sum_g kappa_gf hw_g^H (S_g + S_f) / 2,
+
+    linear in `S` (the hat matrix `H`'s `(I - H) S (I - H)^H` at frequency `f`,
+    without taking the spectrum as flat). `S_f` is modelled as a quadratic in
+    frequency (Bernstein form) with Hermitian coefficients (white noise and differenced white
+    noise, `|1 - z|^2` per sample, span it across a band well under the Nyquist
+    frequency; a first-order lag's spectrum is smooth there), and the
+    coefficients are the least squares fit of that expectation to the residual
+    products `T_f = e_f e_f^H` (scaled by the local residual power): unbiased
+    for `S` in that family, so `V(S)` is too (a bound that comes out
+    negative falls back to the white-residual one). The bound is a linear function of
+    the `T_f`, `V_aa = sum_f Re tr(Q_f T_f)`: Satterthwaite's degrees of
+    freedom are `2 (sum_f tr(Q_f S_f))^2 / sum_fg |kappa_fg|^2 tr(Q_f S_f Q_g
+    S_g)` (each `T_f` a complex Gaussian's outer product)."""
+    f, q, p = fh.shape
+    x = (frequencies - 0.5 * (frequencies[0] + frequencies[-1])) / jnp.maximum(
+        0.5 * (frequencies[-1] - frequencies[0]), 1e-12
+    )
+    u = 0.5 * (x + 1.0)  # 0 to 1 across the band
+    # the quadratics in Bernstein form: non-negative coefficients keep the
+    # spectrum non-negative across the band
+    prof = jnp.stack([(1.0 - u) ** 2, 2.0 * u * (1.0 - u), u * u])  # (k, f)
+    herm = jnp.asarray(_hermitian_basis(q))  # (m, q, q)
+    a0 = jnp.einsum("fg,gqb->fqb", kappa, hw)  # sum_g kappa_fg hw_g
+    ak = jnp.einsum("fg,kg,gqb->kfqb", kappa, prof, hw)  # ... times b_k(g)
+    # M for S_f = b_k(f) E_m, (k, m, p, p)
+    mm = jnp.real(
+        jnp.einsum("kf,fqa,mqr,frb->kmab", prof, hw.conj(), herm, a0)
+        + jnp.einsum("fqa,mqr,kfrb->kmab", hw.conj(), herm, ak)
+    )
+    vv = jnp.einsum("ab,kmbc,cd->kmad", pm, mm, pm)
+    # D_f = P (ak_f^H + b_k(f) a0_f^H) E_m / 2, (k, m, f, p, q)
+    lead = (
+        jnp.conj(ak).transpose(0, 1, 3, 2)
+        + prof[:, :, None, None] * jnp.conj(a0).transpose(0, 2, 1)[None]
+    )  # (k, f, p, q)
+    d = 0.5 * jnp.einsum("ab,kfbq,mqr->kmfar", pm, lead, herm)
+    fd = jnp.einsum("fqa,kmfar->kmfqr", fh, d)
+    pred = (
+        prof[:, None, :, None, None] * herm[None, :, None]
+        - fd
+        - jnp.conj(fd).swapaxes(-1, -2)
+        + jnp.einsum("fqa,kmab,frb->kmfqr", fh, vv.astype(fh.dtype), fh.conj())
+    )
+    t_f = jnp.einsum("fq,fr->fqr", e, e.conj())
+    shapes = (prof[:, None, :, None, None] * herm[None, :, None]).reshape(-1, f, q, q)
+
+    def fit(scale):
+        design = (pred * scale[None, None]).reshape(-1, f * q * q)
+        design = jnp.concatenate([design.real, design.imag], axis=1).T
+        obs = (t_f * scale).reshape(-1)
+        pinv = jnp.linalg.pinv(design, rtol=1e-10)  # (k m, rows)
+        return pinv, pinv @ jnp.concatenate([obs.real, obs.imag])
+
+    # first each equation scaled by its weight; then each frequency's products
+    # by the first fit's spectrum there (generalised least squares: the
+    # products' spread grows with the power, and the loud end of the band
+    # must not set the quiet end's coefficients; weights from the whole fit
+    # hardly depend on the product they weight)
+    sw = jnp.sqrt(w)
+    _, coef = fit(jnp.broadcast_to(sw[:, None] * sw[None, :], (f, q, q)))
+    first = jnp.real(jnp.einsum("j,jfqq->fq", coef, shapes))
+    first = jnp.maximum(first, 1e-3 * jnp.max(first, axis=0)[None] + 1e-300)
+    sw = 1.0 / jnp.sqrt(first)
+    scale = sw[:, :, None] * sw[:, None, :]  # (f, q, q)
+    pinv, coef = fit(scale)
+    cols = vv.reshape(-1, p, p)
+    var_c = jnp.einsum("j,jaa->a", coef, cols)
+    s_f = jnp.einsum("j,jfqr->fqr", coef, shapes)
+    # V_aa = g_a . obs: back to Q_f with Re tr(Q_f T_f)
+    g = jnp.einsum("jr,ja->ar", pinv, jnp.einsum("jaa->ja", cols))  # (p, rows)
+    half = f * q * q
+    gc = (g[:, :half] + 1j * g[:, half:]).reshape(p, f, q, q)
+    qf = jnp.conj(gc) * scale[None]  # Re sum_ij conj(G_ij) T_ij scale_ij = Re tr(Q T)
+    qf = 0.5 * (qf.swapaxes(-1, -2) + jnp.conj(qf))  # Q with Re tr(Q T): Hermitian
+    r = jnp.einsum("afij,fjk->afik", qf, s_f)
+    mean = jnp.real(jnp.einsum("afii->a", r))
+    spread = jnp.real(jnp.einsum("fg,afij,agji->a", jnp.abs(kappa) ** 2, r, r))
+    dof = jnp.where(
+        (mean > 0) & (spread > 0), 2.0 * mean**2 / jnp.maximum(spread, 1e-300), 1.0
+    )
+    return var_c, dof
 
 
 def _leakage(frequencies, dt, forgetting, count):
