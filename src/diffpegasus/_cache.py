@@ -203,24 +203,31 @@ def kept_call(fn, static: dict, dynamic: dict):
         key = _call_key(fn, static, dynamic)
     except (pickle.PicklingError, TypeError, AttributeError, ValueError):
         return direct()
-    if key in _MEMO:
-        return _call(_MEMO[key], leaves)
-    path = _ACTIVE / "programs" / f"{key}.bin"
-    with _one_at_a_time(path):
-        entry = _load_kept(path) or _compile_and_keep(fn, static, treedef, leaves, path)
-        if entry is not None:
-            _MEMO[key] = entry
-            # the first call compiles, or reads JAX's persistent cache, still
-            # holding the lock: a process waiting for it then reads both
-            return _call(entry, leaves)
-    return direct()
-
-
-def _call(entry, leaves):
-    import jax
-
-    call, skeleton = entry
+    if key not in _MEMO:
+        path = _ACTIVE / "programs" / f"{key}.bin"
+        with _one_at_a_time(path):
+            entry = _load_kept(path) or _compile_and_keep(
+                fn, static, treedef, leaves, path
+            )
+            if entry is not None:
+                # compiled (or read from JAX's persistent cache) holding the lock,
+                # so that a process waiting for it reads both; run once released
+                _MEMO[key] = _compiled(entry, leaves)
+        if key not in _MEMO:
+            return direct()
+    call, skeleton = _MEMO[key]
     return jax.tree.unflatten(jax.tree.structure(skeleton), call(*leaves))
+
+
+def _compiled(entry, leaves):
+    """`entry`, the kept program's jitted call, compiled ahead for the arguments
+    `leaves`: its first call runs that executable (JAX's own caches hold it, so
+    `jax.clear_caches` still frees it)."""
+    try:
+        entry[0].lower(*leaves).compile()
+    except Exception:  # compiled by its first call instead
+        pass
+    return entry
 
 
 @contextlib.contextmanager
