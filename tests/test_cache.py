@@ -6,6 +6,7 @@ import os
 import pickle
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -174,3 +175,51 @@ def test_kept_call_falls_back_to_a_direct_call(tmp_path, monkeypatch):
     # a static argument naming code outside the package cannot be keyed
     with pytest.raises(pickle.PicklingError):
         _cache._call_key(lm_step, {"scale": mine}, {"h": h})
+
+
+def test_processes_started_together_trace_a_kept_program_once(tmp_path):
+    """Two processes that need the same kept program at the same moment (two test
+    workers, two campaign processes): one traces and compiles it while the other
+    waits, then reads it; both get the same numbers. Each process signals that it
+    is ready and both call `kept_call` when the test says go, so without the wait
+    both would trace it."""
+    env = _env(tmp_path)
+    barrier = (
+        "import pathlib, time\n"
+        "pathlib.Path(sys.argv[1]).touch()\n"
+        "while not pathlib.Path(sys.argv[2]).exists():\n"
+        "    time.sleep(0.002)\n"
+        "via = cache.kept_call("
+    )
+    script = EXPORTED.replace("via = cache.kept_call(", barrier, 1)
+    go = tmp_path / "go"
+    ready = [tmp_path / f"ready{i}" for i in range(2)]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", script, str(r), str(go)],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for r in ready
+    ]
+    try:
+        for _ in range(60_000):  # both imported and waiting (at most a minute)
+            if all(r.exists() for r in ready) or any(
+                p.poll() is not None for p in procs
+            ):
+                break
+            time.sleep(0.001)
+        go.touch()
+        outs = [p.communicate(timeout=120) for p in procs]
+    finally:
+        for p in procs:
+            p.kill()
+    for p, (_, err) in zip(procs, outs, strict=True):
+        assert p.returncode == 0, err
+    results = [json.loads(out.strip().splitlines()[-1]) for out, _ in outs]
+    assert sorted(r["traced_flat"] for r in results) == [0, 1]
+    assert results[0]["via"] == results[1]["via"]
+    folder = tmp_path / "xdg" / "diffpegasus" / "jax" / "programs"
+    assert len(list(folder.glob("*.bin"))) == 1

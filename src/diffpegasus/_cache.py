@@ -16,9 +16,13 @@ optimistix when `throw=True`) are host callbacks under the default
 never cached either (only XLA's compilation is) -- except through
 [`kept_call`][]: the engine's solve of `fit` is kept as its exported (traced)
 program (`jax.export`, in `programs/` of the cache folder), so that a later process
-skips its tracing as well (on the HFB-320 fit, 2-3 s of a 5 s command).
+skips its tracing as well (on the HFB-320 fit, 2-3 s of a 5 s command), and so is a
+diagnosis's score test. Two processes that need one kept program at the same time
+(two test workers, two campaign processes) do not both compile it: one traces and
+compiles it while the other waits on a lock file beside it, then reads both.
 """
 
+import contextlib
 import hashlib
 import os
 import pathlib
@@ -201,14 +205,53 @@ def kept_call(fn, static: dict, dynamic: dict):
         return direct()
     if key not in _MEMO:
         path = _ACTIVE / "programs" / f"{key}.bin"
-        entry = _load_kept(path)
-        if entry is None:
-            entry = _compile_and_keep(fn, static, treedef, leaves, path)
-            if entry is None:
-                return direct()
-        _MEMO[key] = entry
+        with _one_at_a_time(path):
+            entry = _load_kept(path) or _compile_and_keep(
+                fn, static, treedef, leaves, path
+            )
+            if entry is not None:
+                # compiled (or read from JAX's persistent cache) holding the lock,
+                # so that a process waiting for it reads both; run once released
+                _MEMO[key] = _compiled(entry, leaves)
+        if key not in _MEMO:
+            return direct()
     call, skeleton = _MEMO[key]
     return jax.tree.unflatten(jax.tree.structure(skeleton), call(*leaves))
+
+
+def _compiled(entry, leaves):
+    """`entry`, the kept program's jitted call, compiled ahead for the arguments
+    `leaves`: its first call runs that executable (JAX's own caches hold it, so
+    `jax.clear_caches` still frees it)."""
+    try:
+        entry[0].lower(*leaves).compile()
+    except Exception:  # compiled by its first call instead
+        pass
+    return entry
+
+
+@contextlib.contextmanager
+def _one_at_a_time(path: pathlib.Path):
+    """Held while one process reads or traces, keeps and compiles the program at
+    `path`: another process that needs the same program meanwhile (two test
+    workers, two campaign processes started together) waits, then reads the kept
+    program and the compiled one instead of compiling it too. The lock is the
+    operating system's (`flock` on a file beside the program), released when its
+    holder ends however it ends; where there is none, no process waits."""
+    try:
+        import fcntl
+
+        path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
+        lock = open(path.with_suffix(".lock"), "a")  # noqa: SIM115
+    except (ImportError, OSError):
+        yield
+        return
+    with lock:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+        except OSError:
+            pass
+        yield
 
 
 def _load_kept(path: pathlib.Path):

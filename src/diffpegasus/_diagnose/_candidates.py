@@ -5,9 +5,9 @@ parameter at an output-error fit of any model, ranked by the predicted fall of d
 from collections.abc import Mapping, Sequence
 
 import equinox as eqx
-import jax.numpy as jnp
 import numpy as np
 
+from .._cache import kept_call
 from .._estimate._fit import Fit, fit
 from .._estimate._score import score
 from .._model import Model, Record
@@ -56,15 +56,18 @@ def score_candidates(
     # more or fewer share one compiled program; each candidate's numbers are its
     # own column's, the padding is cut off
     padded = np.concatenate([idx, np.full(padded_count(k) - k, idx[0])])
-    st = score(
-        model.structure(),
-        result.layout,
-        jnp.asarray(result.z),
-        jnp.asarray(result.R),
-        jnp.asarray(result.free),
-        jnp.asarray(padded),
-        nx=len(model.states),
-        p=len(names),
+    # through the cache's kept programs, as the fit's solve: a later process skips
+    # its tracing, and one started at the same time waits for this one's compilation
+    st = kept_call(
+        score,
+        {"model": model.structure(), "nx": len(model.states), "p": len(names)},
+        {
+            "layout": result.layout,
+            "z": np.asarray(result.z),
+            "r": np.asarray(result.R),
+            "free": np.asarray(result.free),
+            "candidates": padded,
+        },
     )
     st = eqx.tree_at(
         lambda t: (
