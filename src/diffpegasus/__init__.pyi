@@ -52,6 +52,9 @@ from ._estimate._fourier import (
 from ._estimate._frequency import (
     FrequencyFit as FrequencyFit,
 )
+from ._estimate._gust import (
+    Gust as Gust,
+)
 from ._estimate._methods import (
     EquationError as EquationError,
     FilterError as FilterError,

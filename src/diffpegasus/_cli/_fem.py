@@ -256,6 +256,7 @@ def process_noise_diagnosis(spec: ModelSpec, result, ranking, report: dict, name
             tuple(spec.gust),
             # a model without the altitude state has no climb rate to keep inertial
             kinematic=tuple(s for s in spec.gust_kinematic if s in spec.model.states),
+            pitch_rate=spec.gust_pitch_rate,
         )
     )
     fem, new, message = process_noise_candidate(

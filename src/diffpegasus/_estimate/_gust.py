@@ -17,9 +17,15 @@ them. The correlation time `tau` (s) is one model parameter, estimated by the
 filter-error fit as `ln tau` (so it stays positive); the intensities `F_s`
 (state units / sqrt(s)) are process-noise intensities like the white ones.
 `x` is the inertial state: the rates of the states a gust names `kinematic`
-(the altitude's climb rate) are evaluated at `x` itself; the conversion of the
-body accelerations into airspeed and angle-of-attack rates at the air's state
-is an approximation of second order in the gust.
+(the altitude's climb rate) are evaluated at `x` itself. The model's rates at
+the air's state are those of the air-relative velocity; the inertial velocity's
+differ by the transport of the wind through the pitching body axes: with
+`pitch_rate` named (the gust's states then airspeed and angle of attack, in that
+order) the body accelerations at the air's state get `-omega x W` (`W` the wind,
+inertial minus air-relative velocity, in body axes) and are converted into
+airspeed and angle-of-attack rates at the inertial velocity. Without it the
+rates are the air's: the airspeed rate is off by about `(q - alpha') W_w`
+(m/s^2), first order in the gust and the flight path's turn rate.
 """
 
 import functools
@@ -40,12 +46,17 @@ class Gust(eqx.Module):
     e.g. `("V", "alpha")`), sharing one correlation time whose start is `tau`
     (s, positive). `kinematic`: states whose rates are inertial kinematics (e.g.
     the altitude, `h' = V sin(theta - alpha)` of the inertial velocity): their
-    rates are evaluated at the inertial state `x`, not at the air's. A strategy
-    of [`FilterError`][] and of the diagnosis's process-noise candidate."""
+    rates are evaluated at the inertial state `x`, not at the air's.
+    `pitch_rate`: the pitch-rate state (rad/s); when named, `states` are the
+    airspeed (m/s) and the angle of attack (rad), in that order, and the
+    airspeed and angle-of-attack rates are the inertial velocity's (the wind's
+    transport through the pitching body axes added). A strategy of
+    [`FilterError`][] and of the diagnosis's process-noise candidate."""
 
     states: tuple[str, ...] = eqx.field(static=True)
     tau: float = eqx.field(static=True, default=1.0)
     kinematic: tuple[str, ...] = eqx.field(static=True, default=())
+    pitch_rate: str | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         if not self.states:
@@ -55,6 +66,11 @@ class Gust(eqx.Module):
         if not self.tau > 0:
             raise ValueError(
                 f"the gust's correlation time must be positive: {self.tau}"
+            )
+        if self.pitch_rate is not None and len(self.states) != 2:
+            raise ValueError(
+                "a gust with a pitch rate shifts two states, the airspeed and the "
+                f"angle of attack (in that order): {self.states}"
             )
 
     @property
@@ -69,7 +85,8 @@ def with_gust(model: Model, gust: Gust) -> Model:
     its parameters (start `ln gust.tau`); its rates and outputs at the air's
     state `x + E g`. Cached: one augmented model (and one compilation) per model
     and gust."""
-    unknown = [s for s in (*gust.states, *gust.kinematic) if s not in model.states]
+    named = (*gust.states, *gust.kinematic, *filter(None, [gust.pitch_rate]))
+    unknown = [s for s in named if s not in model.states]
     if unknown:
         raise ValueError(
             f"gust on {unknown}: not model states ({', '.join(model.states)})"
@@ -87,9 +104,13 @@ def with_gust(model: Model, gust: Gust) -> Model:
         return {k: p[k] for k in own}
 
     kin = np.array([model.states.index(s) for s in gust.kinematic], int)
+    iq = None if gust.pitch_rate is None else model.states.index(gust.pitch_rate)
 
     def rates(t, x, u, p):
-        base = jnp.asarray(model.rates(t, air(x), u, mine(p)), float).reshape(-1)
+        xa = air(x)
+        base = jnp.asarray(model.rates(t, xa, u, mine(p)), float).reshape(-1)
+        if gust.pitch_rate is not None:
+            base = base.at[idx].set(_inertial(base[idx], x[idx], xa[idx], x[iq]))
         if len(kin):
             inertial = jnp.asarray(model.rates(t, x[:n], u, mine(p)), float)
             base = base.at[kin].set(inertial.reshape(-1)[kin])
@@ -116,3 +137,22 @@ def with_gust(model: Model, gust: Gust) -> Model:
         delays=delays,
         state_scale=scale,
     )
+
+
+def _inertial(rates_air, inertial, air, q):
+    """The airspeed and angle-of-attack rates `(V', alpha')` of the inertial
+    velocity `inertial = (V, alpha)` from the model's rates `rates_air` at the
+    air-relative velocity `air = (V_a, alpha_a)`, the body pitching at `q`
+    (rad/s) through a wind fixed in the earth frame: body axes x forward, z
+    down, `u' = X/m - q w - g sin(theta)`, `w' = Z/m + q u + g cos(theta)`, so
+    the inertial velocity's body rates are the air's plus `(-q W_w, q W_u)`."""
+    va, aa = air
+    dva, daa = rates_air
+    ua, wa = va * jnp.cos(aa), va * jnp.sin(aa)
+    dua = dva * jnp.cos(aa) - va * jnp.sin(aa) * daa
+    dwa = dva * jnp.sin(aa) + va * jnp.cos(aa) * daa
+    v, a = inertial
+    uu, ww = v * jnp.cos(a), v * jnp.sin(a)
+    du = dua - q * (ww - wa)
+    dw = dwa + q * (uu - ua)
+    return jnp.stack([(uu * du + ww * dw) / v, (uu * dw - ww * du) / v**2])

@@ -57,6 +57,9 @@ class ModelSpec:
     gust: tuple[str, ...] | None = None
     # the states whose rates are inertial kinematics under a gust (e.g. ("h",))
     gust_kinematic: tuple[str, ...] = ()
+    # the pitch-rate state the body axes turn at under a gust on (airspeed,
+    # angle of attack): the wind's transport enters the inertial rates
+    gust_pitch_rate: str | None = None
     # what the entry chose from the data (JSON-ready, e.g. the baseline's
     # resolution), reported by the diagnosis
     notes: dict | None = None

@@ -307,6 +307,7 @@ class PegasusEntry(AbstractVehicleEntry):
             process_noise=PROCESS_NOISE,
             gust=GUST,
             gust_kinematic=("h",),
+            gust_pitch_rate="q",
             notes=notes,
         )
         return spec, records
