@@ -694,8 +694,9 @@ def _smooth_spectrum_bound(fh, hw, e, w, pm, kappa, frequencies):
         0.5 * (frequencies[-1] - frequencies[0]), 1e-12
     )
     u = 0.5 * (x + 1.0)  # 0 to 1 across the band
-    # the quadratics in Bernstein form: non-negative coefficients keep the
-    # spectrum non-negative across the band
+    # the quadratics in Bernstein form (non-negative coefficients would keep the
+    # spectrum non-negative across the band; the fit does not impose them, and a
+    # negative bound falls back to the white-residual one)
     prof = jnp.stack([(1.0 - u) ** 2, 2.0 * u * (1.0 - u), u * u])  # (k, f)
     herm = jnp.asarray(_hermitian_basis(q))  # (m, q, q)
     a0 = jnp.einsum("fg,gqb->fqb", kappa, hw)  # sum_g kappa_fg hw_g
