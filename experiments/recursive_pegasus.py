@@ -42,7 +42,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import diffpegasus as dp  # noqa: E402
-from diffpegasus._estimate._recursive import forgetting_for  # noqa: E402
+from diffpegasus._estimate._recursive import forgetting_for, Regression  # noqa: E402
 
 
 IGNITION = 5.0  # s: before it the elevator does not move and nothing is identifiable
@@ -56,13 +56,14 @@ def memory_view(label, reg, t, lam, freqs, truth9):
     theta'`), and the estimand `(n, 9)`: its estimate from the noise-free
     regressands `y_i = h_i theta_i` of the truth `truth9` `(n, 9)` (the weighted
     average of the truth over the memory; see the module docstring)."""
-    h = np.asarray(reg.h)  # (n, 3, 9), each equation on its own three columns
-    n = h.shape[0]
+    h = np.asarray(reg.h)  # (n, 3, p), each equation on its own p / 3 columns
+    n, _, p = h.shape
+    m = p // 3
     tt = t - t[0]
-    amat = np.zeros((n, 9, 9))
-    target = np.zeros((n, 9))
+    amat = np.zeros((n, p, p))
+    target = np.zeros((n, p))
     for eq in range(3):
-        cols = slice(3 * eq, 3 * eq + 3)
+        cols = slice(m * eq, m * eq + m)
         r = h[:, eq, cols]  # (n, 3)
         yt = np.einsum("ka,ka->k", r, truth9[:, cols])
         if label == "rls":
@@ -71,8 +72,8 @@ def memory_view(label, reg, t, lam, freqs, truth9):
             norm, timed = low(rr), low(rr * tt[:, None, None])
             rhs = low(r * yt[:, None])
         else:
-            norm, timed = np.zeros((n, 3, 3)), np.zeros((n, 3, 3))
-            rhs = np.zeros((n, 3))
+            norm, timed = np.zeros((n, m, m)), np.zeros((n, m, m))
+            rhs = np.zeros((n, m))
             for f in freqs:
                 rot = lam * np.exp(-2j * np.pi * f * (t[1] - t[0]))
                 low = lambda x, rot=rot: scipy.signal.lfilter(  # noqa: E731
@@ -83,7 +84,7 @@ def memory_view(label, reg, t, lam, freqs, truth9):
                 timed += np.real(np.einsum("ka,kb->kab", x.conj(), xt))
                 rhs += np.real(x.conj() * xy[:, None])
         ridge = (1e-12 * np.trace(norm, axis1=1, axis2=2) + 1e-300)[:, None, None]
-        norm = norm + ridge * np.eye(3)
+        norm = norm + ridge * np.eye(m)
         amat[:, cols, cols] = tt[:, None, None] * np.eye(3) - np.linalg.solve(
             norm, timed
         )
@@ -91,19 +92,134 @@ def memory_view(label, reg, t, lam, freqs, truth9):
     return amat, target
 
 
+REPORT_RATIOS = (1.5, 2.0, 4.0)  # lag over memory up to which a band is reported
+BASELINES = 2.0 ** np.arange(7)  # the drift's baselines, memories (1 to 64)
+
+
+def weighted_slope(t, x, lam):
+    """The slope `(n, ...)` of `x` against `t`, exponentially weighted
+    (`lam` per sample), causal: `cov_w(t, x) / var_w(t)`."""
+    tc = (t - t.mean()).reshape((-1,) + (1,) * (x.ndim - 1))
+    filt = lambda v: scipy.signal.lfilter([1.0], [1.0, -lam], v, axis=0)  # noqa: E731
+    sw, st_, stt = filt(np.ones_like(tc)), filt(tc), filt(tc**2)
+    sx, stx = filt(x), filt(tc * x)
+    return (sw * stx - st_ * sx) / np.maximum(sw * stt - st_**2, 1e-300)
+
+
+def long_baseline_bias(t, theta, amat, memory):
+    """The lag's bias `(n, p)`, `-A theta'`, with the drift `theta'` the slope
+    of the estimates over a baseline as long as each parameter's own lag
+    `A_aa` (the span its estimate averages; at least the memory): per row `a`
+    the slopes of every estimate over the baseline of the ladder
+    `memory * BASELINES` nearest above `A_aa`."""
+    dt = t[1] - t[0]
+    slopes = np.stack(
+        [weighted_slope(t, theta, np.exp(-dt / (b * memory))) for b in BASELINES]
+    )  # (baselines, n, p)
+    lag = np.einsum("kaa->ka", amat)
+    pick = np.clip(
+        np.ceil(np.log2(np.maximum(lag / memory, 1.0))), 0, len(BASELINES) - 1
+    ).astype(int)  # (n, p)
+    n, p = lag.shape
+    # row a of A against the slopes of every parameter over row a's baseline
+    chosen = slopes[pick, np.arange(n)[:, None]]  # (n, p_rows, p_cols)
+    return -np.einsum("kab,kab->ka", amat, chosen)
+
+
+def with_drifting_intercepts(reg, t):
+    """The regression with each equation's intercept drifting linearly in
+    time: `[1, t - t0, alpha, de]` per equation (twelve parameters; the drift
+    rates named `CL0t`, `CD0t`, `CM0t`, 1/s)."""
+    h = np.asarray(reg.h)
+    n = h.shape[0]
+    out = np.zeros((n, 3, 12))
+    names = []
+    for eq, c in enumerate("LDM"):
+        out[:, eq, 4 * eq] = h[:, eq, 3 * eq]
+        out[:, eq, 4 * eq + 1] = (t - t[0]) * h[:, eq, 3 * eq]
+        out[:, eq, 4 * eq + 2 : 4 * eq + 4] = h[:, eq, 3 * eq + 1 : 3 * eq + 3]
+        names += [f"C{c}0", f"C{c}0t", f"C{c}a", f"C{c}de"]
+    return Regression(
+        h=out,
+        y=reg.y,
+        o=reg.o,
+        derivative=reg.derivative,
+        equations=reg.equations,
+        parameters=tuple(names),
+        index=tuple(range(12)),
+    )
+
+
+def independent_flight(seed, duration):
+    """A flight of the independent generator (tests/independent_generator.py:
+    no diffpegasus code, its own aerodynamic table non-linear in alpha with an
+    alpha-elevator cross term): `(t, channels, s_ref, c_ref, truth (n, 6))`, the
+    truth the local derivatives (1/rad) of its coefficients at the noise-free
+    alpha, elevator and Mach number, by central differences."""
+    import sys
+
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
+    from tests import independent_generator as ig
+
+    channels, meta = ig.generate(seed, 1000.0, duration)
+    clean, _ = ig.generate(seed, 1000.0, duration, noise=False)
+    a, de, mach = clean["alpha"], clean["de"], clean["mach"]
+    step = 1e-6
+    up_a, dn_a = (
+        ig.coefficients(a + step, de, mach),
+        ig.coefficients(a - step, de, mach),
+    )
+    up_e, dn_e = (
+        ig.coefficients(a, de + step, mach),
+        ig.coefficients(a, de - step, mach),
+    )
+    truth = []
+    for k in range(3):  # CL, CD, CM: alpha then elevator
+        truth += [(up_a[k] - dn_a[k]) / (2 * step), (up_e[k] - dn_e[k]) / (2 * step)]
+    return channels["t"], channels, meta["S_ref"], meta["c_ref"], np.column_stack(truth)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--memory", type=float, default=1.0, help="s")
     parser.add_argument(
+        "--generator",
+        choices=("package", "independent"),
+        default="package",
+        help="the package's simulator (80 s ascent) or the independent generator",
+    )
+    parser.add_argument(
+        "--duration", type=float, default=30.0, help="s (independent generator)"
+    )
+    parser.add_argument(
+        "--intercept-drift",
+        action="store_true",
+        help="each intercept drifts linearly in time (a column t - t0 per equation)",
+    )
+    parser.add_argument(
+        "--cache", type=pathlib.Path, default=None, help="keep the replays here"
+    )
+    parser.add_argument(
         "--out", type=pathlib.Path, default=pathlib.Path("results/recursive_pegasus")
     )
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    flight = dp.pegasus.simulate(dp.pegasus.PegasusConfig(), jax.random.key(args.seed))
-    log = dp.pegasus.flight_to_log(flight, {"seed": args.seed})
-    dt = 1.0 / log.sample_rate
-    reg = dp.pegasus.coefficient_regression(log.channels, log.s_ref, log.c_ref)
+    if args.generator == "package":
+        flight = dp.pegasus.simulate(
+            dp.pegasus.PegasusConfig(), jax.random.key(args.seed)
+        )
+        log = dp.pegasus.flight_to_log(flight, {"seed": args.seed})
+        channels, s_ref, c_ref = log.channels, log.s_ref, log.c_ref
+        t = np.asarray(log.t)
+        truth = np.column_stack([np.asarray(log[f"true_{n}"]) for n in DERIVATIVES])
+    else:
+        t, channels, s_ref, c_ref, truth = independent_flight(args.seed, args.duration)
+        log = None
+    dt = float(t[1] - t[0])
+    reg = dp.pegasus.coefficient_regression(channels, s_ref, c_ref)
+    if args.intercept_drift:
+        reg = with_drifting_intercepts(reg, t)
     lam = forgetting_for(args.memory, dt)
     # the Fourier estimator's frequencies: what the memory resolves (1 / memory
     # apart) up to the elevator's bandwidth (5 Hz, well under Nyquist)
@@ -117,47 +233,60 @@ def main():
             frequencies=freqs, forgetting=lam, derivative=reg.derivative, dt=dt
         ),
     }
-    t = np.asarray(log.t)
-    truth = np.column_stack([np.asarray(log[f"true_{n}"]) for n in DERIVATIVES])
     cols = [reg.parameters.index(n) for n in DERIVATIVES]
     after = t >= IGNITION
-    lse = dp.pegasus.estimate_lse(log)
-    lse_mid = 0.5 * (np.asarray(lse.window_start) + np.asarray(lse.window_end))
-    lse_vals = np.asarray(lse.values)
-    lse_ok = np.asarray(lse.valid) & (lse_mid >= IGNITION)
-    lse_truth = np.asarray(lse.truth)
     summary = {
+        "generator": args.generator,
         "seed": args.seed,
         "memory_s": args.memory,
         "forgetting": lam,
-        "sample_rate_hz": log.sample_rate,
+        "sample_rate_hz": 1.0 / dt,
         "rft_frequencies_hz": [freqs[0], freqs[-1], step],
         "from_s": IGNITION,
         "units": "1/deg",
-        "lse_0.5s": {
+        "methods": {},
+    }
+    if log is not None:
+        lse = dp.pegasus.estimate_lse(log)
+        lse_mid = 0.5 * (np.asarray(lse.window_start) + np.asarray(lse.window_end))
+        lse_vals = np.asarray(lse.values)
+        lse_ok = np.asarray(lse.valid) & (lse_mid >= IGNITION)
+        lse_truth = np.asarray(lse.truth)
+        summary["lse_0.5s"] = {
             "mse": {
                 n: float(np.mean(((lse_vals - lse_truth)[lse_ok, j] * DEG) ** 2))
                 for j, n in enumerate(DERIVATIVES)
             },
             "windows": int(lse_ok.sum()),
-        },
-        "methods": {},
-    }
+        }
     histories = {}
     grid = np.arange(len(t))
     sel = after[grid]
     for label, est in estimators.items():
         start = time.perf_counter()
-        hist = dp.replay(est, reg.h, reg.y, reg.o, np.zeros(9), float(t[0]))
-        theta = np.asarray(hist.theta)[:, cols]
+        drift = "_drift" if args.intercept_drift else ""
+        name = f"{args.generator}_{args.seed}_{args.memory:g}{drift}_{label}.npz"
+        cached = args.cache / name if args.cache else None
+        if cached is not None and cached.exists():
+            hist = dict(np.load(cached))
+        else:
+            p = reg.h.shape[-1]
+            out = dp.replay(est, reg.h, reg.y, reg.o, np.zeros(p), float(t[0]))
+            hist = {
+                k: np.asarray(getattr(out, k)) for k in ("theta", "stderr", "halfwidth")
+            }
+            if cached is not None:
+                args.cache.mkdir(parents=True, exist_ok=True)
+                np.savez(cached, **hist)
+        theta = hist["theta"][:, cols]
         elapsed = time.perf_counter() - start
-        sd_white = np.asarray(hist.stderr)[:, cols]
+        sd_white = hist["stderr"][:, cols]
         # the estimator's own 95% band (Student-t at its dof)
-        half = np.asarray(hist.halfwidth)[:, cols]
+        half = hist["halfwidth"][:, cols]
         histories[label] = (theta, half)
         err = (theta - truth)[after]
         # the truth with the intercepts held (they carry the trim, not tracked)
-        truth9 = np.zeros((len(t), 9))
+        truth9 = np.zeros((len(t), reg.h.shape[-1]))
         truth9[:, [reg.parameters.index(n) for n in DERIVATIVES]] = truth
         amat, target = memory_view(label, reg, t, lam, freqs, truth9)
         amat, target = amat[grid], target[grid][:, cols]
@@ -165,7 +294,7 @@ def main():
         # the estimates' own slope over the last memory (weighted like the
         # estimator's memory, causal): cov_w(t, theta) / var_w(t)
         # (no estimate yet before the transforms hold data: taken as zero)
-        th_all = np.nan_to_num(np.asarray(hist.theta))
+        th_all = np.nan_to_num(hist["theta"])
         tc = (t - t.mean())[:, None]
         filt = lambda x: scipy.signal.lfilter([1.0], [1.0, -lam], x, axis=0)  # noqa: E731
         sw, st_, stt = filt(np.ones_like(tc)), filt(tc), filt(tc**2)
@@ -174,12 +303,24 @@ def main():
         bias = np.abs(np.einsum("kab,kb->ka", amat, slope[grid]))[:, cols]
         truth_lagged = target
         hg, thg = half[grid], theta[grid]
+        # the drift from a longer baseline: the estimates' slope over their own
+        # lag (the span the estimate averages), not over the memory
+        bias_long = np.abs(long_baseline_bias(t, th_all, amat, args.memory))[:, cols]
+        # "not identifiable now": the estimate's information older on average
+        # than `ratio` memories (its lag A_aa); those samples get no band
+        reported = {ratio: lag[sel] <= ratio * args.memory for ratio in REPORT_RATIOS}
+        miss = np.abs(thg - truth[grid])[sel]
+        ok_long = miss <= (hg + bias_long)[sel]
+        ok_short = miss <= (hg + bias)[sel]
         # the recursive estimate sampled at the windows' ends (what it knew then)
         # against the same window-mean truth as the batch windows
-        ends = np.minimum(
-            np.searchsorted(t, np.asarray(lse.window_end)) - 1, len(t) - 1
-        )
-        win_err = (theta[ends] - lse_truth)[lse_ok]
+        if log is not None:
+            ends = np.minimum(
+                np.searchsorted(t, np.asarray(lse.window_end)) - 1, len(t) - 1
+            )
+            win_err = (theta[ends] - lse_truth)[lse_ok]
+        else:
+            win_err = np.full((1, len(DERIVATIVES)), np.nan)
         summary["methods"][label] = {
             "seconds": elapsed,
             "mse_all_samples": {
@@ -202,6 +343,39 @@ def main():
                 n: float(
                     np.mean(np.abs(thg - truth[grid])[sel, j] <= (hg + bias)[sel, j])
                 )
+                for j, n in enumerate(DERIVATIVES)
+            },
+            "coverage_95_with_long_baseline_lag_bias_bound": {
+                n: float(np.mean(ok_long[:, j])) for j, n in enumerate(DERIVATIVES)
+            },
+            "reported": {
+                f"lag_within_{ratio:g}_memories": {
+                    "fraction_reported": {
+                        n: float(np.mean(reported[ratio][:, j]))
+                        for j, n in enumerate(DERIVATIVES)
+                    },
+                    "coverage_where_reported_long_baseline": {
+                        n: float(np.mean(ok_long[reported[ratio][:, j], j]))
+                        for j, n in enumerate(DERIVATIVES)
+                    },
+                    "coverage_where_reported_memory_baseline": {
+                        n: float(np.mean(ok_short[reported[ratio][:, j], j]))
+                        for j, n in enumerate(DERIVATIVES)
+                    },
+                    "coverage_where_reported_band_as_given": {
+                        n: float(
+                            np.mean(
+                                miss[reported[ratio][:, j], j]
+                                <= hg[sel][reported[ratio][:, j], j]
+                            )
+                        )
+                        for j, n in enumerate(DERIVATIVES)
+                    },
+                }
+                for ratio in REPORT_RATIOS
+            },
+            "median_long_baseline_bias_bound_per_deg": {
+                n: float(np.median(bias_long[sel, j]) * DEG)
                 for j, n in enumerate(DERIVATIVES)
             },
             "coverage_95_on_the_grid": {
@@ -237,8 +411,9 @@ def main():
                 alpha=0.2,
                 lw=0,
             )
-        ok = lse_ok
-        ax.plot(lse_mid[ok], lse_vals[ok, j] * DEG, "C3.", ms=3, label="LSE 0.5 s")
+        if log is not None:
+            ok = lse_ok
+            ax.plot(lse_mid[ok], lse_vals[ok, j] * DEG, "C3.", ms=3, label="LSE 0.5 s")
         lo, hi = np.percentile(truth[after, j] * DEG, [0, 100])
         pad = 0.5 * (hi - lo) + 0.2 * abs(hi) + 1e-4
         ax.set_ylim(lo - pad, hi + pad)
