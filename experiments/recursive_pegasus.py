@@ -20,9 +20,22 @@ often each 95% band holds the truth, three ways:
   forgetting-weighted transform of the regressors and `X_f[t]` that of `h_i t_i`
   (per equation: the regression's equations have separate parameters, so their
   weights do not enter, to their drift), and `theta'` the slope of the estimates
-  themselves over the last memory (exponentially weighted, causal).
+  themselves (exponentially weighted, causal) over the last memory, or over a
+  baseline as long as each estimate's own lag `A_aa`;
+- where the lag is at most 1.5, 2 or 4 memories ("not identifiable now"
+  elsewhere): the fraction of samples given a band and the coverage there;
+- least squares only: with the estimates' errors-in-variables bias removed (the
+  noise of the measured alpha and elevator, variances from the channels
+  themselves), and the coverage by how small the regressors' noise is against
+  their own variation over the memory.
 
-Run: `python experiments/recursive_pegasus.py [--seed 1] [--memory 1.0] [--out DIR]`;
+`--generator independent` flies tests/independent_generator.py instead (no shared
+code; the truth is the local derivative of its coefficients); `--intercept-drift`
+adds a column `t - t0` per equation (each intercept drifting linearly); `--cache
+DIR` keeps the replays.
+
+Run: `python experiments/recursive_pegasus.py [--seed 1] [--memory 1.0] [--out DIR]`
+(and the options above);
 the last stdout line is the JSON summary (also DIR/summary.json); DIR/tracking.png is
 the figure.
 """
@@ -85,13 +98,62 @@ def memory_view(label, reg, t, lam, freqs, truth9):
                 rhs += np.real(x.conj() * xy[:, None])
         ridge = (1e-12 * np.trace(norm, axis1=1, axis2=2) + 1e-300)[:, None, None]
         norm = norm + ridge * np.eye(m)
-        amat[:, cols, cols] = tt[:, None, None] * np.eye(3) - np.linalg.solve(
+        amat[:, cols, cols] = tt[:, None, None] * np.eye(m) - np.linalg.solve(
             norm, timed
         )
         target[:, cols] = np.linalg.solve(norm, rhs[..., None])[..., 0]
     return amat, target
 
 
+def noise_variance(x):
+    """The white noise variance of a channel sampled much faster than it moves:
+    half the variance of its sample-to-sample differences, from their median
+    absolute deviation (robust to the elevator's steps)."""
+    d = np.diff(np.asarray(x))
+    mad = np.median(np.abs(d - np.median(d)))
+    return (1.4826 * mad) ** 2 / 2.0
+
+
+def errors_in_variables_bias(reg, channels, lam, theta):
+    """The bias `(n, p)` of least squares from the noise in its regressors (the
+    measured alpha and elevator), at every sample, to first order: `N^-1 sum_i
+    w_i (E[h~_i y~_i] - E[h~_i h~_i^T] theta)`, `N = sum_i w_i h_i^T h_i` per
+    equation. The noise variances come from the channels themselves
+    ([`noise_variance`][]); `y~` shares alpha's noise through the rotation to the
+    wind axes (`dCL/dalpha = -CD`, `dCD/dalpha = CL` at fixed body-axis
+    coefficients; `CM` does not involve alpha)."""
+    h = np.asarray(reg.h)
+    y = np.asarray(reg.y)
+    n, _, p = h.shape
+    m = p // 3
+    var_a = noise_variance(channels["alpha"])
+    var_e = noise_variance(channels["de"])
+    low = lambda x: scipy.signal.lfilter([1.0], [1.0, -lam], x, axis=0)  # noqa: E731
+    shared = {0: -y[:, 1], 1: y[:, 0], 2: np.zeros(n)}  # d y_eq / d alpha
+    out = np.zeros((n, p))
+    ratio = np.zeros((n, p))  # noise variance over the regressor's own, per column
+    for eq in range(3):
+        cols = slice(m * eq, m * eq + m)
+        names = reg.parameters[cols]
+        ia = next(i for i, c in enumerate(names) if c.endswith("a"))
+        ie = next(i for i, c in enumerate(names) if c.endswith("de"))
+        r = h[:, eq, cols]
+        norm = low(np.einsum("ka,kb->kab", r, r))
+        norm = norm + (1e-12 * np.trace(norm, axis1=1, axis2=2) + 1e-300)[
+            :, None, None
+        ] * np.eye(m)
+        nw = low(np.ones(n))
+        vec = np.zeros((n, m))
+        vec[:, ia] = var_a * (low(shared[eq]) - nw * theta[:, cols][:, ia])
+        vec[:, ie] = -var_e * nw * theta[:, cols][:, ie]
+        out[:, cols] = np.linalg.solve(norm, vec[..., None])[..., 0]
+        inv = np.linalg.inv(norm)
+        ratio[:, m * eq + ia] = var_a * nw * inv[:, ia, ia]
+        ratio[:, m * eq + ie] = var_e * nw * inv[:, ie, ie]
+    return out, ratio, var_a, var_e
+
+
+NOISE_RATIOS = (0.01, 0.03, 0.1, 0.3)  # regressor noise over its variance
 REPORT_RATIOS = (1.5, 2.0, 4.0)  # lag over memory up to which a band is reported
 BASELINES = 2.0 ** np.arange(7)  # the drift's baselines, memories (1 to 64)
 
@@ -312,6 +374,65 @@ def main():
         miss = np.abs(thg - truth[grid])[sel]
         ok_long = miss <= (hg + bias_long)[sel]
         ok_short = miss <= (hg + bias)[sel]
+        if label == "rls":
+            # the regressors' noise: a bias, not scatter, where the regressor
+            # hardly moves over the memory (attenuation, and CD's regressand
+            # sharing alpha's noise through the wind-axis rotation)
+            eiv, ratio, var_a, var_e = errors_in_variables_bias(
+                reg, channels, lam, th_all
+            )
+            eiv, ratio = eiv[grid][:, cols], ratio[grid][:, cols][sel]
+            miss_c = np.abs(thg - eiv - truth[grid])[sel]
+            extra = {
+                "noise_sd_alpha_de_rad": [float(np.sqrt(var_a)), float(np.sqrt(var_e))],
+                "median_eiv_bias_per_deg": {
+                    n: float(np.median(np.abs(eiv[sel, j])) * DEG)
+                    for j, n in enumerate(DERIVATIVES)
+                },
+                "coverage_95_eiv_corrected_band_as_given": {
+                    n: float(np.mean(miss_c[:, j] <= hg[sel, j]))
+                    for j, n in enumerate(DERIVATIVES)
+                },
+                "coverage_95_eiv_corrected_with_long_baseline_lag_bias_bound": {
+                    n: float(np.mean(miss_c[:, j] <= (hg + bias_long)[sel, j]))
+                    for j, n in enumerate(DERIVATIVES)
+                },
+                "coverage_95_eiv_corrected_against_memory_average": {
+                    n: float(
+                        np.mean(np.abs(thg - eiv - truth_lagged)[sel, j] <= hg[sel, j])
+                    )
+                    for j, n in enumerate(DERIVATIVES)
+                },
+                "by_noise_ratio": {
+                    f"noise_variance_at_most_{lim:g}_of_the_regressors": {
+                        "fraction": {
+                            n: float(np.mean(ratio[:, j] <= lim))
+                            for j, n in enumerate(DERIVATIVES)
+                        },
+                        "coverage_long_baseline": {
+                            n: float(np.mean(ok_long[ratio[:, j] <= lim, j]))
+                            for j, n in enumerate(DERIVATIVES)
+                        },
+                        "coverage_eiv_corrected_long_baseline": {
+                            n: float(
+                                np.mean(
+                                    (miss_c[:, j] <= (hg + bias_long)[sel, j])[
+                                        ratio[:, j] <= lim
+                                    ]
+                                )
+                            )
+                            for j, n in enumerate(DERIVATIVES)
+                        },
+                    }
+                    for lim in NOISE_RATIOS
+                },
+                "mse_eiv_corrected": {
+                    n: float(np.mean(((thg - eiv - truth[grid])[sel, j] * DEG) ** 2))
+                    for j, n in enumerate(DERIVATIVES)
+                },
+            }
+        else:
+            extra = {}
         # the recursive estimate sampled at the windows' ends (what it knew then)
         # against the same window-mean truth as the batch windows
         if log is not None:
@@ -378,6 +499,7 @@ def main():
                 n: float(np.median(bias_long[sel, j]) * DEG)
                 for j, n in enumerate(DERIVATIVES)
             },
+            **extra,
             "coverage_95_on_the_grid": {
                 n: float(np.mean(np.abs(thg - truth[grid])[sel, j] <= hg[sel, j]))
                 for j, n in enumerate(DERIVATIVES)
