@@ -14,7 +14,12 @@ residual transforms taken
   solved for (the estimator's bound);
 - `leverage`: at the estimate with each frequency's own first-order loss,
   `S_f = T_f + L_f T_f + T_f L_f^H - H_f V H_f^H`, `L_f = H_f P A_f^H` (tried,
-  not adopted: see the recursive estimation page).
+  not adopted: see the recursive estimation page);
+- `spectrum`: the estimator's bound now, the residual spectrum a quadratic in
+  frequency fitted through the residuals' expectation at the estimate
+  (`diffpegasus._estimate._recursive._smooth_spectrum_bound`, with its own
+  degrees of freedom; where it comes out negative the estimator falls back to
+  the white-residual bound, here counted as such: `negative` is their share).
 
 Printed per parameter: the mean bound variance over the scatter's square, the
 bias over the scatter, and the coverage of Student-t bands at the estimator's
@@ -30,9 +35,12 @@ import argparse
 import pathlib
 import sys
 
+import jax
 import numpy as np
 import scipy.optimize
 import scipy.stats
+
+from diffpegasus._estimate._recursive import _smooth_spectrum_bound
 
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
@@ -100,7 +108,15 @@ def main():
     same = np.abs(diff) < 1e-12
     zz = np.where(same, 0.5, np.exp(-2j * np.pi * diff * dt))
     kappa = np.where(same, 1.0, (1 - zz**n) / (1 - zz) / n)
-    out = {k: [] for k in ("theta", "truth", "fitted", "corrected", "leverage", "dof")}
+    out = {
+        k: []
+        for k in (
+            *("theta", "truth", "fitted", "corrected", "leverage", "dof"),
+            *("spectrum", "spectrum_dof", "white"),
+        )
+    }
+    jax.config.update("jax_enable_x64", True)
+    spectrum_bound = jax.jit(_smooth_spectrum_bound)
     for k in range(args.flights):
         fh, fy = fh_all[k], fy_all[k]
 
@@ -151,6 +167,11 @@ def main():
             np.eye(p * p) + kron @ k_op, (pm @ middle(s_f) @ pm).ravel()
         )
         out["leverage"].append(np.diag(v.reshape(p, p))[:p0])
+        if not args.frequency_shape:  # the estimator weights whole equations
+            var_s, dof_s = spectrum_bound(fh, hw, fy - fh @ th, wq[0], pm, kappa, freqs)
+            out["spectrum"].append(np.asarray(var_s)[:p0])
+            out["spectrum_dof"].append(np.asarray(dof_s)[:p0])
+            out["white"].append(np.diag(pm)[:p0])  # the estimator's fallback
         c = 2 * np.einsum("fq,fqa,fqb->fab", wq, fh.conj(), fh)
         share = np.real(np.einsum("ba,fbc,ca->fa", pm, c, pm))
         dof = (
@@ -175,6 +196,18 @@ def main():
             band = np.sqrt(np.clip(var, 0, None)) * quantile
             line += f", coverage {np.round((np.abs(err) <= band).mean(0), 3)}"
         print(line)
+    if out["spectrum"]:
+        var = np.array(out["spectrum"])
+        negative = var <= 0
+        var = np.where(negative, np.array(out["white"]), var)
+        q_s = scipy.stats.t.ppf(0.975, np.maximum(np.array(out["spectrum_dof"]), 1.0))
+        band = np.sqrt(var) * q_s
+        print(
+            f"spectrum: mean bound variance / scatter^2 "
+            f"{np.round(var.mean(0) / scatter2, 3)}, coverage "
+            f"{np.round((np.abs(err) <= band).mean(0), 3)}, negative "
+            f"{np.round(negative.mean(0), 3)}"
+        )
 
 
 if __name__ == "__main__":
