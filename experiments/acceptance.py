@@ -262,6 +262,13 @@ def main():
     p.add_argument("--only", choices=["pegasus", "hfb320", "demo"], default=None)
     p.add_argument("--max", type=int, default=None, help="flights at most this run")
     p.add_argument(
+        "--flights",
+        nargs="+",
+        default=None,
+        metavar="RATE:SEED",
+        help="only these launch-vehicle flights (e.g. 50:13 200:8), in this order",
+    )
+    p.add_argument(
         "--out", type=pathlib.Path, default=None, help=f"results (default {OUT})"
     )
     args = p.parse_args()
@@ -277,7 +284,11 @@ def main():
     if args.only in (None, "hfb320"):
         jobs += HFB320
     if args.only in (None, "pegasus"):
-        jobs += PEGASUS
+        if args.flights:
+            by = {f"{r:g}:{s}": job for job in PEGASUS for _, r, s, *_ in [job]}
+            jobs += [by[f] for f in args.flights]
+        else:
+            jobs += PEGASUS
     folder = pathlib.Path(tempfile.mkdtemp(prefix="acceptance_"))
     count = 0
     for job in jobs:

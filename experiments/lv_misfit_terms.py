@@ -257,8 +257,9 @@ def terms(seed: int, log_rate: float, knot_counts=(6, 8, 12), rate=50.0) -> dict
 def knot_choices(seed: int, log_rate: float) -> dict:
     """How many Mach functions the log supports, as the diagnosis reads it (block
     means to 50 Hz, coefficients reconstructed from the channels): the choice of
-    `choose_knots` (cross-validation across 1 s segments) on the noise-free and
-    the noisy log, per coefficient, and that of a Bayesian information criterion
+    `choose_knots` (the library's rule; `results/lv_knot_choices.json` holds the
+    choices of the cross-validation across 1 s segments it replaced) on the
+    noise-free and the noisy log, per coefficient, and that of a Bayesian information criterion
     `n sum_c log(RSS_c / n) + p log n` of the full-record regression (noisy log)."""
     from diffpegasus._estimate._coefficients import reconstruct_coefficients
     from diffpegasus._registry._pegasus import block_means

@@ -97,8 +97,8 @@ def default_candidates(alpha_order: int = 3) -> tuple[str, ...]:
 class PegasusEntry(AbstractVehicleEntry):
     """The Pegasus XL first stage (see the module). Tuning fields: `knots`
     (spline functions over Mach, default 6; `None`: chosen from the log by
-    [`choose_knots`][], cross-validation across the shooting segments, at most
-    `MAX_KNOTS`), `knot_placement` (`quantile` or `blend`), `alpha_order`,
+    [`choose_knots`][], the fewest that fit it as well as the finest it supports,
+    at most `MAX_KNOTS`), `knot_placement` (`quantile` or `blend`), `alpha_order`,
     `alpha_elevator`, `rate` (model rate, Hz), `node_interval` (shooting
     interval, s)."""
 
@@ -202,9 +202,12 @@ class PegasusEntry(AbstractVehicleEntry):
         the spec's `notes["baseline"]`)."""
         import equinox as eqx
 
-        from .._estimate._coefficients import reconstruct_coefficients
+        from .._estimate._coefficients import (
+            aerodynamic_loads,
+            reconstruct_coefficients,
+        )
         from .._estimate._fit import MultipleShooting
-        from .._vehicle._mach_spline import choose_knots, fit_mach_spline
+        from .._vehicle._mach_spline import choose_knots, fit_mach_spline, PitchRate
         from .._vehicle._parts import effect_parameter
 
         if columns is not None:
@@ -219,7 +222,7 @@ class PegasusEntry(AbstractVehicleEntry):
         s_ref, c_ref = self.geometry()
         stacked = {
             k: np.concatenate([r[k] for r in reduced])
-            for k in ("mach", "alpha", "de", "ax", "az", "q", "qdot", "qbar")
+            for k in ("t", "mach", "alpha", "de", "ax", "az", "q", "qdot", "qbar")
             + ("thrust", "mass", "Iyy", "Iyy_dot", "xcg", "xcp")
         }
         c = reconstruct_coefficients(stacked, s_ref, c_ref)
@@ -232,6 +235,15 @@ class PegasusEntry(AbstractVehicleEntry):
                 k = np.floor((r["t"] - r["t"][0]) / self.node_interval).astype(int)
                 segment.append(first + k)
                 first += int(k.max()) + 1
+            # the moment judged through the pitch rate (qdot = gain CM + known),
+            # as the fit sees it: the loads' equation at qdot = 0 is `-Iyy known`
+            _, _, rest = aerodynamic_loads({**stacked, "qdot": 0.0 * stacked["q"]})
+            pitch = PitchRate(
+                t=stacked["t"],
+                q=stacked["q"],
+                gain=stacked["qbar"] * s_ref * c_ref / stacked["Iyy"],
+                known=-np.asarray(rest) / stacked["Iyy"],
+            )
             try:
                 choice = choose_knots(
                     stacked["mach"],
@@ -239,6 +251,7 @@ class PegasusEntry(AbstractVehicleEntry):
                     stacked["de"],
                     coefficients,
                     np.concatenate(segment),
+                    pitch=pitch,
                     placement=self.knot_placement,
                     alpha_order=self.alpha_order,
                     alpha_elevator=self.alpha_elevator,

@@ -197,36 +197,109 @@ class KnotChoice(eqx.Module):
     """How many Mach functions a record supports ([`choose_knots`][]).
 
     **Fields:** `knots` (the choice); `candidates` (the counts tried, `(m,)`);
-    `loss` (cross-validated loss of each, `sum over CL, CD, CM of log(mean
-    squared prediction error)`, `(m,)`); `excess` (each count's mean excess over
-    the lowest, per left-out segment, and its standard error: `(m,)` each);
-    `segments` (the number of left-out segments); `placement`.
+    `statistic` (each count's likelihood-ratio statistic against the finest,
+    `(m,)`), `dof` (its degrees of freedom, `(m,)`) and `p_value` (`(m,)`);
+    `effective_samples` (per coefficient equation, from the finest count's
+    residual correlation); `level`; `placement`; `pitch_rate` (the moment judged
+    through the pitch rate).
     """
 
     knots: int = eqx.field(static=True)
     candidates: tuple[int, ...] = eqx.field(static=True)
-    loss: tuple[float, ...] = eqx.field(static=True)
-    excess: tuple[float, ...] = eqx.field(static=True)
-    excess_stderr: tuple[float, ...] = eqx.field(static=True)
-    segments: int = eqx.field(static=True)
+    statistic: tuple[float, ...] = eqx.field(static=True)
+    dof: tuple[int, ...] = eqx.field(static=True)
+    p_value: tuple[float, ...] = eqx.field(static=True)
+    effective_samples: tuple[float, ...] = eqx.field(static=True)
+    level: float = eqx.field(static=True)
     placement: str = eqx.field(static=True)
+    pitch_rate: bool = eqx.field(static=True, default=False)
 
     def summary(self) -> dict:
         """JSON-ready: the rule in words, the choice and the table."""
+        moment = (
+            "CM through the pitch rate integrated over each shooting segment"
+            if self.pitch_rate
+            else "CM"
+        )
         return {
             "rule": (
                 "Mach functions per coefficient term chosen from the log: the fewest "
-                "whose equation-error regression of CL, CD and CM predicts left-out "
-                "shooting segments within one standard error of the best count "
-                f"({self.segments} segments left out one at a time; "
+                "whose equation-error regressions of CL, CD and "
+                f"{moment} fit as well as the finest count the record supports "
+                "(likelihood ratio on effective sample sizes from the finest "
+                f"count's residual correlation, level {self.level:g}; "
                 f"{self.placement} breakpoints)"
             ),
             "knots": self.knots,
             "candidates": list(self.candidates),
-            "loss": list(self.loss),
-            "excess": list(self.excess),
-            "excess_stderr": list(self.excess_stderr),
+            "statistic": list(self.statistic),
+            "dof": list(self.dof),
+            "p_value": list(self.p_value),
+            "effective_samples": list(self.effective_samples),
         }
+
+
+def segment_centred(x, segment):
+    """`x` `(n,)` or `(n, k)` less its mean over each run of equal `segment`
+    labels `(n,)`."""
+    x = np.asarray(x, float)
+    segment = np.asarray(segment)
+    start = np.concatenate([[True], segment[1:] != segment[:-1]])
+    run = np.cumsum(start) - 1
+    sums = np.zeros((run[-1] + 1,) + x.shape[1:])
+    np.add.at(sums, run, x)
+    counts = np.bincount(run).reshape((-1,) + (1,) * (x.ndim - 1))
+    return x - (sums / counts)[run]
+
+
+def segment_integrals(x, t, segment):
+    """Running trapezoid integrals of `x` `(n,)` or `(n, k)` over time `t` `(n,)`
+    (s), restarted at the first sample of every run of equal `segment` labels, then
+    less each run's mean ([`segment_centred`][]), `(n,)` or `(n, k)`: the
+    integrated form of a rate equation over shooting segments whose start values
+    are unknown (a segment's mean stands in for its start value)."""
+    x = np.asarray(x, float)
+    segment = np.asarray(segment)
+    shape = (-1,) + (1,) * (x.ndim - 1)
+    step = 0.5 * (x[1:] + x[:-1]) * np.diff(np.asarray(t, float)).reshape(shape)
+    step = np.concatenate([np.zeros_like(x[:1]), step])
+    start = np.concatenate([[True], segment[1:] != segment[:-1]])
+    step[start] = 0.0
+    total = np.cumsum(step, axis=0)
+    run = np.cumsum(start) - 1
+    return segment_centred(total - total[np.flatnonzero(start)[run]], segment)
+
+
+class PitchRate(eqx.Module):
+    """The pitch-rate form of the moment equation for [`choose_knots`][]:
+    `qdot = gain CM + known`, judged on the measured pitch rate integrated over
+    each segment rather than on a CM reconstructed from a pitch acceleration.
+
+    **Fields:** `t` (s), `q` (rad/s), `gain` (`qbar S c / Iyy`, rad/s^2 per unit
+    CM), `known` (the rest of qdot from logged channels, rad/s^2); each `(n,)`.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    gain: np.ndarray
+    known: np.ndarray
+
+
+def effective_samples(r) -> float:
+    """Samples of a residual `r` `(n,)` worth as many independent ones, from its
+    lag-one correlation `rho` (first-order autoregression: `n (1 - rho) / (1 +
+    rho)`, `rho` clipped to `[0, 1)`)."""
+    r = np.asarray(r, float) - np.mean(r)
+    rho = float(np.sum(r[1:] * r[:-1]) / np.sum(r * r))
+    rho = min(max(rho, 0.0), 1.0 - 1e-12)
+    return len(r) * (1.0 - rho) / (1.0 + rho)
+
+
+def _residual(x, y):
+    """`y - x theta` at the least-squares `theta` (normal equations of unit-rms
+    columns: cheap for many more samples than regressors)."""
+    x = x / np.maximum(np.sqrt(np.mean(x**2, axis=0)), 1e-300)
+    return y - x @ np.linalg.lstsq(x.T @ x, x.T @ y, rcond=None)[0]
 
 
 def choose_knots(
@@ -236,40 +309,54 @@ def choose_knots(
     coefficients: tuple,
     segment,
     *,
+    pitch: PitchRate | None = None,
     placement: str = "quantile",
     alpha_order: int = 3,
     alpha_elevator: bool = True,
     smallest: int = 4,
     largest: int = 12,
+    level: float = 0.01,
 ) -> KnotChoice:
-    """The number of Mach functions the record carries, by cross-validation across
-    its segments.
+    """The number of Mach functions the record carries: the fewest that fit it as
+    well as the finest count it supports, by a likelihood-ratio test on effective
+    sample sizes.
 
-    For each count from `smallest` to `largest` the coefficients `(CL, CD, CM)`
-    (each `(n,)`, reconstructed from the record) are regressed on the part's
-    regressors at `mach`, `alpha` (rad), `de` (rad) with one segment left out at
-    a time (`segment` `(n,)` integer labels, e.g. the shooting segments), and the
-    left-out samples predicted. The loss of a count is `sum_c log(PRESS_c)` (the
-    log-determinant of the diagonal prediction-error covariance, the measure an
-    output-error fit minimises); per segment, its excess over the best count is
-    that segment's share of the three normalised squared errors. The choice is the
-    fewest functions whose mean excess lies within one standard error (over
-    segments) of the best count: a finer spline must predict data it was not
-    fitted to, in whole segments, so a misfit that is coloured in time cannot pass
-    for resolution, and among counts the data cannot tell apart the coarsest is
-    kept (it leaves a constant term least room to hide in the Mach functions).
+    For each count from `smallest` to `largest` the coefficients (each `(n,)`,
+    reconstructed from the record, e.g. `(CL, CD, CM)`) are regressed on the
+    part's regressors at `mach`, `alpha` (rad), `de` (rad). With `pitch`
+    ([`PitchRate`][]) the last coefficient (the moment) enters in its integrated
+    form instead: the measured pitch rate less the integral of `known`, regressed
+    on the integrals of `gain` times the regressors, both over each `segment`
+    `(n,)` (integer labels, the shooting segments) and less their segment means
+    ([`segment_integrals`][]): that is how an output-error fit with a node per
+    segment sees the moment, and a pitch-acceleration channel's noise hides a slow
+    moment misfit that the pitch rate shows.
 
-    Counts are bounded by the record: at most half as many breakpoint intervals
-    as segments (`knots - 3 <= segments / 2`), distinct breakpoints, and fewer
-    regressors than samples in every training set.
+    Each count's statistic against the finest count `K` is `sum_c n_c log(RSS_c,k
+    / RSS_c,K)`, with `n_c` the effective samples of equation `c`'s residual at
+    `K` ([`effective_samples`][]: the residuals are coloured by what misfit `K`
+    leaves and by the integration, so counting samples would call every extra
+    function significant), chi-squared with the difference in regressors; the
+    choice is the fewest functions whose p-value is at least `level` (the finest
+    always qualifies). Counts are bounded by the record: at most half as many
+    breakpoint intervals as segments (`knots - 3 <= segments / 2`), distinct
+    breakpoints, and fewer regressors than samples.
     """
+    from scipy.stats import chi2
+
     mach = np.asarray(mach, float)
-    y = np.column_stack([np.asarray(c, float) for c in coefficients])
-    labels = np.unique(np.asarray(segment))
-    folds = [np.asarray(segment) == s for s in labels]
-    counts, per_fold = [], []
+    alpha = np.asarray(alpha, float)
+    de = np.asarray(de, float)
+    segment = np.asarray(segment)
+    ys = [np.asarray(c, float) for c in coefficients]
+    if pitch is not None:
+        ys[-1] = segment_centred(pitch.q, segment) - segment_integrals(
+            pitch.known, pitch.t, segment
+        )
+    segments = len(np.unique(segment))
+    counts, rss, params, finest = [], [], [], None
     for k in range(smallest, largest + 1):
-        if k - 3 > len(labels) / 2:
+        if k - 3 > segments / 2:
             break
         breaks = mach_breakpoints(mach, k - 2, placement)
         if np.any(np.diff(breaks) <= 0):
@@ -277,43 +364,40 @@ def choose_knots(
         part = MachSplineAerodynamics(
             knots=k, alpha_order=alpha_order, alpha_elevator=alpha_elevator
         )
-        a = part.regressors(
-            mach, np.asarray(alpha, float), np.asarray(de, float), breaks
-        )
-        if a.shape[1] >= len(mach) - max(f.sum() for f in folds):
+        a = part.regressors(mach, alpha, de, breaks)
+        if a.shape[1] >= len(mach):
             break
-        # normal equations less each segment's share: one pass over the record
-        a = a / np.maximum(np.sqrt(np.mean(a**2, axis=0)), 1e-300)
-        gram, rhs = a.T @ a, a.T @ y
-        sse = np.zeros((len(folds), y.shape[1]))
-        for i, out in enumerate(folds):
-            ao = a[out]
-            theta = np.linalg.lstsq(gram - ao.T @ ao, rhs - ao.T @ y[out], rcond=None)[
-                0
-            ]
-            sse[i] = np.sum((y[out] - ao @ theta) ** 2, axis=0)
+        designs = [a] * len(ys)
+        if pitch is not None:
+            designs[-1] = segment_integrals(
+                np.asarray(pitch.gain, float)[:, None] * a, pitch.t, segment
+            )
+        residuals = [_residual(x, y) for x, y in zip(designs, ys, strict=True)]
         counts.append(k)
-        per_fold.append(sse)
+        params.append(a.shape[1])
+        rss.append([float(np.sum(r**2)) for r in residuals])
+        finest = residuals
     if not counts:
         raise ValueError(
             f"the log's Mach number does not vary enough for {smallest} spline knots"
         )
-    per_fold = np.array(per_fold)  # (counts, folds, 3)
-    press = per_fold.sum(axis=1)
-    loss = np.log(press).sum(axis=1)
-    best = int(np.argmin(loss))
-    # each segment's normalised squared error, to first order the loss difference
-    share = (per_fold / press[best]).sum(axis=2) * len(folds)  # (counts, folds)
-    diff = share - share[best]
-    excess = diff.mean(axis=1)
-    stderr = diff.std(axis=1, ddof=1) / np.sqrt(len(folds))
-    pick = next(i for i in range(len(counts)) if excess[i] <= stderr[i])
+    n_eff = np.array([effective_samples(r) for r in finest])
+    rss = np.array(rss)  # (counts, equations)
+    statistic = (n_eff * np.log(rss / rss[-1])).sum(axis=1)
+    dof = [len(ys) * (params[-1] - p) for p in params]
+    p_value = [
+        1.0 if d == 0 else float(chi2.sf(s, d))
+        for s, d in zip(statistic, dof, strict=True)
+    ]
+    pick = next(i for i, p in enumerate(p_value) if p >= level)
     return KnotChoice(
         knots=counts[pick],
         candidates=tuple(counts),
-        loss=tuple(float(v) for v in loss),
-        excess=tuple(float(v) for v in excess),
-        excess_stderr=tuple(float(v) for v in stderr),
-        segments=len(folds),
+        statistic=tuple(float(v) for v in statistic),
+        dof=tuple(dof),
+        p_value=tuple(p_value),
+        effective_samples=tuple(float(v) for v in n_eff),
+        level=level,
         placement=placement,
+        pitch_rate=pitch is not None,
     )
