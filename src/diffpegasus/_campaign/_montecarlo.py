@@ -313,7 +313,11 @@ def run_campaign(
                     geometry=Geometry(s_ref=s_ref, c_ref=c_ref),
                 )
                 setups.append(setup)
-            stacked = jax.tree_util.tree_map(lambda *x: jnp.stack(x), *setups)
+            # stacked on the host: `jnp.stack` compiles a program per leaf shape,
+            # and placing a stacked device array across the devices another one
+            # to slice it (about 30 small programs per process); numpy does both
+            # without compiling
+            stacked = jax.tree_util.tree_map(lambda *x: np.stack(x), *setups)
             v, sd, ok, conv, its = jax.block_until_ready(
                 map_over_devices(_oem_chunk_at(campaign.max_iter), stacked)
             )

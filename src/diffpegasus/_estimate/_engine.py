@@ -126,13 +126,13 @@ class AbstractLayout(eqx.Module):
 class Layout(AbstractLayout):
     """The data of a fit, cut into shooting segments of `length` samples.
 
-    **Fields:** `inputs` `(records, samples, inputs)` padded with the last row; `t0`,
-    `dt`, `n` per record (s, s, samples); per segment `record`, `first` (sample index
-    in its record), `measured` `(segments, length, outputs)`, `valid` `(segments,
-    length)`; `link` `(segments - 1,)` whether segment `s` continues into `s + 1`;
-    `scale` `(states,)` state scale times the continuity tolerance; `node_free`
-    `(segments, states)`; `length` and `bias_channels` (output indices with a
-    per-record bias) are static.
+    **Fields:** `inputs` `(records, samples, inputs)` padded with the last row to
+    whole segments; `t0`, `dt`, `n` per record (s, s, samples); per segment
+    `record`, `first` (sample index in its record), `measured` `(segments, length,
+    outputs)`, `valid` `(segments, length)`; `link` `(segments - 1,)` whether
+    segment `s` continues into `s + 1`; `scale` `(states,)` state scale times the
+    continuity tolerance; `node_free` `(segments, states)`; `length` and
+    `bias_channels` (output indices with a per-record bias) are static.
     """
 
     inputs: Float[Array, "records samples inputs"]

@@ -86,7 +86,11 @@ def layout(
         rec = records[record[s]]
         idx = np.minimum(index[s], len(rec.t) - 1)
         measured[s] = np.where(valid[s][:, None], rec.measured[idx], 0.0)
-    n_max = int(lengths.max())
+    # the inputs padded to whole segments, as `measured` is: records whose lengths
+    # fall in one bucket (single shooting) or fill the same number of segments
+    # (multiple shooting) then share one compiled program (the padding is the last
+    # row, and the engine clips its input index at each record's own length)
+    n_max = -(-int(lengths.max()) // length) * length
     inputs = np.zeros((len(records), n_max, len(model.inputs)))
     for i, rec in enumerate(records):
         inputs[i, : len(rec.t)] = rec.inputs

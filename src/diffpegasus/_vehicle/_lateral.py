@@ -54,6 +54,7 @@ truth, including the linear derivatives it implies
 ([`implied_lateral_derivatives`][]).
 """
 
+import dataclasses
 from collections.abc import Sequence
 
 import jax.numpy as jnp
@@ -167,6 +168,39 @@ def _linear_rates_and_outputs(x, u, p, setup):
     return rates, y
 
 
+@dataclasses.dataclass(frozen=True)
+class _Linear:
+    """The linear model's rates (`part=0`) or outputs (`part=1`), `(t, x, u, p)`.
+    A value, not a closure: two models built with the same settings are equal,
+    so their fits share one compiled program (the model is static to it)."""
+
+    setup: tuple
+    part: int
+
+    def __call__(self, t, x, u, p):
+        del t
+        return _linear_rates_and_outputs(x, u, p, self.setup)[self.part]
+
+
+@dataclasses.dataclass(frozen=True)
+class _Delays:
+    """Each input's delay (s), the sum of the effects' `tau` acting on it."""
+
+    effects: tuple[str, ...]
+    inputs: tuple[str, ...]
+
+    def __call__(self, p):
+        return jnp.stack(
+            [
+                sum(
+                    (p[f"{e}.tau"] for e in self.effects if LATERAL_EFFECTS[e] == name),
+                    jnp.zeros(()),
+                )
+                for name in self.inputs
+            ]
+        )
+
+
 def _outputs(flight):
     return LATERAL_OUTPUTS if flight is None else LATERAL_OUTPUTS + ("beta", "phi")
 
@@ -253,25 +287,8 @@ def lateral_model(
         # (without state biases nothing is per manoeuvre: no selectors)
         inputs = inputs + tuple(f"manoeuvre_{k}" for k in range(1, manoeuvres + 1))
     setup = (manoeuvres, state_biases, output_biases, flight)
-
-    def delays(p):
-        return jnp.stack(
-            [
-                sum(
-                    (p[f"{e}.tau"] for e in effects if LATERAL_EFFECTS[e] == name),
-                    jnp.zeros(()),
-                )
-                for name in inputs
-            ]
-        )
-
-    def rates(t, x, u, p):
-        del t
-        return _linear_rates_and_outputs(x, u, p, setup)[0]
-
-    def observe(t, x, u, p):
-        del t
-        return _linear_rates_and_outputs(x, u, p, setup)[1]
+    rates, observe = _Linear(setup, 0), _Linear(setup, 1)
+    delays = _Delays(effects, inputs) if effects else None
 
     # typical magnitudes of a lateral manoeuvre (rad/s, rad), so that multiple
     # shooting does not take the scale of the zero initial state
@@ -286,7 +303,7 @@ def lateral_model(
         rates=rates,
         observe=observe,
         fixed=tuple(dict.fromkeys(tuple(fixed) + held)),
-        delays=delays if effects else None,
+        delays=delays,
         state_scale=scale,
     )
 
