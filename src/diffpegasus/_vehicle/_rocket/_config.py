@@ -7,6 +7,10 @@ read, every other key is kept for people:
     [motor]   thrust_file, propellant_initial_mass_kg, dry_mass_kg (default 0),
               holddown_time_s (default 0: the motor lifts off as soon as thrust
               exceeds weight)
+    [geometry] nose, fins, tail or transition, motor_center_of_mass_m (m, the
+              loaded motor's centre of mass), motor_inertia_kgm2 (optional), with
+              [rocket] I11_kgm2, center_of_mass_without_motor_m and the top-level
+              coordinate_system: the attitude (see `_barrowman`); optional
     [aero]    power_off_drag_file, power_on_drag_file (optional; the team's curves),
               air_brakes_actuation_file (optional, time s / deployment 0-1)
     [launch]  elevation_m, rail_length_m, inclination_deg (from horizontal),
@@ -26,6 +30,7 @@ import equinox as eqx
 import numpy as np
 
 from ..._errors import LogError
+from ._barrowman import Airframe, read_airframe
 from ._drag import read_drag_curve
 from ._motor import Motor, read_motor
 
@@ -48,6 +53,8 @@ class Rocket(eqx.Module):
     - `airbrakes`: `(time s, deployment 0-1)` schedule or `None`.
     - `recorded_apogee`, `preflight_apogee`: m AGL from the team, or `None`.
     - `folder`: where the file was.
+    - `airframe`: the [`Airframe`][] (surfaces and mass distribution) when the
+      file gives one, else `None` (the rocket points along its air-relative velocity).
     - `latitude`: deg, the pad's geodetic latitude (gravity from the WGS84 ellipsoid
       there), or `None` (standard gravity, 9.80665 m/s^2 at sea level).
     """
@@ -69,6 +76,7 @@ class Rocket(eqx.Module):
     preflight_apogee: float | None = eqx.field(static=True)
     folder: str = eqx.field(static=True, default=".")
     latitude: float | None = eqx.field(static=True, default=None)
+    airframe: Airframe | None = None
 
     @property
     def loaded_mass(self) -> float:
@@ -185,4 +193,5 @@ def read_rocket(path) -> Rocket:
         preflight_apogee=_optional(rs, "preflight_simulated_apogee_agl_m"),
         folder=str(folder),
         latitude=_latitude(la, path),
+        airframe=read_airframe(doc, path, _number(rk, "radius_m", path, "rocket")),
     )
