@@ -255,11 +255,13 @@ mass_without_motor_kg = 8.2
 radius_m = 0.052
 I11_kgm2 = 4.4
 center_of_mass_without_motor_m = 1.2
+rail_buttons_m = [1.1, 0.3]
 
 [geometry]
 nose = {{ kind = "vonKarman", length_m = 0.52, position_m = 2.72 }}
 fins = {{ n = 4, span_m = 0.1, root_chord_m = 0.2, tip_chord_m = 0.07, position_m = 0.21 }}
 motor_center_of_mass_m = 0.25
+nozzle_position_m = 0.0
 motor_inertia_kgm2 = {MOTOR_INERTIA}
 
 [motor]

@@ -46,7 +46,11 @@ class Rocket(eqx.Module):
     - `radius`: m, reference radius (reference area `pi radius^2`).
     - `holddown`: s from ignition to release (a liquid engine on a hold-down).
     - `elevation`: m above sea level of the pad.
-    - `rail_length`: m; `inclination`: deg from horizontal; `heading`: deg from north.
+    - `rail_length`: m the rocket travels along the rail before it is free: the
+      rail's length, less the upper rail button's distance from the nozzle where the
+      file gives both (`[rocket] rail_buttons_m`, `[geometry] nozzle_position_m`: the
+      rocket leaves the rail when that button does, as in RocketPy);
+      `inclination`: deg from horizontal; `heading`: deg from north.
     - `surface_temperature`: K at the pad, or `None` (then the standard atmosphere's
       at the pad's pressure).
     - `team_drag_off`, `team_drag_on`: the team's `(mach, cd)` tables or `None`.
@@ -120,6 +124,22 @@ def _latitude(table, path):
     return v
 
 
+def _button_offset(rk, geometry, path) -> float:
+    """m from the nozzle to the upper (furthest from it) rail button, 0 unless the
+    file gives `[rocket] rail_buttons_m` and `[geometry] nozzle_position_m`."""
+    buttons, nozzle = rk.get("rail_buttons_m"), geometry.get("nozzle_position_m")
+    if buttons is None or nozzle is None:
+        return 0.0
+    try:
+        far = max(abs(float(b) - float(nozzle)) for b in buttons)
+    except (TypeError, ValueError):
+        raise LogError(
+            f"{path}: [rocket] rail_buttons_m = {buttons!r} and [geometry] "
+            f"nozzle_position_m = {nozzle!r} must be numbers"
+        ) from None
+    return far
+
+
 def read_rocket(path) -> Rocket:
     """Read a `rocket.toml` (see the module docstring for its keys).
 
@@ -182,7 +202,8 @@ def read_rocket(path) -> Rocket:
         elevation=_number(
             la, "elevation_m", path, "launch", default=0.0, positive=False
         ),
-        rail_length=_number(la, "rail_length_m", path, "launch"),
+        rail_length=_number(la, "rail_length_m", path, "launch")
+        - _button_offset(rk, doc.get("geometry", {}), path),
         inclination=inclination,
         heading=_number(la, "heading_deg", path, "launch", default=0.0, positive=False),
         surface_temperature=temperature,
