@@ -127,6 +127,12 @@ def _isa_pressure(h):
     return 101325.0 * (1 - 0.0065 * hg / 288.15) ** (9.80665 / (287.05287 * 0.0065))
 
 
+# the loaded motor's lateral inertia about its centre of mass: the casing's 0.05
+# and the propellant as RocketPy's GenericMotor takes it, a cylinder of the
+# chamber's radius 0.0375 m and height 0.5 m
+MOTOR_INERTIA = round(0.05 + 1.9 * (3 * 0.0375**2 + 0.5**2) / 12, 4)
+
+
 def rocketpy_flight(spec):
     """RocketPy's environment, rocket and flight (to apogee) for a flight `spec`
     of `FLIGHTS`: the fixtures' rocket, motor, rail and site."""
@@ -242,10 +248,21 @@ def flight(name, spec, out=OUT):
     (folder / "rocket.toml").write_text(f"""\
 # A flight simulated by RocketPy {__import__("importlib.metadata").metadata.version("rocketpy")} (scripts/make_rocket_fixtures.py)
 name = "sim-{name}"
+coordinate_system = "tail_to_nose"
 
 [rocket]
 mass_without_motor_kg = 8.2
 radius_m = 0.052
+I11_kgm2 = 4.4
+center_of_mass_without_motor_m = 1.2
+rail_buttons_m = [1.1, 0.3]
+
+[geometry]
+nose = {{ kind = "vonKarman", length_m = 0.52, position_m = 2.72 }}
+fins = {{ n = 4, span_m = 0.1, root_chord_m = 0.2, tip_chord_m = 0.07, position_m = 0.21 }}
+motor_center_of_mass_m = 0.25
+nozzle_position_m = 0.0
+motor_inertia_kgm2 = {MOTOR_INERTIA}
 
 [motor]
 thrust_file = "motor.csv"

@@ -306,6 +306,13 @@ def prepare(rocket: Rocket, log, *, knots: DragKnots | None = None) -> Problem:
     if knots is None:
         knots = knots_for(record, rocket, temperature)
     flight = Flight(rocket, knots, pressure)
+    record = type(record)(
+        record.t,
+        record.inputs,
+        record.measured,
+        x0=flight.initial_state(),
+        name=record.name,
+    )
     start = default_start(rocket, knots, temperature)
     accel = log.channels.get("accel_axial")
     start["motor_time"] = measured_motor_time(

@@ -7,6 +7,10 @@ read, every other key is kept for people:
     [motor]   thrust_file, propellant_initial_mass_kg, dry_mass_kg (default 0),
               holddown_time_s (default 0: the motor lifts off as soon as thrust
               exceeds weight)
+    [geometry] nose, fins, tail or transition, motor_center_of_mass_m (m, the
+              loaded motor's centre of mass), motor_inertia_kgm2 (optional), with
+              [rocket] I11_kgm2, center_of_mass_without_motor_m and the top-level
+              coordinate_system: the attitude (see `_barrowman`); optional
     [aero]    power_off_drag_file, power_on_drag_file (optional; the team's curves),
               air_brakes_actuation_file (optional, time s / deployment 0-1)
     [launch]  elevation_m, rail_length_m, inclination_deg (from horizontal),
@@ -26,6 +30,7 @@ import equinox as eqx
 import numpy as np
 
 from ..._errors import LogError
+from ._barrowman import Airframe, read_airframe
 from ._drag import read_drag_curve
 from ._motor import Motor, read_motor
 
@@ -41,13 +46,19 @@ class Rocket(eqx.Module):
     - `radius`: m, reference radius (reference area `pi radius^2`).
     - `holddown`: s from ignition to release (a liquid engine on a hold-down).
     - `elevation`: m above sea level of the pad.
-    - `rail_length`: m; `inclination`: deg from horizontal; `heading`: deg from north.
+    - `rail_length`: m the rocket travels along the rail before it is free: the
+      rail's length, less the upper rail button's distance from the nozzle where the
+      file gives both (`[rocket] rail_buttons_m`, `[geometry] nozzle_position_m`: the
+      rocket leaves the rail when that button does, as in RocketPy);
+      `inclination`: deg from horizontal; `heading`: deg from north.
     - `surface_temperature`: K at the pad, or `None` (then the standard atmosphere's
       at the pad's pressure).
     - `team_drag_off`, `team_drag_on`: the team's `(mach, cd)` tables or `None`.
     - `airbrakes`: `(time s, deployment 0-1)` schedule or `None`.
     - `recorded_apogee`, `preflight_apogee`: m AGL from the team, or `None`.
     - `folder`: where the file was.
+    - `airframe`: the [`Airframe`][] (surfaces and mass distribution) when the
+      file gives one, else `None` (the rocket points along its air-relative velocity).
     - `latitude`: deg, the pad's geodetic latitude (gravity from the WGS84 ellipsoid
       there), or `None` (standard gravity, 9.80665 m/s^2 at sea level).
     """
@@ -69,6 +80,7 @@ class Rocket(eqx.Module):
     preflight_apogee: float | None = eqx.field(static=True)
     folder: str = eqx.field(static=True, default=".")
     latitude: float | None = eqx.field(static=True, default=None)
+    airframe: Airframe | None = None
 
     @property
     def loaded_mass(self) -> float:
@@ -110,6 +122,22 @@ def _latitude(table, path):
     if abs(v) > 90.0:
         raise LogError(f"{path}: [launch] latitude_deg = {v!r} is not in -90..90")
     return v
+
+
+def _button_offset(rk, geometry, path) -> float:
+    """m from the nozzle to the upper (furthest from it) rail button, 0 unless the
+    file gives `[rocket] rail_buttons_m` and `[geometry] nozzle_position_m`."""
+    buttons, nozzle = rk.get("rail_buttons_m"), geometry.get("nozzle_position_m")
+    if buttons is None or nozzle is None:
+        return 0.0
+    try:
+        far = max(abs(float(b) - float(nozzle)) for b in buttons)
+    except (TypeError, ValueError):
+        raise LogError(
+            f"{path}: [rocket] rail_buttons_m = {buttons!r} and [geometry] "
+            f"nozzle_position_m = {nozzle!r} must be numbers"
+        ) from None
+    return far
 
 
 def read_rocket(path) -> Rocket:
@@ -174,7 +202,8 @@ def read_rocket(path) -> Rocket:
         elevation=_number(
             la, "elevation_m", path, "launch", default=0.0, positive=False
         ),
-        rail_length=_number(la, "rail_length_m", path, "launch"),
+        rail_length=_number(la, "rail_length_m", path, "launch")
+        - _button_offset(rk, doc.get("geometry", {}), path),
         inclination=inclination,
         heading=_number(la, "heading_deg", path, "launch", default=0.0, positive=False),
         surface_temperature=temperature,
@@ -185,4 +214,5 @@ def read_rocket(path) -> Rocket:
         preflight_apogee=_optional(rs, "preflight_simulated_apogee_agl_m"),
         folder=str(folder),
         latitude=_latitude(la, path),
+        airframe=read_airframe(doc, path, _number(rk, "radius_m", path, "rocket")),
     )

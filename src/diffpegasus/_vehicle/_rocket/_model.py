@@ -2,10 +2,20 @@
 
 States (east-north-up, pad origin): position `e, n, u` (m) and velocity
 `ve, vn, vu` (m/s). On the rail the rocket moves along it (held until the hold-down
-releases and thrust exceeds weight along the rail); off the rail it points into the
-relative wind (zero angle of attack: the attitude motion is fast compared with the
-trajectory for a statically stable rocket), so thrust acts along the air-relative
-velocity and drag against it.
+releases and thrust exceeds weight along the rail). Off the rail:
+
+- without an airframe in the rocket file, it points into the relative wind (zero
+  angle of attack), so thrust acts along the air-relative velocity and drag
+  against it;
+- with one ([`Airframe`][]: Barrowman's normal-force slopes and centres of pressure,
+  the mass distribution), it weathercocks: six more states, the body axis `ax_e,
+  ax_n, ax_u` (unit vector, east-north-up) and the angular velocity `w_e, w_n, w_u`
+  (rad/s, across the axis; no roll). Thrust acts along the body axis, drag
+  (`q S CD`) against it, and each surface a normal force `-1/2 rho V S CN_alpha
+  v_perp` at its centre of pressure, `v_perp` the part across the axis of the air
+  velocity at that station (the rotation included: the pitch damping); their
+  moment about the centre of mass over the lateral inertia (both with the
+  propellant burned) turns the axis.
 
 Parameters (name: unit, meaning):
 
@@ -46,6 +56,7 @@ from ._sensors import axial_specific_force, baro_altitude, layered_air
 
 
 STATES = ("e", "n", "u", "ve", "vn", "vu")
+ATTITUDE = ("ax_e", "ax_n", "ax_u", "w_e", "w_n", "w_u")
 OUTPUTS = ("altitude", "accel")  # the channels a log may give, in this order
 EFFECTS = (
     "cd_scale",
@@ -111,10 +122,49 @@ class Flight(eqx.Module):
             return gravity(h)
         return normal_gravity(h, self.rocket.latitude)
 
-    def forces(self, t, x, u, p):
-        """Acceleration `(3,)` m/s^2, body axis `(3,)`, and the air data."""
+    @property
+    def states(self) -> tuple:
+        """The state names: position and velocity, and the attitude's with an
+        airframe."""
+        return STATES + (ATTITUDE if self.rocket.airframe is not None else ())
+
+    def initial_state(self) -> np.ndarray:
+        """At rest at the pad, pointing along the rail."""
+        x = np.zeros(len(self.states))
+        if self.rocket.airframe is not None:
+            x[6:9] = self.rail_axis()
+        return x
+
+    def attitude(self, x, air, rho, speed, mach, thrust_on, burned, p):
+        """`(axis, normal force (3,) N, angular acceleration (3,) rad/s^2)` of the
+        weathercocking body (see the module) at air velocity `air` `(3,)` m/s."""
+        frame = self.rocket.airframe
         r = self.rocket
-        pos, vel = x[:3], x[3:]
+        axis = x[6:9] / jnp.linalg.norm(x[6:9])
+        w = x[9:12]
+        rocket_mass = r.dry_mass - r.motor.dry_mass + p["mass_offset"]
+        motor_mass = r.motor.dry_mass + r.motor.propellant_mass * (1 - burned)
+        mass = rocket_mass + motor_mass
+        cg = (rocket_mass * frame.cg_rocket + motor_mass * frame.motor_cg) / mass
+        inertia = (
+            frame.inertia
+            + rocket_mass * (frame.cg_rocket - cg) ** 2
+            + frame.motor_inertia
+            + motor_mass * (frame.motor_cg - cg) ** 2
+        )
+        arm = jnp.asarray(frame.stations) - cg  # (k,) m forward of the CG
+        cna = frame.cn_alpha(mach)
+        local = air[None, :] + jnp.cross(w[None, :], arm[:, None] * axis[None, :])
+        perp = local - (local @ axis)[:, None] * axis[None, :]
+        each = -0.5 * rho * speed * r.area * cna[:, None] * perp  # (k, 3) N
+        moment = jnp.sum(jnp.cross(arm[:, None] * axis[None, :], each), axis=0)
+        return axis, jnp.sum(each, axis=0), moment / inertia
+
+    def forces(self, t, x, u, p):
+        """Acceleration `(3,)` m/s^2, body axis `(3,)`, and the air data (with
+        the attitude's angular acceleration last, zeros without an airframe)."""
+        r = self.rocket
+        pos, vel = x[:3], x[3:6]
         tables = tuple(jnp.asarray(a) for a in r.motor.tables())
         tm = t - p["motor_time"]
         thrust, burned = motor_at(tables, tm)
@@ -134,7 +184,6 @@ class Flight(eqx.Module):
         rail = jnp.asarray(self.rail_axis())
         along = jnp.dot(pos, rail)
         on_rail = along < r.rail_length
-        axis = jnp.where(on_rail, rail, air / speed)
         mach = speed / sound
         q = 0.5 * rho * speed**2
         cd = self.knots(mach, jnp.stack([p[k] for k in self.knots.names]))
@@ -143,7 +192,17 @@ class Flight(eqx.Module):
         drag = q * r.area * cd
         g = self.gravity(pos[2])
         gvec = jnp.stack([0.0, 0.0, -g])
-        free = (thrust - drag) / mass * axis + gvec
+        if r.airframe is None:
+            axis = jnp.where(on_rail, rail, air / speed)
+            free = (thrust - drag) / mass * axis + gvec
+            spin = jnp.zeros(0)
+        else:
+            body, normal, spin = self.attitude(
+                x, air, rho, speed, mach, thrust > 0, burned, p
+            )
+            axis = jnp.where(on_rail, rail, body)
+            free = ((thrust - drag) * body + normal) / mass + gvec
+            spin = jnp.where(on_rail, 0.0, spin)
         if r.latitude is not None:  # the pad's frame turns with the Earth
             free = free + coriolis(vel, r.latitude)
         # on the rail: the component along it, less friction, never backwards from rest
@@ -154,19 +213,22 @@ class Flight(eqx.Module):
         held = (tm < r.holddown) | ((v_along <= 1e-6) & (a_along < 0))
         a_along = jnp.where(held, 0.0, a_along)
         accel = jnp.where(on_rail, a_along * rail, free)
-        return accel, axis, (q, rho, g, mach, reading, rate)
+        return accel, axis, (q, rho, g, mach, reading, rate, spin)
 
 
 def rates(flight: Flight, t, x, u, p):
-    """`dx/dt` `(6,)`: velocity and acceleration."""
-    accel, _, _ = flight.forces(t, x, u, p)
-    return jnp.concatenate([x[3:], accel])
+    """`dx/dt` `(6,)`: velocity and acceleration; `(12,)` with the attitude: the
+    axis turning at the angular velocity, and the angular acceleration."""
+    accel, _, (*_, spin) = flight.forces(t, x, u, p)
+    if flight.rocket.airframe is None:
+        return jnp.concatenate([x[3:], accel])
+    return jnp.concatenate([x[3:6], accel, jnp.cross(x[9:12], x[6:9]), spin])
 
 
 def observe(flight: Flight, t, x, u, p):
     """The measured channels: barometric altitude (m AGL) and axial specific force
     (m/s^2), each multiplied by its `has_` input (0 where the log has no sample)."""
-    accel, axis, (q, rho, g, mach, reading, rate) = flight.forces(t, x, u, p)
+    accel, axis, (q, rho, g, mach, reading, rate, _) = flight.forces(t, x, u, p)
     h = baro_altitude(
         reading,
         x[5],
@@ -196,15 +258,18 @@ def rocket_model(flight: Flight, outputs, start: dict, free) -> Model:
     if missing:
         raise ValueError(f"no start value for {missing}")
     rates_fn, observe_fn = _functions(flight)
+    scale = (100.0, 100.0, 100.0, 10.0, 10.0, 10.0)
+    if flight.rocket.airframe is not None:
+        scale = scale + (1.0, 1.0, 1.0, 0.1, 0.1, 0.1)
     return Model(
-        states=STATES,
+        states=flight.states,
         inputs=("airbrake",) + tuple(f"has_{o}" for o in outputs),
         outputs=outputs,
         parameters={n: float(start[n]) for n in names},
         rates=rates_fn,
         observe=observe_fn,
         fixed=tuple(n for n in names if n not in free),
-        state_scale=(100.0, 100.0, 100.0, 10.0, 10.0, 10.0),
+        state_scale=scale,
     )
 
 

@@ -1,0 +1,169 @@
+"""The rocket's attitude: Barrowman's normal-force slopes and centre of pressure
+against closed form and RocketPy's own numbers, the restoring and damping moments
+against their scalar formulas, and the weathercocking flight against RocketPy's."""
+
+import pathlib
+import tomllib
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import diffpegasus.rocket as dr
+from diffpegasus._vehicle._rocket._barrowman import read_airframe
+
+
+SIM = pathlib.Path(__file__).parent / "data" / "rocket_sim"
+
+
+def sim_log(folder):
+    """A simulated flight's log.csv as a rocket log (channels on one clock)."""
+    import types
+
+    a = np.loadtxt(folder / "log.csv", delimiter=",", skiprows=1)
+
+    def channel(j):
+        return types.SimpleNamespace(t=a[:, 0], values=a[:, j], filtered=False)
+
+    return types.SimpleNamespace(
+        channels={"altitude": channel(1), "accel_axial": channel(2)},
+        events={
+            "liftoff": types.SimpleNamespace(t=0.0),
+            "apogee": types.SimpleNamespace(t=float(a[-1, 0])),
+        },
+        pad={},
+    )
+
+
+def test_barrowman_rectangular_fins_and_cone_in_closed_form():
+    """Four rectangular fins (span = body diameter 0.1 m, chord 0.1 m, no sweep):
+    Barrowman's `4 n (s/d)^2 / (1 + sqrt(1 + (2 l / (cr + ct))^2))` with `l` = span,
+    `16 / (1 + sqrt 2)`, times the interference `1 + R/(s + R)` = 4/3, at the quarter
+    chord; a conical nose's 2 at 2/3 of its length; incompressible (Mach 0)."""
+    doc = {
+        "coordinate_system": "nose_to_tail",
+        "rocket": {"I11_kgm2": 1.0, "center_of_mass_without_motor_m": 0.6},
+        "geometry": {
+            "nose": {"kind": "conical", "length_m": 0.3, "position_m": 0.0},
+            "fins": {
+                "n": 4,
+                "span_m": 0.1,
+                "root_chord_m": 0.1,
+                "tip_chord_m": 0.1,
+                "sweep_length_m": 0.0,
+                "position_m": 1.0,
+            },
+            "motor_center_of_mass_m": 0.9,
+        },
+    }
+    frame = read_airframe(doc, "x.toml", 0.05)
+    fins = 16 / (1 + np.sqrt(2)) * 4 / 3
+    np.testing.assert_allclose(np.asarray(frame.cn_alpha(0.0)), [2.0, fins], rtol=1e-12)
+    # nose_to_tail: metres forward are minus the positions
+    np.testing.assert_allclose(frame.stations, [-0.2, -1.025], rtol=1e-12)
+    cp = (2 * 0.2 + fins * 1.025) / (2 + fins)
+    assert abs(frame.center_of_pressure(0.0) - -cp) < 1e-12
+    # compressibility: only the fins' aspect-ratio term takes beta (Diederich)
+    b = np.sqrt(1 - 0.6**2)
+    aspect = 2.0  # 2 span^2 / area
+    expected = 2 * np.pi * aspect * 0.01 / (np.pi * 0.05**2) * 2 * 4 / 3
+    expected /= 2 + np.sqrt(4 + (b * aspect) ** 2)
+    assert abs(float(frame.cn_alpha(0.6)[1]) - expected) < 1e-12
+
+
+def test_barrowman_against_rocketpy_for_the_fixture_rocket():
+    """The simulated flights' rocket (its rocket.toml [geometry]): RocketPy 1.13's
+    `total_lift_coeff_der` and `cp_position` for the same geometry (printed by
+    scripts/make_rocket_fixtures.py's `rocketpy_flight`: 10.504949, 10.924766,
+    11.313050 per rad; 0.564755, 0.547628, 0.532919 m at Mach 0, 0.6, 0.8)."""
+    frame = dr.read_rocket(SIM / "clean" / "rocket.toml").airframe
+    for mach, cna, cp in (
+        (0.0, 10.504949, 0.564755),
+        (0.6, 10.924766, 0.547628),
+        (0.8, 11.313050, 0.532919),
+    ):
+        assert abs(float(jnp.sum(frame.cn_alpha(mach))) - cna) < 1e-5
+        assert abs(frame.center_of_pressure(mach) - cp) < 1e-5
+
+
+def test_restoring_and_damping_moments_against_their_scalar_formulas():
+    """Off the rail at 200 m/s, burned out, the axis 2 deg off the velocity: the
+    angular acceleration is `q S sum(CNa_i l_i) sin(a) / I` turning the axis towards
+    the velocity (`l_i` the station's distance ahead of the centre of mass: negative
+    behind it); the axis along the velocity and turning at 0.5 rad/s: `-(rho V S / 2)
+    sum(CNa_i l_i^2) w / I` (the pitch damping), both with the burned-out centre of
+    mass and inertia by the parallel-axis theorem."""
+    rocket = dr.read_rocket(SIM / "clean" / "rocket.toml")
+    frame = rocket.airframe
+    knots = dr.DragKnots((0.1, 0.5, 0.9))
+    flight = dr.Flight(rocket, knots, 101325.0)
+    p = dict.fromkeys(dr.EFFECTS, 0.0)
+    p.update(dict(zip(knots.names, (0.5, 0.5, 0.5), strict=True)))
+    p.update(
+        cd_scale=1.0,
+        power_on_ratio=1.0,
+        thrust_scale=1.0,
+        motor_time=-100.0,  # long burned out
+        temperature=288.15,
+        lapse_rate=-6.5,
+        accel_scale=1.0,
+    )
+    p = {k: jnp.asarray(v) for k, v in p.items()}
+    m_r, m_m = rocket.dry_mass - rocket.motor.dry_mass, rocket.motor.dry_mass
+    cg = (m_r * frame.cg_rocket + m_m * frame.motor_cg) / (m_r + m_m)
+    inertia = (
+        frame.inertia
+        + m_r * (frame.cg_rocket - cg) ** 2
+        + frame.motor_inertia
+        + m_m * (frame.motor_cg - cg) ** 2
+    )
+    arm = np.asarray(frame.stations) - cg
+    a = np.radians(2.0)
+    v = 200.0
+    x = np.zeros(12)
+    x[:3] = [0.0, 0.0, 1000.0]
+    x[3:6] = [0.0, 0.0, v]
+    x[6:9] = [np.sin(a), 0.0, np.cos(a)]  # tilted east of the velocity
+    forces = jax.jit(lambda x, p: flight.forces(0.0, x, jnp.zeros(3), p))
+    _, _, air = forces(jnp.asarray(x), p)
+    q, rho, _, mach = (float(air[i]) for i in range(4))
+    spin = np.asarray(air[-1])
+    cna = np.asarray(frame.cn_alpha(mach))
+    restoring = q * rocket.area * np.sum(cna * arm) * np.sin(a) / inertia
+    # turning towards the velocity: about north, negative (east-to-up rotation)
+    np.testing.assert_allclose(spin, [0.0, restoring, 0.0], atol=1e-9 * abs(restoring))
+    assert restoring < 0
+    x[6:9] = [0.0, 0.0, 1.0]
+    x[9:12] = [0.0, 0.5, 0.0]
+    _, _, air = forces(jnp.asarray(x), p)
+    damping = -0.5 * rho * v * rocket.area * np.sum(cna * arm**2) * 0.5 / inertia
+    np.testing.assert_allclose(np.asarray(air[-1]), [0.0, damping, 0.0], rtol=1e-6)
+
+
+def test_weathercocking_flies_rocketpys_windy_flight():
+    """RocketPy's planted flight (a 6.4 m/s tail wind along the rail) flown by the
+    model at every planted value (the flown drag every 0.05 Mach, thrust scale,
+    wind, barometer lag and static error): the geometric apogee against RocketPy's
+    2661.27 m. Measured with the attitude -0.50 m (drag every 0.01 Mach); pointing
+    along the air-relative velocity at once (no airframe) -7.63 m
+    (experiments/rocket_weathercock_truth.py; on the validation flight `wind-s6`, a
+    7.1 m/s head wind: +13.0 m and -80.1 m). Both leave the rail when its upper
+    button does (10.9 m of the 12 m rail)."""
+    folder = SIM / "planted"
+    truth = tomllib.loads((folder / "rocket.toml").read_text())["truth"]
+    rocket = dr.read_rocket(folder / "rocket.toml")
+    m, cd = dr.read_drag_curve(folder / "drag.csv")
+    knots = dr.DragKnots(tuple(float(v) for v in m[(m >= 0.05) & (m <= 0.85)][::5]))
+    problem = dr.prepare(rocket, sim_log(folder), knots=knots)
+    start = dict(zip(knots.names, np.interp(knots.mach, m, cd), strict=True))
+    start.update(
+        thrust_scale=truth["thrust_scale"],
+        motor_time=0.0,
+        wind_east=truth["wind_east_m_s"],
+        wind_north=truth["wind_north_m_s"],
+        baro_lag=truth["baro_lag_s"],
+        static_error=truth["static_error"],
+    )
+    flown = dr.simulate_flight(problem, start)
+    gap = float(flown.states[:, 2].max()) - truth["apogee_geometric_agl_m"]
+    assert abs(gap) < 1.5
