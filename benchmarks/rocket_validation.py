@@ -3,7 +3,7 @@ committed under tests/data/rocket_sim by scripts/make_rocket_fixtures.py): is th
 planted CD(Mach) inside its 95% band, and which effects does diagnose name?
 
 Writes benchmarks/results/rocket_validation.json (or `--out NAME`.json). Run:
-`python benchmarks/rocket_validation.py [--no-diagnose] [--flights DIR] [--free a,b]
+`python benchmarks/rocket_validation.py [--attitude] [--no-diagnose] [--flights DIR] [--free a,b]
 [--out NAME]`: `--flights` a folder of such flights (`python
 scripts/make_rocket_fixtures.py --validation DIR` writes more), `--free` the effects
 estimated besides the drag and thrust (default the fit's, `default_free`).
@@ -54,7 +54,7 @@ def main():
     out = {}
     for folder in sorted(p for p in flights.iterdir() if p.is_dir()):
         truth = tomllib.loads((folder / "rocket.toml").read_text())["truth"]
-        rocket = dr.read_rocket(folder / "rocket.toml")
+        rocket = dr.read_rocket(folder / "rocket.toml", attitude="--attitude" in args)
         log = sim_log(folder)
         t0 = time.perf_counter()
         problem = dr.prepare(rocket, log)

@@ -23,7 +23,7 @@ def main(folder):
 
     folder = pathlib.Path(folder)
     truth = tomllib.loads((folder / "rocket.toml").read_text())["truth"]
-    rocket = dr.read_rocket(folder / "rocket.toml")
+    rocket = dr.read_rocket(folder / "rocket.toml", attitude=True)
     m, cd = dr.read_drag_curve(folder / "drag.csv")
     sel = m <= 1.0
     knots = dr.DragKnots(tuple(m[sel]))

@@ -223,7 +223,7 @@ def test_dynamics_against_rocketpy():
     0.25% of apogee."""
     import tomllib
 
-    rocket = dr.read_rocket(SIM / "clean" / "rocket.toml")
+    rocket = dr.read_rocket(SIM / "clean" / "rocket.toml", attitude=True)
     log = sim_log("clean")
     problem = dr.prepare(rocket, log)
     # RocketPy's own thrust, lit at its (the log's) time 0: not the estimated starts

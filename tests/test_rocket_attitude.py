@@ -76,7 +76,9 @@ def test_barrowman_against_rocketpy_for_the_fixture_rocket():
     `total_lift_coeff_der` and `cp_position` for the same geometry (printed by
     scripts/make_rocket_fixtures.py's `rocketpy_flight`: 10.504949, 10.924766,
     11.313050 per rad; 0.564755, 0.547628, 0.532919 m at Mach 0, 0.6, 0.8)."""
-    frame = dr.read_rocket(SIM / "clean" / "rocket.toml").airframe
+    # the attitude is asked for: by default the same file flies as a point mass
+    assert dr.read_rocket(SIM / "clean" / "rocket.toml").airframe is None
+    frame = dr.read_rocket(SIM / "clean" / "rocket.toml", attitude=True).airframe
     for mach, cna, cp in (
         (0.0, 10.504949, 0.564755),
         (0.6, 10.924766, 0.547628),
@@ -93,7 +95,7 @@ def test_restoring_and_damping_moments_against_their_scalar_formulas():
     behind it); the axis along the velocity and turning at 0.5 rad/s: `-(rho V S / 2)
     sum(CNa_i l_i^2) w / I` (the pitch damping), both with the burned-out centre of
     mass and inertia by the parallel-axis theorem."""
-    rocket = dr.read_rocket(SIM / "clean" / "rocket.toml")
+    rocket = dr.read_rocket(SIM / "clean" / "rocket.toml", attitude=True)
     frame = rocket.airframe
     knots = dr.DragKnots((0.1, 0.5, 0.9))
     flight = dr.Flight(rocket, knots, 101325.0)
@@ -151,7 +153,7 @@ def test_weathercocking_flies_rocketpys_windy_flight():
     button does (10.9 m of the 12 m rail)."""
     folder = SIM / "planted"
     truth = tomllib.loads((folder / "rocket.toml").read_text())["truth"]
-    rocket = dr.read_rocket(folder / "rocket.toml")
+    rocket = dr.read_rocket(folder / "rocket.toml", attitude=True)
     m, cd = dr.read_drag_curve(folder / "drag.csv")
     knots = dr.DragKnots(tuple(float(v) for v in m[(m >= 0.05) & (m <= 0.85)][::5]))
     problem = dr.prepare(rocket, sim_log(folder), knots=knots)

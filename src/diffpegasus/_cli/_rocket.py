@@ -37,15 +37,23 @@ OutOption = Annotated[
     pathlib.Path | None, typer.Option(help="Folder for the figures and summary.json")
 ]
 JsonOption = Annotated[bool, typer.Option("--json", help="Print one JSON object")]
+AttitudeOption = Annotated[
+    bool,
+    typer.Option(
+        "--attitude",
+        help="Let the rocket weathercock (Barrowman normal force from the file's "
+        "[geometry]); slower fits",
+    ),
+]
 
 
-def _load(toml, logs, columns):
+def _load(toml, logs, columns, attitude=False):
     from .._vehicle._rocket import read_rocket
 
     if not toml.is_file():
         _fail(f"{toml}: no such file")
     try:
-        rocket = read_rocket(toml)
+        rocket = read_rocket(toml, attitude=attitude)
         from .._log._rocketlogs import read_rocket_log
 
         log = read_rocket_log(list(logs) if logs else toml, columns)
@@ -69,13 +77,14 @@ def fit_command(
     columns: MapOption = None,
     out: OutOption = None,
     as_json: JsonOption = False,
+    attitude: AttitudeOption = False,
 ):
     """Fit CD(Mach), thrust scale and the barometer to the ascent; reconstruct and
     predict the apogee (from the log up to 2 s after burnout); re-simulate with the
     team's drag curve; write figures with --out."""
     from .._rocket._pipeline import run_flight
 
-    rocket, flight_log = _load(toml, log, columns)
+    rocket, flight_log = _load(toml, log, columns, attitude)
     row = run_flight(rocket, flight_log, out)
     if as_json:
         typer.echo(json.dumps(row, default=float))
@@ -117,12 +126,13 @@ def compare_command(
     log: LogsOption = None,
     columns: MapOption = None,
     as_json: JsonOption = False,
+    attitude: AttitudeOption = False,
 ):
     """CD(Mach) identified (95% band) beside the team's curve, and the apogee flown
     with each."""
     from .._rocket._pipeline import run_flight
 
-    rocket, flight_log = _load(toml, log, columns)
+    rocket, flight_log = _load(toml, log, columns, attitude)
     row = run_flight(rocket, flight_log, None)
     if as_json:
         typer.echo(
@@ -162,13 +172,14 @@ def diagnose_command(
     log: LogsOption = None,
     columns: MapOption = None,
     as_json: JsonOption = False,
+    attitude: AttitudeOption = False,
 ):
     """Name the effects the flight shows beyond drag and thrust (wind, rail
     friction, barometer lag, static-pressure errors, mass error, air brakes, ...)."""
     from .._rocket._diagnose import diagnose
     from .._rocket._identify import prepare
 
-    rocket, flight_log = _load(toml, log, columns)
+    rocket, flight_log = _load(toml, log, columns, attitude)
     named, rows, _ = diagnose(prepare(rocket, flight_log))
     if as_json:
         typer.echo(

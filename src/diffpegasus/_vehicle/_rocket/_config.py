@@ -140,8 +140,13 @@ def _button_offset(rk, geometry, path) -> float:
     return far
 
 
-def read_rocket(path) -> Rocket:
+def read_rocket(path, *, attitude: bool = False) -> Rocket:
     """Read a `rocket.toml` (see the module docstring for its keys).
+
+    `attitude=True` reads the [geometry] section into an [`Airframe`][]: the
+    rocket then weathercocks with Barrowman's normal force (six more states; a fit
+    takes about 20 times as long). By default, and where the file lacks those keys,
+    the rocket points along its air-relative velocity.
 
     **Returns:** a [`Rocket`][]. A missing or implausible value raises a `LogError`
     naming the file, section and key.
@@ -214,5 +219,7 @@ def read_rocket(path) -> Rocket:
         preflight_apogee=_optional(rs, "preflight_simulated_apogee_agl_m"),
         folder=str(folder),
         latitude=_latitude(la, path),
-        airframe=read_airframe(doc, path, _number(rk, "radius_m", path, "rocket")),
+        airframe=read_airframe(doc, path, _number(rk, "radius_m", path, "rocket"))
+        if attitude
+        else None,
     )
