@@ -10,7 +10,7 @@ det R, the likelihood ratio's pieces and the correlation time; then stops.
 
 Variants: `base` (the diagnosis's coloured fit, 16-point schedule), `schedN`
 (N-point schedule), `airspeed` (the gust's correlation time `L / V`, the length
-`L` estimated). Results: experiments/results/gust_variants/<flight>.json.
+`L` estimated), `knotsK` (the diagnosis with K Mach functions). Results: experiments/results/gust_variants/<flight>.json.
 """
 
 import dataclasses
@@ -40,6 +40,8 @@ OUT = ROOT / "experiments" / "results" / "gust_variants"
 _original = pn.white_or_coloured
 _variants: list[str] = []
 _rows: dict = {}
+_base: list[bool] = [True]
+_arrays: dict = {}
 
 
 class _Done(Exception):
@@ -77,10 +79,14 @@ def _row(fem, result, seconds):
 
 def _wrapped(result, process_noise, gust, **fem_options):
     t0 = time.process_time()
-    fem, choice = _original(result, process_noise, gust, **fem_options)
-    fits = choice.get("fits", {})
+    # without `base` the diagnosis's own coloured fit is skipped (white only)
+    fem, choice = _original(
+        result, process_noise, gust if _base[0] else None, **fem_options
+    )
+    fits = choice.get("fits", {"white": fem})
     for name, f in fits.items():
         _rows[name] = _row(f, result, time.process_time() - t0)
+        _arrays[name] = f
     print({k: (v["check"], v["det_R"]) for k, v in _rows.items()}, flush=True)
     shared = pn._starts(result, process_noise, fem_options)
     white = fits["white"]
@@ -97,6 +103,7 @@ def _wrapped(result, process_noise, gust, **fem_options):
             continue
         f = pn._fit_from(result, process_noise, (options, residuals, x0), start, g)
         _rows[v] = _row(f, result, time.process_time() - t0)
+        _arrays[v] = f
         print(v, _rows[v], flush=True)
     raise _Done
 
@@ -104,14 +111,29 @@ def _wrapped(result, process_noise, gust, **fem_options):
 def main():
     spec, *variants = sys.argv[1:]
     _variants.extend(v for v in variants if v != "base")
+    _base[0] = "base" in variants
     pn.white_or_coloured = _wrapped
     OUT.mkdir(parents=True, exist_ok=True)
     csv, settings = tc._flight(spec)
+    for v in variants:  # `knotsK`: K Mach functions instead of the flight's
+        if v.startswith("knots"):
+            settings = ("--knots", v[5:], *settings[2:])
     res = CliRunner().invoke(app, ["diagnose", str(csv), "--json", *settings])
     if not isinstance(res.exception, _Done):
         print(res.output[-3000:], res.exception)
     stem = spec.replace(",", "_") + "_" + "_".join(variants)
     (OUT / f"{stem}.json").write_text(json.dumps(_rows, indent=1))
+    # innovations, predicted outputs and inputs of each fit (first record)
+    np.savez(
+        OUT / f"{stem}.npz",
+        **{
+            f"{k}_{what}": np.asarray(getattr(f, what)[0])
+            for k, f in _arrays.items()
+            for what in ("innovations", "outputs")
+        },
+        **{f"{k}_inputs": np.asarray(f.records[0].inputs) for k, f in _arrays.items()},
+        **{f"{k}_t": np.asarray(f.records[0].t) for k, f in _arrays.items()},
+    )
     print(json.dumps(_rows, indent=1))
 
 
