@@ -93,7 +93,8 @@ class Gust(eqx.Module):
 @functools.lru_cache(maxsize=32)
 def with_gust(model: Model, gust: Gust) -> Model:
     """`model` with the gust states appended to its states and `gust_ln_tau` to
-    its parameters (start `ln gust.tau`); its rates and outputs at the air's
+    its parameters (start `ln gust.tau`; `gust_ln_length`, start `ln gust.length`,
+    when the gust names the airspeed); its rates and outputs at the air's
     state `x + E g`. Cached: one augmented model (and one compilation) per model
     and gust."""
     named = (
