@@ -11,7 +11,7 @@ import pytest
 import scipy.linalg
 
 from diffpegasus._estimate._filter_error import innovations, problem
-from diffpegasus._estimate._gust import Gust, LOG_TAU, with_gust
+from diffpegasus._estimate._gust import Gust, LOG_LENGTH, LOG_TAU, with_gust
 from diffpegasus._estimate._model import Model, Record
 
 
@@ -40,19 +40,19 @@ def _observe(t, x, u, p):
 MODEL = Model(("alpha", "q"), ("de",), ("alpha", "q", "az"), TRUE, _rates, _observe)
 
 
-def _matrices():
+def _matrices(tau=TAU):
     """The augmented system by hand: states alpha, q, g (the gust on alpha)."""
     za, zd, ma, mq, md = TRUE.values()
-    a = np.array([[za, 1.0, za], [ma, mq, ma], [0.0, 0.0, -1.0 / TAU]])
+    a = np.array([[za, 1.0, za], [ma, mq, ma], [0.0, 0.0, -1.0 / tau]])
     b = np.array([[zd], [md], [0.0]])
     c = np.array([[1.0, 0.0, 1.0], [0.0, 1.0, 0.0], [V * za, 0.0, V * za]])
     d = np.array([[0.0], [0.0], [V * zd]])
     return a, b, c, d
 
 
-def _numpy_filter(t, de, z, r):
+def _numpy_filter(t, de, z, r, tau=TAU):
     """Innovations of the steady-state filter-error filter, all in numpy."""
-    a, b, c, d = _matrices()
+    a, b, c, d = _matrices(tau)
     n = a.shape[0]
     f = np.diag(F)
     vl = scipy.linalg.expm(np.block([[-a, f @ f.T], [np.zeros((n, n)), a.T]]) * DT)
@@ -113,11 +113,59 @@ def test_gust_filter_matches_a_numpy_kalman_filter(record):
     assert np.all(err < 1e-6), err
 
 
+def test_gust_through_a_frozen_field_decays_at_airspeed_over_length(record):
+    """With `airspeed` named the correlation time is `L / V`: the airspeed a
+    state of the model (held: `V' = 0`, measured without error, so the filter
+    never moves it), the filter on alpha, q and az at two airspeeds is the numpy
+    filter's with `tau = L / V` for one length `L`."""
+
+    def rates(t, x, u, p):
+        return jnp.concatenate([jnp.zeros(1), _rates(t, x[1:], u, p)])
+
+    def observe(t, x, u, p):
+        return jnp.concatenate([x[:1], _observe(t, x[1:], u, p)])
+
+    model = Model(
+        ("V", "alpha", "q"), ("de",), ("V", "alpha", "q", "az"), TRUE, rates, observe
+    )
+    length = 150.0  # m
+    aug = with_gust(model, Gust(("alpha",), airspeed="V", length=length))
+    assert aug.parameters[-1] == LOG_LENGTH
+    assert aug.start[-1] == pytest.approx(np.log(length))
+    r = np.diag([1e-5, 1e-4, 0.3])
+    z = jnp.asarray([*TRUE.values(), np.log(length), 1e-3, *F])
+    for speed in (V, 2.5 * V):
+        rec = Record(
+            record.t,
+            record.inputs,
+            np.column_stack([np.full(N, speed), record.measured]),
+            x0=np.array([speed, 0.0, 0.0, 0.0]),
+        )
+        prob = problem(aug, [rec], (0, 1, 2, 3))
+        nu, _, _, k, _, _ = innovations(
+            aug, prob, z, jnp.asarray(scipy.linalg.block_diag(1e-2, r))
+        )
+        ref, k_ref = _numpy_filter(
+            record.t, record.inputs[:, 0], record.measured, r, tau=length / speed
+        )
+        np.testing.assert_allclose(
+            np.asarray(k[0, 0])[1:, 1:], k_ref, rtol=1e-8, atol=1e-12
+        )
+        assert np.all(np.asarray(nu[0, :N, 0]) == 0.0)
+        scale = np.abs(ref).max(axis=0)
+        err = np.abs(np.asarray(nu[0, :N, 1:]) - ref).max(axis=0) / scale
+        assert np.all(err < 1e-6), (speed, err)
+
+
 def test_gust_rejects_a_state_the_model_lacks():
     with pytest.raises(ValueError, match="gust on \\['w'\\]"):
         with_gust(MODEL, Gust(("w",)))
     with pytest.raises(ValueError, match="positive"):
         Gust(("alpha",), tau=0.0)
+    with pytest.raises(ValueError, match="positive"):
+        Gust(("alpha",), airspeed="V", length=-1.0)
+    with pytest.raises(ValueError, match="gust on \\['V'\\]"):
+        with_gust(MODEL, Gust(("alpha",), airspeed="V"))
 
 
 def test_kinematic_states_take_their_rates_at_the_inertial_state():

@@ -57,7 +57,7 @@ from .._estimate._filter_error import (
     residual_intensities,
 )
 from .._estimate._fit import Fit
-from .._estimate._gust import Gust, LOG_TAU
+from .._estimate._gust import Gust, LOG_LENGTH, LOG_TAU
 from .._estimate._score import score_variance
 from ._calibration import Calibration
 from ._rule import DecisionRule
@@ -393,7 +393,8 @@ def white_or_coloured(
 
     **Returns:** `(fit, choice)`, `choice` JSON-ready: `model` (`"white"` or
     `"coloured"`), the two fits' `det_R`, `unknowns` and `converged`, and the
-    coloured fit's correlation time `tau` (s)."""
+    coloured fit's correlation time `tau` (s), or its length scale `length` (m)
+    when the gust names the airspeed."""
     shared = _starts(result, process_noise, fem_options)
     white = _best_of_two(result, process_noise, shared)
     choice = {
@@ -408,12 +409,14 @@ def white_or_coloured(
         return white, choice
     start = white.params if white.converged else result.params
     coloured = _fit_from(result, process_noise, shared, start, gust)
-    tau = float(np.exp(coloured.params[coloured.model.parameters.index(LOG_TAU)]))
+    names = coloured.model.parameters
+    scale = "tau" if LOG_TAU in names else "length"
+    log_scale = coloured.params[names.index(LOG_TAU if scale == "tau" else LOG_LENGTH)]
     choice["coloured"] = {
         "det_R": float(coloured.cost),
         "unknowns": _unknowns(coloured),
         "converged": bool(coloured.converged),
-        "tau": tau,
+        scale: float(np.exp(log_scale)),
     }
     n = sum(len(r.t) for r in result.records)
 

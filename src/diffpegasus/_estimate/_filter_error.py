@@ -624,7 +624,9 @@ def fit_filter_error(
       gust states on the airflow states it names, driven by process noise too,
       with their correlation time estimated; the fit's model is then the
       augmented one ([`with_gust`][]: states `gust[state]`, parameter
-      `gust_ln_tau`, the natural log of the correlation time in s).
+      `gust_ln_tau`, the natural log of the correlation time in s, or
+      `gust_ln_length`, of the length scale in m, when the gust names the
+      airspeed).
 
     **Returns:** a [`FilterErrorFit`][].
     """
@@ -875,7 +877,7 @@ def _gust_filter_error(
         aug,
         records,
         process_noise=noise,
-        start=np.concatenate([theta0, [np.log(gust.tau)]]),
+        start=np.concatenate([theta0, aug.start[-1:]]),
         residuals=residuals,
         x0=x_aug,
         **options,

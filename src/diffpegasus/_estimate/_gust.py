@@ -39,6 +39,8 @@ from .._model import Model
 
 # the correlation-time parameter of the augmented model: ln(tau / 1 s)
 LOG_TAU = "gust_ln_tau"
+# with the airspeed named, the length-scale parameter instead: ln(L / 1 m)
+LOG_LENGTH = "gust_ln_length"
 
 
 class Gust(eqx.Module):
@@ -50,13 +52,20 @@ class Gust(eqx.Module):
     `pitch_rate`: the pitch-rate state (rad/s); when named, `states` are the
     airspeed (m/s) and the angle of attack (rad), in that order, and the
     airspeed and angle-of-attack rates are the inertial velocity's (the wind's
-    transport through the pitching body axes added). A strategy of
-    [`FilterError`][] and of the diagnosis's process-noise candidate."""
+    transport through the pitching body axes added). `airspeed`: the airspeed
+    state (m/s); when named, the vehicle flies through a frozen field of length
+    scale `L` (m, estimated as `ln L`, start `length`) and the correlation time
+    is `L / V` at the air's airspeed, which follows a vehicle that accelerates
+    (Taylor's hypothesis, as Dryden's and von Karman's models take it); the
+    intensities stay constant. A strategy of [`FilterError`][] and of the
+    diagnosis's process-noise candidate."""
 
     states: tuple[str, ...] = eqx.field(static=True)
     tau: float = eqx.field(static=True, default=1.0)
     kinematic: tuple[str, ...] = eqx.field(static=True, default=())
     pitch_rate: str | None = eqx.field(static=True, default=None)
+    airspeed: str | None = eqx.field(static=True, default=None)
+    length: float = eqx.field(static=True, default=250.0)
 
     def __check_init__(self):
         if not self.states:
@@ -67,6 +76,8 @@ class Gust(eqx.Module):
             raise ValueError(
                 f"the gust's correlation time must be positive: {self.tau}"
             )
+        if not self.length > 0:
+            raise ValueError(f"the gust's length scale must be positive: {self.length}")
         if self.pitch_rate is not None and len(self.states) != 2:
             raise ValueError(
                 "a gust with a pitch rate shifts two states, the airspeed and the "
@@ -82,17 +93,23 @@ class Gust(eqx.Module):
 @functools.lru_cache(maxsize=32)
 def with_gust(model: Model, gust: Gust) -> Model:
     """`model` with the gust states appended to its states and `gust_ln_tau` to
-    its parameters (start `ln gust.tau`); its rates and outputs at the air's
+    its parameters (start `ln gust.tau`; `gust_ln_length`, start `ln gust.length`,
+    when the gust names the airspeed); its rates and outputs at the air's
     state `x + E g`. Cached: one augmented model (and one compilation) per model
     and gust."""
-    named = (*gust.states, *gust.kinematic, *filter(None, [gust.pitch_rate]))
+    named = (
+        *gust.states,
+        *gust.kinematic,
+        *filter(None, [gust.pitch_rate, gust.airspeed]),
+    )
     unknown = [s for s in named if s not in model.states]
     if unknown:
         raise ValueError(
             f"gust on {unknown}: not model states ({', '.join(model.states)})"
         )
-    if LOG_TAU in model.parameters:
-        raise ValueError(f"the model already has a parameter {LOG_TAU!r}")
+    scale_name = LOG_TAU if gust.airspeed is None else LOG_LENGTH
+    if scale_name in model.parameters:
+        raise ValueError(f"the model already has a parameter {scale_name!r}")
     n = len(model.states)
     idx = np.array([model.states.index(s) for s in gust.states])
     own = model.parameters
@@ -105,6 +122,13 @@ def with_gust(model: Model, gust: Gust) -> Model:
 
     kin = np.array([model.states.index(s) for s in gust.kinematic], int)
     iq = None if gust.pitch_rate is None else model.states.index(gust.pitch_rate)
+    iv = None if gust.airspeed is None else model.states.index(gust.airspeed)
+
+    def decay(xa, p):
+        """`1 / tau` (1/s) at the air's state `xa`."""
+        if iv is None:
+            return jnp.exp(-p[LOG_TAU])
+        return jnp.abs(xa[iv]) * jnp.exp(-p[LOG_LENGTH])
 
     def rates(t, x, u, p):
         xa = air(x)
@@ -114,7 +138,7 @@ def with_gust(model: Model, gust: Gust) -> Model:
         if len(kin):
             inertial = jnp.asarray(model.rates(t, x[:n], u, mine(p)), float)
             base = base.at[kin].set(inertial.reshape(-1)[kin])
-        return jnp.concatenate([base, -x[n:] * jnp.exp(-p[LOG_TAU])])
+        return jnp.concatenate([base, -x[n:] * decay(xa, p)])
 
     def observe(t, x, u, p):
         return model.observe(t, air(x), u, mine(p))
@@ -129,10 +153,13 @@ def with_gust(model: Model, gust: Gust) -> Model:
         (*model.states, *gust.names),
         model.inputs,
         model.outputs,
-        (*model.parameters, LOG_TAU),
+        (*model.parameters, scale_name),
         rates,
         observe,
-        start=(*model.start, float(np.log(gust.tau))),
+        start=(
+            *model.start,
+            float(np.log(gust.tau if iv is None else gust.length)),
+        ),
         fixed=model.fixed,
         delays=delays,
         state_scale=scale,
