@@ -188,9 +188,9 @@ def flight(folder, kind, rate, seed, planted, value):
     )
     if significant:
         top = significant[0]
-        fit, proc, fsec = _cli(
-            "fit", str(csv), "--vehicle", vehicle, "--add", top, "--json"
-        )
+        # process noise is not an effect to add: its refit is the filter-error fit
+        refit = ("--method", "fem") if top == "process_noise" else ("--add", top)
+        fit, proc, fsec = _cli("fit", str(csv), "--vehicle", vehicle, *refit, "--json")
         row["fit_seconds"] = round(fsec, 1)
         if fit is None:
             row["fit_error"] = proc.stderr.strip().splitlines()[-3:]
