@@ -29,3 +29,21 @@ def numpy_channels(flight: dp.Flight) -> dict[str, np.ndarray]:
     out = {k: np.asarray(v) for k, v in flight.channels.items()}
     out["t"] = np.asarray(flight.t)
     return out
+
+
+def rocket_sim_log(folder):
+    """A simulated rocket flight's `log.csv` (tests/data/rocket_sim) as a rocket log:
+    barometric altitude (m) and axial acceleration (m/s^2) on one clock."""
+    import types
+
+    a = np.loadtxt(folder / "log.csv", delimiter=",", skiprows=1)
+
+    def channel(j):
+        return types.SimpleNamespace(t=a[:, 0], values=a[:, j], filtered=False)
+
+    apogee = types.SimpleNamespace(t=float(a[-1, 0]), how="", value=np.nan)
+    return types.SimpleNamespace(
+        channels={"altitude": channel(1), "accel_axial": channel(2)},
+        events={"liftoff": types.SimpleNamespace(t=0.0), "apogee": apogee},
+        pad={},
+    )

@@ -10,6 +10,8 @@ import pytest
 
 from diffpegasus import rocket as dr
 
+from .helpers import rocket_sim_log
+
 
 SIM = pathlib.Path(__file__).parent / "data" / "rocket_sim"
 G0 = 9.80665
@@ -193,20 +195,7 @@ def test_rocket_toml_read_and_refused(tmp_path):
 
 
 def sim_log(name):
-    """The committed RocketPy flight as a rocket log (channels on one clock)."""
-    import types
-
-    a = np.loadtxt(SIM / name / "log.csv", delimiter=",", skiprows=1)
-
-    def channel(j):
-        return types.SimpleNamespace(t=a[:, 0], values=a[:, j], filtered=False)
-
-    apogee = types.SimpleNamespace(t=float(a[-1, 0]), how="", value=np.nan)
-    return types.SimpleNamespace(
-        channels={"altitude": channel(1), "accel_axial": channel(2)},
-        events={"liftoff": types.SimpleNamespace(t=0.0), "apogee": apogee},
-        pad={},
-    )
+    return rocket_sim_log(SIM / name)
 
 
 def test_dynamics_against_rocketpy():

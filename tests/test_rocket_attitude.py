@@ -12,27 +12,10 @@ import numpy as np
 import diffpegasus.rocket as dr
 from diffpegasus._vehicle._rocket._barrowman import read_airframe
 
+from .helpers import rocket_sim_log
+
 
 SIM = pathlib.Path(__file__).parent / "data" / "rocket_sim"
-
-
-def sim_log(folder):
-    """A simulated flight's log.csv as a rocket log (channels on one clock)."""
-    import types
-
-    a = np.loadtxt(folder / "log.csv", delimiter=",", skiprows=1)
-
-    def channel(j):
-        return types.SimpleNamespace(t=a[:, 0], values=a[:, j], filtered=False)
-
-    return types.SimpleNamespace(
-        channels={"altitude": channel(1), "accel_axial": channel(2)},
-        events={
-            "liftoff": types.SimpleNamespace(t=0.0),
-            "apogee": types.SimpleNamespace(t=float(a[-1, 0])),
-        },
-        pad={},
-    )
 
 
 def test_barrowman_rectangular_fins_and_cone_in_closed_form():
@@ -156,7 +139,7 @@ def test_weathercocking_flies_rocketpys_windy_flight():
     rocket = dr.read_rocket(folder / "rocket.toml", attitude=True)
     m, cd = dr.read_drag_curve(folder / "drag.csv")
     knots = dr.DragKnots(tuple(float(v) for v in m[(m >= 0.05) & (m <= 0.85)][::5]))
-    problem = dr.prepare(rocket, sim_log(folder), knots=knots)
+    problem = dr.prepare(rocket, rocket_sim_log(folder), knots=knots)
     start = dict(zip(knots.names, np.interp(knots.mach, m, cd), strict=True))
     start.update(
         thrust_scale=truth["thrust_scale"],
