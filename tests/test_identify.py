@@ -12,7 +12,7 @@ import scipy.integrate
 import scipy.optimize
 
 import diffpegasus as dp
-from diffpegasus._estimate import _engine
+from diffpegasus._estimate import _engine, _score
 from diffpegasus._estimate._fit import layout
 from diffpegasus._estimate._rk4 import RK4
 
@@ -245,6 +245,27 @@ def test_segment_jacobian_matches_finite_differences(two):
     )
     # central differences in float64: truncation ~h^2, rounding ~eps/h
     np.testing.assert_allclose(exact, fd, rtol=1e-6, atol=1e-7)
+
+
+def test_score_test_reuses_the_fits_linearisation_at_its_estimates(two):
+    # the fit ends with the model linearised at its estimates; the score test from
+    # that linearisation (a program without the model) must be the one that
+    # linearises the model again at the estimates and R: the same numbers up to
+    # rounding (measured ~1e-13). At the start of the fit's last step instead the
+    # Jacobian differs by that step, far above this tolerance.
+    held = MODEL.replace(fixed=("Mq",))
+    fit = dp.fit(held, two, biases=("az",))
+    assert fit.linearisation is not None
+    nx, p = len(MODEL.states), len(MODEL.parameters)
+    args = (fit.layout, jnp.asarray(fit.z))
+    free, cand = jnp.asarray(fit.free), jnp.array([3])
+    again = _score.score(held.structure(), *args, fit.R, free, cand, nx=nx, p=p)
+    reused = _score.score_linearised(*args, fit.linearisation, free, cand, nx=nx, p=p)
+    for name in ("statistic", "estimate", "stderr", "cost_ratio", "slope"):
+        np.testing.assert_allclose(
+            getattr(reused, name), getattr(again, name), rtol=1e-9, err_msg=name
+        )
+    np.testing.assert_allclose(reused.rows, again.rows, rtol=1e-9, atol=1e-12)
 
 
 def test_scan_rk4_equals_diffrax_rk4(two):

@@ -29,6 +29,7 @@ iterates through `optx.least_squares`, measured against this loop in
 """
 
 import abc
+import dataclasses
 import functools
 
 import equinox as eqx
@@ -425,9 +426,10 @@ class Iterate(eqx.Module):
     for [`finish`][]: the unknowns `z`, R `(outputs,)` and its determinant `cost`,
     `iterations`, whether it is `done` or `broken` (non-finite normal equations),
     the last linearisation (`information` `(unknowns, unknowns)`, the whitened
-    output Jacobian `jacobian` and residuals `whitened`), the accepted point's
-    continuity `defects` `(segments - 1, states)` and model `outputs` `(S, length,
-    outputs)`, and the last relative `change` of the cost."""
+    output Jacobian `jacobian` and residuals `whitened`, and, where the loop keeps
+    it, the `gradient` `(unknowns,)`), the accepted point's continuity `defects`
+    `(segments - 1, states)` and model `outputs` `(S, length, outputs)`, and the
+    last relative `change` of the cost."""
 
     z: Float[Array, " unknowns"]
     r: Float[Array, " outputs"]
@@ -441,6 +443,7 @@ class Iterate(eqx.Module):
     defects: Float[Array, "links states"]
     outputs: Float[Array, "segments length outputs"]
     change: Float[Array, ""]
+    gradient: Float[Array, " unknowns"] | None = None
 
 
 def first_iterate(layout, z0, r0, cost0, broken0, outputs0, nx, p) -> Iterate:
@@ -469,6 +472,21 @@ def channel_variance(layout, e):
     return jnp.sum(e**2, axis=(0, 1)) / jnp.sum(layout.valid)
 
 
+class Linearisation(eqx.Module):
+    """The R-weighted least squares linearised at the point a fit stopped at: the
+    normal matrix `normal` `(unknowns, unknowns)` and `gradient` `(unknowns,)` over
+    every unknown (held ones too), the whitened output Jacobian `jacobian` `(S,
+    length, outputs, local)`, the whitened output residuals `whitened` `(S, length,
+    outputs)` and the continuity `defects` `(S - 1, states)`: what a score test of
+    held parameters at the fit needs, without evaluating the model again."""
+
+    normal: Float[Array, "unknowns unknowns"]
+    gradient: Float[Array, " unknowns"]
+    jacobian: Float[Array, "segments length outputs local"]
+    whitened: Float[Array, "segments length outputs"]
+    defects: Float[Array, "links states"]
+
+
 class Solution(eqx.Module):
     """The raw result of [`solve`][] (the front end [`fit`][] wraps it).
 
@@ -477,7 +495,9 @@ class Solution(eqx.Module):
     information, zero rows and columns for held unknowns); `corrected` the same with
     the Morelli-Klein correction for coloured residuals (over `theta` and biases
     only, 0 elsewhere); `outputs` `(S, length, outputs)`; `defect` the largest
-    continuity defect relative to the state scale.
+    continuity defect relative to the state scale; `linearisation` the
+    [`Linearisation`][] at `z` (from [`solve`][]; `None` from a loop whose last
+    linearisation is at the start of its last step).
     """
 
     z: Float[Array, " unknowns"]
@@ -493,6 +513,7 @@ class Solution(eqx.Module):
     whitened: Float[Array, "segments length outputs"]
     information: Float[Array, "unknowns unknowns"]
     change: Float[Array, ""]
+    linearisation: Linearisation | None = None
 
 
 def _print_progress(it, cost, change, damping, defect):
@@ -533,6 +554,10 @@ def solve(
     the point an iteration starts from) and once without (`weighted_cost`, the
     damping's trials, the cheap evaluation a rejected trial costs). The start's R
     comes from the first Jacobian pass's residuals rather than from a third copy.
+    After the last accepted step one more pass linearises at the point the fit
+    stopped at (`Solution.linearisation`): the covariances are the optimum's, and
+    a score test of held parameters reuses it instead of compiling the model's
+    Jacobian again.
 
     `progress` prints one line per iteration to standard error (a host callback:
     that program does not enter JAX's persistent cache, so it is off by default);
@@ -542,15 +567,17 @@ def solve(
     n, n_out = z0.shape[0], layout.measured.shape[-1]
 
     def body(carry):
-        state, damping, first = carry
+        state, damping, first, _ = carry
         z, r, cost_prev, it = state.z, state.r, state.cost, state.iterations
         ev = evaluate(model, layout, z, nx, p)
         r = jnp.where(first, channel_variance(layout, ev.e), r)
         cost_prev = jnp.where(first, jnp.prod(r), cost_prev)
         h, g, jyw, ew = assemble(layout, ev, n, nx, p, r)
         j0 = _cost(ev.e, ev.d, r)
-        # max_iter = 0: the start is evaluated (R, outputs, statistics), not moved
-        active = it < max_iter
+        # a converged (or exhausted) iteration ends with one more pass that only
+        # linearises, at the point it stopped at; max_iter = 0: the start is
+        # evaluated (R, outputs, statistics), not moved
+        active = (it < max_iter) & ~state.done
         damping, new, _, (e1, d1, ys1), accepted = damped_step(
             h,
             g,
@@ -571,16 +598,25 @@ def solve(
         # finite, a failure (e.g. a diverged segment) if not
         broken = ~(jnp.all(jnp.isfinite(h)) & jnp.all(jnp.isfinite(g)))
         broken = broken | ~jnp.all(jnp.isfinite(r))
-        done = small | ~accepted | broken
-        change = jnp.abs(cost_prev - cost) / jnp.abs(cost)
+        stepped = active | first
+        done = jnp.where(stepped, small | ~accepted | broken, state.done)
+        change = jnp.where(
+            stepped, jnp.abs(cost_prev - cost) / jnp.abs(cost), state.change
+        )
         if progress:
             defect = jnp.max(jnp.abs(jnp.where(accepted, d1, ev.d)), initial=0.0)
-            jax.debug.callback(
-                _print_progress, it + active, cost, change, damping, defect
+            jax.lax.cond(
+                active,
+                lambda: jax.debug.callback(
+                    _print_progress, it + 1, cost, change, damping, defect
+                ),
+                lambda: None,
             )
-        # the loop carries the last linearisation (at the point the last step
-        # started from: at convergence the step is negligible) so that the
-        # statistics need no other copy of the Jacobian program
+        # the loop carries the linearisation at the point it stopped at (the
+        # statistics and the score test need no other copy of the Jacobian
+        # program): a pass without a step, or a step no damping made, leaves it
+        # there; an accepted step is followed by another pass
+        linearised = ~active | ~accepted | broken
         state = Iterate(
             z=new,
             r=r_new,
@@ -594,8 +630,9 @@ def solve(
             defects=jnp.where(accepted, d1, ev.d),
             outputs=jnp.where(accepted, ys1, ev.ys),
             change=change,
+            gradient=g,
         )
-        return state, damping / 10.0, jnp.array(False)
+        return state, damping / 10.0, jnp.array(False), linearised
 
     start = first_iterate(
         layout,
@@ -607,10 +644,11 @@ def solve(
         nx,
         p,
     )
-    state, _, _ = jax.lax.while_loop(
-        lambda c: ((c[0].iterations < max_iter) | c[2]) & ~c[0].done & ~c[0].broken,
+    start = dataclasses.replace(start, gradient=jnp.zeros(n))
+    state, _, _, _ = jax.lax.while_loop(
+        lambda c: ~c[3],
         body,
-        (start, jnp.array(0.0), jnp.array(True)),
+        (start, jnp.array(0.0), jnp.array(True), jnp.array(False)),
     )
     return finish(layout, state, free, nx=nx, p=p, coloured=coloured)
 
@@ -650,6 +688,15 @@ def finish(layout, state: Iterate, free, *, nx, p, coloured) -> Solution:
         whitened=ew,
         information=hm * m[:, None] * m[None, :],
         change=state.change,
+        linearisation=None
+        if state.gradient is None
+        else Linearisation(
+            normal=h,
+            gradient=state.gradient,
+            jacobian=jyw,
+            whitened=ew,
+            defects=state.defects,
+        ),
     )
 
 

@@ -10,7 +10,7 @@ import numpy as np
 
 from .._cache import kept_call
 from .._model import Model, Record
-from ._engine import explain, iteration_bound, Layout, RESULTS, solve
+from ._engine import explain, iteration_bound, Layout, Linearisation, RESULTS, solve
 from ._estimator import AbstractFit
 
 
@@ -141,6 +141,9 @@ class Fit(AbstractFit):
       `reason` why it stopped and what to try (`message`, "" when converged);
       `defect`: the largest continuity defect relative to the state scale.
     - `layout`: the segments the engine solved (for the score test).
+    - `linearisation`: the engine's [`Linearisation`][] at the estimates (the
+      score test of held parameters reuses it), `None` when the fit ran through
+      another solver.
     """
 
     model: Model
@@ -164,6 +167,7 @@ class Fit(AbstractFit):
     reason: str
     defect: float
     layout: Layout
+    linearisation: Linearisation | None = None
 
     @property
     def z(self) -> np.ndarray:
@@ -458,6 +462,7 @@ def output_error(
         reason=reason,
         defect=float(sol.defect) * tol,
         layout=lay,
+        linearisation=sol.linearisation,
     )
     if throw and not out.converged:
         raise RuntimeError(f"output-error fit failed: {out.message}")

@@ -11,7 +11,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from .._estimate._engine import linearise, row_jacobian
+from .._estimate._engine import Linearisation, linearise, row_jacobian
 
 
 class ScoreTest(eqx.Module):
@@ -99,8 +99,36 @@ def score_variance(
 @functools.partial(jax.jit, static_argnames=("model", "nx", "p"))
 def score(model, layout, z, r, free, candidates, *, nx, p) -> ScoreTest:
     """Score test, at the unknowns `z` with residual variances `r` `(outputs,)`, of
-    the parameters `candidates` (indices into theta, held in `free`)."""
+    the parameters `candidates` (indices into theta, held in `free`): the model
+    linearised at `z`, then [`score_linearised`][]."""
     h, g, jyw, ew, _, d, _ = linearise(model, layout, z, nx, p, r)
+    return _score(layout, z, h, g, jyw, ew, d, free, candidates, nx, p)
+
+
+@functools.partial(jax.jit, static_argnames=("nx", "p"))
+def score_linearised(
+    layout, z, linearisation: Linearisation, free, candidates, *, nx, p
+) -> ScoreTest:
+    """[`score`][] from the [`Linearisation`][] an output-error fit stopped with
+    at `z` (`Fit.linearisation`): the same test without evaluating the model, so
+    its program holds no copy of the model's Jacobian."""
+    lin = linearisation
+    return _score(
+        layout,
+        z,
+        lin.normal,
+        lin.gradient,
+        lin.jacobian,
+        lin.whitened,
+        lin.defects,
+        free,
+        candidates,
+        nx,
+        p,
+    )
+
+
+def _score(layout, z, h, g, jyw, ew, d, free, candidates, nx, p) -> ScoreTest:
     free_cols = layout.free_columns(free, nx, p)
     m = free_cols.astype(h.dtype)
     hb = h * m[:, None] * m[None, :] + jnp.diag(1.0 - m)
