@@ -84,6 +84,7 @@ def timed(label, fn):
 
 R.calibrate = timed("  calibrate(bootstrap)", R.calibrate)
 CA.score = timed("  score test", CA.score)
+CA.score_linearised = timed("  score test", CA.score_linearised)
 seed, rate = int(sys.argv[1]), float(sys.argv[2])
 folder = pathlib.Path(tempfile.mkdtemp())
 t0 = time.time()
