@@ -496,7 +496,7 @@ class Solution(eqx.Module):
     the Morelli-Klein correction for coloured residuals (over `theta` and biases
     only, 0 elsewhere); `outputs` `(S, length, outputs)`; `defect` the largest
     continuity defect relative to the state scale; `linearisation` the
-    [`Linearisation`][] at `z` (from [`solve`][]; `None` from a loop whose last
+    `Linearisation` at `z` (from `solve`; `None` from a loop whose last
     linearisation is at the start of its last step).
     """
 

@@ -141,7 +141,7 @@ class Fit(AbstractFit):
       `reason` why it stopped and what to try (`message`, "" when converged);
       `defect`: the largest continuity defect relative to the state scale.
     - `layout`: the segments the engine solved (for the score test).
-    - `linearisation`: the engine's [`Linearisation`][] at the estimates (the
+    - `linearisation`: the engine's `Linearisation` at the estimates (the
       score test of held parameters reuses it), `None` when the fit ran through
       another solver.
     """

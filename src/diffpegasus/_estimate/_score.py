@@ -100,7 +100,7 @@ def score_variance(
 def score(model, layout, z, r, free, candidates, *, nx, p) -> ScoreTest:
     """Score test, at the unknowns `z` with residual variances `r` `(outputs,)`, of
     the parameters `candidates` (indices into theta, held in `free`): the model
-    linearised at `z`, then [`score_linearised`][]."""
+    linearised at `z`, then `score_linearised`."""
     h, g, jyw, ew, _, d, _ = linearise(model, layout, z, nx, p, r)
     return _score(layout, z, h, g, jyw, ew, d, free, candidates, nx, p)
 
@@ -109,7 +109,7 @@ def score(model, layout, z, r, free, candidates, *, nx, p) -> ScoreTest:
 def score_linearised(
     layout, z, linearisation: Linearisation, free, candidates, *, nx, p
 ) -> ScoreTest:
-    """[`score`][] from the [`Linearisation`][] an output-error fit stopped with
+    """`score` from the `Linearisation` an output-error fit stopped with
     at `z` (`Fit.linearisation`): the same test without evaluating the model, so
     its program holds no copy of the model's Jacobian."""
     lin = linearisation
