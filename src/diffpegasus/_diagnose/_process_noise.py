@@ -90,7 +90,10 @@ class ProcessNoiseRule:
 
 
 def innovation_check(
-    innovations: np.ndarray, regressors: np.ndarray, lags: int
+    innovations: np.ndarray,
+    regressors: np.ndarray,
+    lags: int,
+    nuisance: np.ndarray | None = None,
 ) -> tuple[np.ndarray, int]:
     """Whether a filter's innovations are what its model says they are: a white
     sequence that nothing known before the sample predicts. Per output, the
@@ -101,7 +104,9 @@ def innovation_check(
     test with the regressors added).
 
     **Arguments:** `innovations` `(samples, outputs)`; `regressors` `(samples,
-    columns)`; `lags`.
+    columns)`; `lags`; `nuisance` `(samples, outputs, k)`: per output, further
+    regressors known from the inputs (the innovations' sensitivity to the input's
+    unknown sub-sample motion, [`timing_directions`][]), each a degree of freedom.
 
     **Returns:** `(statistics (outputs,), dof)`."""
     e = np.asarray(innovations, float)
@@ -109,8 +114,9 @@ def innovation_check(
     n, m = e.shape
     z = z[:, np.std(z, axis=0) > 0]
     z = (z - z.mean(axis=0)) / z.std(axis=0)
+    h = np.zeros((n, m, 0)) if nuisance is None else np.asarray(nuisance, float)
     stats = np.zeros(m)
-    dof = lags + z.shape[1]
+    dof = lags + z.shape[1] + h.shape[-1]
     for i in range(m):
         y = e[:, i] - e[:, i].mean()
         if not np.any(y):
@@ -118,20 +124,24 @@ def innovation_check(
         own = np.column_stack(
             [np.concatenate([np.zeros(j), y[:-j]]) for j in range(1, lags + 1)]
         )
-        x = np.column_stack([np.ones(n), own, z])
+        x = np.column_stack([np.ones(n), own, z, h[:, i]])
         q, _ = np.linalg.qr(x)
         fitted = q @ (q.T @ y)
         stats[i] = n * float(fitted @ fitted) / float(y @ y)
     return stats, dof
 
 
-def turbulence_evidence(result: Fit, fem: FilterErrorFit, rule: ProcessNoiseRule):
+def turbulence_evidence(
+    result: Fit, fem: FilterErrorFit, rule: ProcessNoiseRule, nuisance=None
+):
     """Whether the filter-error model explains the record: process noise is named
     only if its filter leaves innovations that pass [`innovation_check`][] on every
     output (Bonferroni at `rule.significance`). A structural misfit of the model
     is a function of the state and the inputs: a filter absorbs part of it as
     process noise, but its corrections then follow the flight and its
     innovations stay predictable from the flight's own signals; gusts are not.
+    `nuisance`: per record the innovations' sensitivity to the input's unknown
+    sub-sample motion ([`input_timing`][]), regressors of the check too.
 
     **Returns:** `{"passes", "statistic" (largest over outputs), "output",
     "threshold", "dof", "lags", "text"}`."""
@@ -140,9 +150,12 @@ def turbulence_evidence(result: Fit, fem: FilterErrorFit, rule: ProcessNoiseRule
     # records are independent: their statistics and degrees of freedom add
     stat = np.zeros(len(fem.model.outputs))
     dof = 0
-    for rec, nu, y in zip(fem.records, fem.innovations, fem.outputs, strict=True):
+    extra = nuisance or [None] * len(fem.records)
+    for rec, nu, y, h in zip(
+        fem.records, fem.innovations, fem.outputs, extra, strict=True
+    ):
         s, d = innovation_check(
-            np.asarray(nu), np.column_stack([np.asarray(y), rec.inputs]), lags
+            np.asarray(nu), np.column_stack([np.asarray(y), rec.inputs]), lags, h
         )
         stat, dof = stat + s, dof + d
     outputs = fem.model.outputs
@@ -173,6 +186,73 @@ def likelihood_ratio(oem: Fit, fem: FilterErrorFit) -> tuple[float, float]:
     ratio = float(fem.cost) / float(oem.cost)
     lr = max(0.0, -n * float(np.log(ratio))) if np.isfinite(ratio) else 0.0
     return lr, 1.0 - ratio
+
+
+def input_timing(result: Fit, fem: FilterErrorFit) -> dict:
+    """The input's unknown sub-sample motion in the null and in the alternative
+    ([`timing_directions`][]): the intervals chosen at the output-error fit (the
+    null, where an interval's error is least corrected), the same intervals'
+    directions at both fits, and the likelihood ratio with them adjusted in both,
+    `N ln(det R'_OEM / det R'_FEM)` (each `R'` the diagonal mean square of the
+    residuals less their weighted fit on the directions), clipped at 0.
+
+    **Returns:** `{"intervals" (per record, (input, sample) pairs), "nuisance"
+    (per record the filter's directions, for [`turbulence_evidence`][]),
+    "likelihood_ratio", "likelihood_ratio_sampled_input" (the same computed
+    without the directions)}`."""
+    from ._input_timing import project_out, timing_directions
+
+    intervals, nuisance = [], []
+    n = 0
+    ss = {k: np.zeros(len(result.model.outputs)) for k in ("oem", "fem", "o", "f")}
+    for i, rec in enumerate(result.records):
+        e_o = np.asarray(rec.measured) - np.asarray(result.outputs[i])
+        nx = len(result.model.states)
+        h_o, chosen = timing_directions(
+            result.model,
+            rec,
+            result.params,
+            np.zeros((1, nx, len(result.model.outputs))),
+            np.zeros(1, int),
+            np.asarray(result.initial_states)[i],
+            e_o,
+        )
+        frec = fem.records[i]
+        dt = float(rec.t[1] - rec.t[0])
+        schedule = np.round((np.asarray(fem.gain_times[i]) - rec.t[0]) / dt)
+        x0 = (
+            frec.x0
+            if frec.x0 is not None
+            else np.asarray(result.initial_states)[i][: len(fem.model.states)]
+        )
+        e_f = np.asarray(fem.innovations[i])
+        h_f, _ = timing_directions(
+            fem.model,
+            frec,
+            fem.params,
+            np.asarray(fem.gain[i]),
+            schedule.astype(int),
+            x0,
+            e_f,
+            intervals=chosen,
+        )
+        ss["o"] += np.sum(e_o**2, axis=0)
+        ss["f"] += np.sum(e_f**2, axis=0)
+        ss["oem"] += np.sum(project_out(e_o, h_o, np.mean(e_o**2, axis=0)) ** 2, 0)
+        ss["fem"] += np.sum(project_out(e_f, h_f, np.mean(e_f**2, axis=0)) ** 2, 0)
+        n += len(rec.t)
+        intervals.append(chosen)
+        nuisance.append(h_f)
+
+    def lr(a, b):
+        return max(0.0, float(n * np.sum(np.log(ss[a] / ss[b]))))
+
+    return {
+        "intervals": intervals,
+        "nuisance": nuisance,
+        "likelihood_ratio": lr("oem", "fem"),
+        "likelihood_ratio_sampled_input": lr("o", "f"),
+    }
 
 
 def _filter_error_parts(fem: FilterErrorFit, candidates: Sequence[str]):
@@ -475,11 +555,18 @@ def process_noise_candidate(
     cands = [r["parameter"] for r in ranking]
     k = len(cands) + 1
     lr, fall = likelihood_ratio(result, fem) if fem.converged else (0.0, 0.0)
+    # the input is known at its samples only: its unknown motion inside the
+    # intervals where it steps is a nuisance of the null and the alternative alike
+    timing = input_timing(result, fem) if fem.converged else None
+    if timing is not None and any(timing["intervals"]):
+        lr = timing["likelihood_ratio"]
     # the coloured model's correlation time is an unknown the null lacks too
     dof = _unknowns(fem) - int(np.sum(result.free))
     p = float(min(1.0, scipy.stats.chi2.sf(lr, dof) * k))
     evidence = (
-        turbulence_evidence(result, fem, rule)
+        turbulence_evidence(
+            result, fem, rule, None if timing is None else timing["nuisance"]
+        )
         if fem.converged and p < rule.significance
         else None
     )
@@ -581,6 +668,12 @@ def process_noise_candidate(
         "filter_error_converged": fem.converged,
         "constraint_active": fem.constraint_active,
         "noise_model": choice,
+        "input_timing": None
+        if timing is None
+        else {
+            "intervals": [len(c) for c in timing["intervals"]],
+            "likelihood_ratio_sampled_input": timing["likelihood_ratio_sampled_input"],
+        },
     }
     if present:
         rest = sorted(
