@@ -18,6 +18,8 @@ smooth input changes little from sample to sample and gives none; nothing here i
 tuned on a simulator.
 """
 
+import functools
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -31,6 +33,7 @@ from .._model import Model, Record
 BATCH = 16
 
 
+@functools.lru_cache(maxsize=8)
 def _with_timing(model: Model, t0: float, dt: float) -> Model:
     """`model` with one more input per input, `"<input> timing"`, added to that
     input in the state equations at the middle of each sample interval only (the
@@ -94,10 +97,6 @@ def _directions(model, record, theta, gain, schedule, x0, intervals, delta_u):
     theta = jnp.asarray(theta, float)
     k = jnp.asarray(gain, float)
 
-    def innov(inputs):
-        p = eqx.tree_at(lambda q: q.layout.inputs, prob, inputs)
-        return run_filter(wide, p, 0, theta, k)[0][:n]
-
     base = prob.layout.inputs
     # samples alternating in sign about the interval: every other interval's
     # middle (the mean of its two samples) stays 0
@@ -107,20 +106,34 @@ def _directions(model, record, theta, gain, schedule, x0, intervals, delta_u):
         sign = np.where(rows <= i, (-1.0) ** (i - rows), (-1.0) ** (rows - i - 1))
         tangents[j, 0, :, m + col] = 1.5 * delta_u[j] * sign
 
-    @jax.jit
-    def jvps(ts):
-        return jax.vmap(lambda tt: jax.jvp(innov, (base,), (tt,))[1])(ts)
-
     out = []
     for s in range(0, len(intervals), BATCH):
         chunk = tangents[s : s + BATCH]
         pad = BATCH - len(chunk)
         if pad:
             chunk = np.concatenate([chunk, np.zeros((pad, *base.shape))])
-        out.append(np.asarray(jvps(jnp.asarray(chunk)))[: BATCH - pad])
+        out.append(
+            np.asarray(_jvps(wide, prob, theta, k, jnp.asarray(chunk)))[
+                : BATCH - pad, :n
+            ]
+        )
     if not out:
         return np.zeros((n, len(model.outputs), 0))
     return np.moveaxis(np.concatenate(out), 0, -1)
+
+
+@eqx.filter_jit
+def _jvps(wide, prob, theta, k, tangents):
+    """The innovations' tangents `(batch, length, outputs)` along each of
+    `tangents` `(batch, records, samples, inputs)` of the layout's inputs: one
+    compiled program per model and shape, shared by every call."""
+
+    def innov(inputs):
+        p = eqx.tree_at(lambda q: q.layout.inputs, prob, inputs)
+        return run_filter(wide, p, 0, theta, k)[0]
+
+    base = prob.layout.inputs
+    return jax.vmap(lambda tt: jax.jvp(innov, (base,), (tt,))[1])(tangents)
 
 
 def timing_intervals(record, unit) -> list[tuple[int, int]]:
