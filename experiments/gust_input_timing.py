@@ -100,12 +100,10 @@ def measure(rate, seed, gust, f=None, **options):
     import scipy.stats
 
     timing = input_timing(oem, fem)
-    h = timing["nuisance"][0]
     stat_t, dof_t = innovation_check(
-        np.asarray(fem.innovations[0]),
+        timing["innovations"][0],
         np.column_stack([np.asarray(fem.outputs[0]), rec.inputs]),
         lags,
-        h,
     )
     rule = ProcessNoiseRule()
     outs = spec.model.outputs

@@ -90,10 +90,7 @@ class ProcessNoiseRule:
 
 
 def innovation_check(
-    innovations: np.ndarray,
-    regressors: np.ndarray,
-    lags: int,
-    nuisance: np.ndarray | None = None,
+    innovations: np.ndarray, regressors: np.ndarray, lags: int
 ) -> tuple[np.ndarray, int]:
     """Whether a filter's innovations are what its model says they are: a white
     sequence that nothing known before the sample predicts. Per output, the
@@ -104,9 +101,7 @@ def innovation_check(
     test with the regressors added).
 
     **Arguments:** `innovations` `(samples, outputs)`; `regressors` `(samples,
-    columns)`; `lags`; `nuisance` `(samples, outputs, k)`: per output, further
-    regressors known from the inputs (the innovations' sensitivity to the input's
-    unknown sub-sample motion, [`timing_directions`][]), each a degree of freedom.
+    columns)`; `lags`.
 
     **Returns:** `(statistics (outputs,), dof)`."""
     e = np.asarray(innovations, float)
@@ -114,9 +109,8 @@ def innovation_check(
     n, m = e.shape
     z = z[:, np.std(z, axis=0) > 0]
     z = (z - z.mean(axis=0)) / z.std(axis=0)
-    h = np.zeros((n, m, 0)) if nuisance is None else np.asarray(nuisance, float)
     stats = np.zeros(m)
-    dof = lags + z.shape[1] + h.shape[-1]
+    dof = lags + z.shape[1]
     for i in range(m):
         y = e[:, i] - e[:, i].mean()
         if not np.any(y):
@@ -124,7 +118,7 @@ def innovation_check(
         own = np.column_stack(
             [np.concatenate([np.zeros(j), y[:-j]]) for j in range(1, lags + 1)]
         )
-        x = np.column_stack([np.ones(n), own, z, h[:, i]])
+        x = np.column_stack([np.ones(n), own, z])
         q, _ = np.linalg.qr(x)
         fitted = q @ (q.T @ y)
         stats[i] = n * float(fitted @ fitted) / float(y @ y)
@@ -132,7 +126,7 @@ def innovation_check(
 
 
 def turbulence_evidence(
-    result: Fit, fem: FilterErrorFit, rule: ProcessNoiseRule, nuisance=None
+    result: Fit, fem: FilterErrorFit, rule: ProcessNoiseRule, innovations=None
 ):
     """Whether the filter-error model explains the record: process noise is named
     only if its filter leaves innovations that pass [`innovation_check`][] on every
@@ -140,8 +134,8 @@ def turbulence_evidence(
     is a function of the state and the inputs: a filter absorbs part of it as
     process noise, but its corrections then follow the flight and its
     innovations stay predictable from the flight's own signals; gusts are not.
-    `nuisance`: per record the innovations' sensitivity to the input's unknown
-    sub-sample motion ([`input_timing`][]), regressors of the check too.
+    `innovations`: per record, the innovations to judge instead of the fit's
+    (those less the input's unknown sub-sample motion, [`input_timing`][]).
 
     **Returns:** `{"passes", "statistic" (largest over outputs), "output",
     "threshold", "dof", "lags", "text"}`."""
@@ -150,12 +144,10 @@ def turbulence_evidence(
     # records are independent: their statistics and degrees of freedom add
     stat = np.zeros(len(fem.model.outputs))
     dof = 0
-    extra = nuisance or [None] * len(fem.records)
-    for rec, nu, y, h in zip(
-        fem.records, fem.innovations, fem.outputs, extra, strict=True
-    ):
+    nus = fem.innovations if innovations is None else innovations
+    for rec, nu, y in zip(fem.records, nus, fem.outputs, strict=True):
         s, d = innovation_check(
-            np.asarray(nu), np.column_stack([np.asarray(y), rec.inputs]), lags, h
+            np.asarray(nu), np.column_stack([np.asarray(y), rec.inputs]), lags
         )
         stat, dof = stat + s, dof + d
     outputs = fem.model.outputs
@@ -196,13 +188,14 @@ def input_timing(result: Fit, fem: FilterErrorFit) -> dict:
     `N ln(det R'_OEM / det R'_FEM)` (each `R'` the diagonal mean square of the
     residuals less their weighted fit on the directions), clipped at 0.
 
-    **Returns:** `{"intervals" (per record, (input, sample) pairs), "nuisance"
-    (per record the filter's directions, for [`turbulence_evidence`][]),
+    **Returns:** `{"intervals" (per record, (input, sample) pairs),
+    "innovations" (per record the filter's innovations less their fit on the
+    directions, for [`turbulence_evidence`][]),
     "likelihood_ratio", "likelihood_ratio_sampled_input" (the same computed
     without the directions)}`."""
     from ._input_timing import project_out, timing_directions
 
-    intervals, nuisance = [], []
+    intervals, adjusted = [], []
     n = 0
     ss = {k: np.zeros(len(result.model.outputs)) for k in ("oem", "fem", "o", "f")}
     for i, rec in enumerate(result.records):
@@ -239,17 +232,18 @@ def input_timing(result: Fit, fem: FilterErrorFit) -> dict:
         ss["o"] += np.sum(e_o**2, axis=0)
         ss["f"] += np.sum(e_f**2, axis=0)
         ss["oem"] += np.sum(project_out(e_o, h_o, np.mean(e_o**2, axis=0)) ** 2, 0)
-        ss["fem"] += np.sum(project_out(e_f, h_f, np.mean(e_f**2, axis=0)) ** 2, 0)
+        left = project_out(e_f, h_f, np.mean(e_f**2, axis=0))
+        ss["fem"] += np.sum(left**2, axis=0)
         n += len(rec.t)
         intervals.append(chosen)
-        nuisance.append(h_f)
+        adjusted.append(left)
 
     def lr(a, b):
         return max(0.0, float(n * np.sum(np.log(ss[a] / ss[b]))))
 
     return {
         "intervals": intervals,
-        "nuisance": nuisance,
+        "innovations": adjusted,
         "likelihood_ratio": lr("oem", "fem"),
         "likelihood_ratio_sampled_input": lr("o", "f"),
     }
@@ -565,7 +559,7 @@ def process_noise_candidate(
     p = float(min(1.0, scipy.stats.chi2.sf(lr, dof) * k))
     evidence = (
         turbulence_evidence(
-            result, fem, rule, None if timing is None else timing["nuisance"]
+            result, fem, rule, None if timing is None else timing["innovations"]
         )
         if fem.converged and p < rule.significance
         else None
