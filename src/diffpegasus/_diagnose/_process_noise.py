@@ -229,6 +229,12 @@ def input_timing(result: Fit, fem: FilterErrorFit) -> dict:
             e_f,
             intervals=chosen,
         )
+        # an interval whose direction is not finite in either fit is dropped
+        ok = np.all(np.isfinite(h_o), axis=(0, 1)) & np.all(
+            np.isfinite(h_f), axis=(0, 1)
+        )
+        h_o, h_f = h_o[..., ok], h_f[..., ok]
+        chosen = [c for c, keep in zip(chosen, ok, strict=True) if keep]
         ss["o"] += np.sum(e_o**2, axis=0)
         ss["f"] += np.sum(e_f**2, axis=0)
         ss["oem"] += np.sum(project_out(e_o, h_o, np.mean(e_o**2, axis=0)) ** 2, 0)
