@@ -15,7 +15,7 @@ it cannot be told from) named and nothing else; `process_noise` named on a gusty
 flight and nothing else. Every result is appended to the output as soon as it is
 known; a rerun skips the flights already there.
 
-    nice python experiments/acceptance_hfb320.py [--max N] [--out FILE] [--table]
+    nice python experiments/acceptance_hfb320.py [--max N] [--seeds S,...] [--out FILE] [--table]
 """
 
 import argparse
@@ -104,6 +104,17 @@ def flight(folder, rate, seed, planted, value):
     # the look-alike a short-period record cannot split
     alike = ("alpha_dot_damping",) if planted == PITCH[0] else ()
     significant = judge(row, diag, proc, planted, alike)
+    pn = next(
+        (r for r in (diag or {}).get("ranking", []) if r["effect"] == GUSTS), None
+    )
+    if pn is not None:
+        ev = pn.get("turbulence_evidence") or {}
+        row["process_noise"] = {
+            "likelihood_ratio": pn["statistic"],
+            "likelihood_ratio_passes": pn.get("likelihood_ratio_passes"),
+            "check": [ev.get("statistic"), ev.get("output"), ev.get("threshold")],
+            "input_timing": pn.get("input_timing"),
+        }
     if significant is None:
         return row
     top = significant[0] if significant else None
@@ -161,6 +172,7 @@ def main():
     p.add_argument("--table", action="store_true", help="print the table and exit")
     p.add_argument("--max", type=int, default=None, help="flights at most this run")
     p.add_argument("--out", type=pathlib.Path, default=None)
+    p.add_argument("--seeds", default=None, help="only these seeds, e.g. 221,201")
     args = p.parse_args()
     if args.out is not None:
         OUT = args.out.resolve()
@@ -170,7 +182,11 @@ def main():
     done = {(r["rate"], r["seed"], r["planted"]) for r in _load()}
     folder = pathlib.Path(tempfile.mkdtemp(prefix="acceptance_hfb320_"))
     count = 0
-    for job in FLIGHTS:
+    seeds = None if args.seeds is None else [int(x) for x in args.seeds.split(",")]
+    jobs = (
+        FLIGHTS if seeds is None else [j for s in seeds for j in FLIGHTS if j[1] == s]
+    )
+    for job in jobs:
         if job[:3] in done:
             continue
         if args.max is not None and count >= args.max:

@@ -125,13 +125,17 @@ def innovation_check(
     return stats, dof
 
 
-def turbulence_evidence(result: Fit, fem: FilterErrorFit, rule: ProcessNoiseRule):
+def turbulence_evidence(
+    result: Fit, fem: FilterErrorFit, rule: ProcessNoiseRule, innovations=None
+):
     """Whether the filter-error model explains the record: process noise is named
     only if its filter leaves innovations that pass [`innovation_check`][] on every
     output (Bonferroni at `rule.significance`). A structural misfit of the model
     is a function of the state and the inputs: a filter absorbs part of it as
     process noise, but its corrections then follow the flight and its
     innovations stay predictable from the flight's own signals; gusts are not.
+    `innovations`: per record, the innovations to judge instead of the fit's
+    (those less the input's unknown sub-sample motion, [`input_timing`][]).
 
     **Returns:** `{"passes", "statistic" (largest over outputs), "output",
     "threshold", "dof", "lags", "text"}`."""
@@ -140,7 +144,8 @@ def turbulence_evidence(result: Fit, fem: FilterErrorFit, rule: ProcessNoiseRule
     # records are independent: their statistics and degrees of freedom add
     stat = np.zeros(len(fem.model.outputs))
     dof = 0
-    for rec, nu, y in zip(fem.records, fem.innovations, fem.outputs, strict=True):
+    nus = fem.innovations if innovations is None else innovations
+    for rec, nu, y in zip(fem.records, nus, fem.outputs, strict=True):
         s, d = innovation_check(
             np.asarray(nu), np.column_stack([np.asarray(y), rec.inputs]), lags
         )
@@ -173,6 +178,81 @@ def likelihood_ratio(oem: Fit, fem: FilterErrorFit) -> tuple[float, float]:
     ratio = float(fem.cost) / float(oem.cost)
     lr = max(0.0, -n * float(np.log(ratio))) if np.isfinite(ratio) else 0.0
     return lr, 1.0 - ratio
+
+
+def input_timing(result: Fit, fem: FilterErrorFit) -> dict:
+    """The input's unknown sub-sample motion in the null and in the alternative
+    ([`timing_directions`][]): the intervals chosen at the output-error fit (the
+    null, where an interval's error is least corrected), the same intervals'
+    directions at both fits, and the likelihood ratio with them adjusted in both,
+    `N ln(det R'_OEM / det R'_FEM)` (each `R'` the diagonal mean square of the
+    residuals less their weighted fit on the directions), clipped at 0.
+
+    **Returns:** `{"intervals" (per record, (input, sample) pairs),
+    "innovations" (per record the filter's innovations less their fit on the
+    directions, for [`turbulence_evidence`][]),
+    "likelihood_ratio", "likelihood_ratio_sampled_input" (the same computed
+    without the directions)}`."""
+    from ._input_timing import project_out, timing_directions
+
+    intervals, adjusted = [], []
+    n = 0
+    ss = {k: np.zeros(len(result.model.outputs)) for k in ("oem", "fem", "o", "f")}
+    for i, rec in enumerate(result.records):
+        e_o = np.asarray(rec.measured) - np.asarray(result.outputs[i])
+        nx = len(result.model.states)
+        h_o, chosen = timing_directions(
+            result.model,
+            rec,
+            result.params,
+            np.zeros((1, nx, len(result.model.outputs))),
+            np.zeros(1, int),
+            np.asarray(result.initial_states)[i],
+            e_o,
+        )
+        frec = fem.records[i]
+        dt = float(rec.t[1] - rec.t[0])
+        schedule = np.round((np.asarray(fem.gain_times[i]) - rec.t[0]) / dt)
+        x0 = (
+            frec.x0
+            if frec.x0 is not None
+            else np.asarray(result.initial_states)[i][: len(fem.model.states)]
+        )
+        e_f = np.asarray(fem.innovations[i])
+        h_f, _ = timing_directions(
+            fem.model,
+            frec,
+            fem.params,
+            np.asarray(fem.gain[i]),
+            schedule.astype(int),
+            x0,
+            e_f,
+            intervals=chosen,
+        )
+        # an interval whose direction is not finite in either fit is dropped
+        ok = np.all(np.isfinite(h_o), axis=(0, 1)) & np.all(
+            np.isfinite(h_f), axis=(0, 1)
+        )
+        h_o, h_f = h_o[..., ok], h_f[..., ok]
+        chosen = [c for c, keep in zip(chosen, ok, strict=True) if keep]
+        ss["o"] += np.sum(e_o**2, axis=0)
+        ss["f"] += np.sum(e_f**2, axis=0)
+        ss["oem"] += np.sum(project_out(e_o, h_o, np.mean(e_o**2, axis=0)) ** 2, 0)
+        left = project_out(e_f, h_f, np.mean(e_f**2, axis=0))
+        ss["fem"] += np.sum(left**2, axis=0)
+        n += len(rec.t)
+        intervals.append(chosen)
+        adjusted.append(left)
+
+    def lr(a, b):
+        return max(0.0, float(n * np.sum(np.log(ss[a] / ss[b]))))
+
+    return {
+        "intervals": intervals,
+        "innovations": adjusted,
+        "likelihood_ratio": lr("oem", "fem"),
+        "likelihood_ratio_sampled_input": lr("o", "f"),
+    }
 
 
 def _filter_error_parts(fem: FilterErrorFit, candidates: Sequence[str]):
@@ -475,11 +555,18 @@ def process_noise_candidate(
     cands = [r["parameter"] for r in ranking]
     k = len(cands) + 1
     lr, fall = likelihood_ratio(result, fem) if fem.converged else (0.0, 0.0)
+    # the input is known at its samples only: its unknown motion inside the
+    # intervals where it steps is a nuisance of the null and the alternative alike
+    timing = input_timing(result, fem) if fem.converged else None
+    if timing is not None and any(timing["intervals"]):
+        lr = timing["likelihood_ratio"]
     # the coloured model's correlation time is an unknown the null lacks too
     dof = _unknowns(fem) - int(np.sum(result.free))
     p = float(min(1.0, scipy.stats.chi2.sf(lr, dof) * k))
     evidence = (
-        turbulence_evidence(result, fem, rule)
+        turbulence_evidence(
+            result, fem, rule, None if timing is None else timing["innovations"]
+        )
         if fem.converged and p < rule.significance
         else None
     )
@@ -581,6 +668,12 @@ def process_noise_candidate(
         "filter_error_converged": fem.converged,
         "constraint_active": fem.constraint_active,
         "noise_model": choice,
+        "input_timing": None
+        if timing is None
+        else {
+            "intervals": [len(c) for c in timing["intervals"]],
+            "likelihood_ratio_sampled_input": timing["likelihood_ratio_sampled_input"],
+        },
     }
     if present:
         rest = sorted(
