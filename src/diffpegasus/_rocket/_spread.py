@@ -4,18 +4,19 @@ A fit to a barometer and an accelerometer together returns one `CD(Mach)` whose
 band carries the noise. Where the model cannot be right for both sensors (another
 simulator's atmosphere table, its weathercocking, its boost), the joint fit puts the
 misfit into `CD` and the wind, and the residuals after the fit look like noise. Each
-sensor alone, with the same model, wants its own curve: the spread of those curves
-beyond their own bands measures the structural error from the log, as metrology
-treats laboratories whose results disagree beyond their uncertainties (a random
-effect between them, its variance estimated by Paule and Mandel's rule), and that
-variance joins the band. No constant is chosen: with consistent sensors it is zero.
+sensor alone, with the same model, wants its own curve; where it differs from the
+joint one beyond the noise, the excess measures the structural error from the log,
+as metrology treats laboratories whose results disagree beyond their uncertainties
+(a random effect, its variance by the moment rule of DerSimonian and Laird), and
+that variance joins the band. No constant is chosen: with consistent sensors it is
+zero.
 
 [`sensor_estimates`][] linearises the joint fit and takes, for each sensor, the
 Gauss-Newton step its residuals alone ask for (the parameters it does not see held),
 with its coloured-residual covariance (Morelli and Klein's correction, as the fit's
-own band); [`between_variance`][] is the random-effects variance of a
-difference of two estimates, knot by knot; [`structural_spread`][] puts them together for a
-rocket fit's drag knots.
+own band); [`between_variance`][] is the random-effects variance of a difference of
+two estimates, component by component; [`structural_spread`][] puts them together
+for a rocket fit's drag knots.
 """
 
 import dataclasses
@@ -30,10 +31,12 @@ class Spread:
 
     **Fields:** `outputs` the sensors compared; `knots` `(sensors, knots)` each
     sensor's power-off `CD` at the knots and `covariances` `(sensors, knots,
-    knots)` their coloured-residual covariances; `tau` the between-sensor
-    standard deviation (CD units) added to every point's band; `birge` the Birge
-    ratio (`sqrt(chi^2 / knots)` of the sensors' difference against their own bands:
-    above 1 they disagree beyond them).
+    knots)` their coloured-residual covariances; `tau` `(knots,)` the structural
+    standard deviation (CD units) at each knot, carried to any Mach by the knots'
+    interpolation weights in absolute value (fully correlated) and added to the
+    band in quadrature; `birge` the Birge ratio of the joint knots' difference from
+    a sensor's own against its noise (the largest over the sensors; above 1 they
+    disagree beyond it).
     """
 
     outputs: tuple[str, ...]
