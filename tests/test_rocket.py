@@ -591,7 +591,16 @@ def test_diagnose_judges_the_thrust_scale_in_the_candidates_family(monkeypatch):
     names = tuple(problem.start)
     fits, families, intervals = [], [], []
 
-    def fake_fit(problem, *, free, hold, start=None, shooting_interval=2.0, throw=True):
+    def fake_fit(
+        problem,
+        *,
+        free,
+        hold,
+        start=None,
+        shooting_interval=2.0,
+        throw=True,
+        spread=True,
+    ):
         fits.append((tuple(free), tuple(hold), dict(start or {})))
         intervals.append(shooting_interval)
         model = types.SimpleNamespace(
