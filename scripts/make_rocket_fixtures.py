@@ -15,6 +15,7 @@ catalogue curve, RocketPy flies the scaled one), constant wind, barometer lag
 (first-order), static-pressure error (per dynamic pressure) and white noise on both
 channels. Run: `python scripts/make_rocket_fixtures.py` (RocketPy from PyPI); with
 `--validation DIR` it writes the benchmark's further flights (`VALIDATION`) to DIR;
+`--held-out DIR` three flights no choice of the drag band was tuned on (`HELD_OUT`);
 `--validation DIR --smooth` the committed two and those, each through the exact
 standard-atmosphere pressure instead of RocketPy's table (`clean-smooth`'s option).
 """
@@ -118,6 +119,33 @@ VALIDATION = {
         FLIGHTS["clean"], lag=0.15, static=0.04, noise=(1.0, 0.5), seed=8
     ),
     "planted-s9-20hz": dict(FLIGHTS["planted"], seed=9, rate=20.0),
+}
+
+# Held out from every choice of the band (written once the band was fixed): other
+# drag curves, seeds, winds, rates and noise than the flights above.
+CURVE_D = [
+    (0.0, 0.55),
+    (0.2, 0.50),
+    (0.45, 0.47),
+    (0.65, 0.48),
+    (0.85, 0.60),
+    (1.2, 0.72),
+]
+HELD_OUT = {
+    "heldout-d-s21-25hz": dict(
+        FLIGHTS["clean"],
+        drag=CURVE_D,
+        wind=(3.0, 4.0),
+        noise=(0.7, 0.4),
+        seed=21,
+        rate=25.0,
+    ),
+    "heldout-c-s22": dict(
+        FLIGHTS["clean"], drag=CURVE_C, scale=0.97, wind=(0.0, -6.0), seed=22
+    ),
+    "heldout-b-s23-40hz": dict(
+        FLIGHTS["clean"], drag=CURVE_B, lag=0.08, noise=(0.8, 0.6), seed=23, rate=40.0
+    ),
 }
 
 
@@ -303,7 +331,10 @@ max_mach = {float(fl.max_mach_number):.4f}
 if __name__ == "__main__":
     import sys
 
-    if len(sys.argv) > 2 and sys.argv[1] == "--validation":
+    if len(sys.argv) > 2 and sys.argv[1] == "--held-out":
+        for name, spec in HELD_OUT.items():
+            flight(name, spec, pathlib.Path(sys.argv[2]))
+    elif len(sys.argv) > 2 and sys.argv[1] == "--validation":
         # `--smooth`: every flight (the committed two too) through the exact
         # standard-atmosphere pressure instead of RocketPy's table
         flights = VALIDATION

@@ -480,6 +480,10 @@ def test_fit_rocket_keeps_the_lowest_det_r_of_its_tries(monkeypatch):
         lambda p, r, f: f.cost if np.isfinite(f.cost) else np.inf,
     )
     monkeypatch.setattr(dataclasses, "replace", lambda obj, **k: obj)
+    # the sensors' spread needs a real fit (tested below)
+    from diffpegasus._rocket import _spread
+
+    monkeypatch.setattr(_spread, "structural_spread", lambda r: None)
 
     # scaled, continued, direct (multiple shooting); single from the best
     costs = iter([(5.0, True), (0.029, False), (1.11, True), (0.5, True)])
@@ -587,7 +591,16 @@ def test_diagnose_judges_the_thrust_scale_in_the_candidates_family(monkeypatch):
     names = tuple(problem.start)
     fits, families, intervals = [], [], []
 
-    def fake_fit(problem, *, free, hold, start=None, shooting_interval=2.0, throw=True):
+    def fake_fit(
+        problem,
+        *,
+        free,
+        hold,
+        start=None,
+        shooting_interval=2.0,
+        throw=True,
+        spread=True,
+    ):
         fits.append((tuple(free), tuple(hold), dict(start or {})))
         intervals.append(shooting_interval)
         model = types.SimpleNamespace(
@@ -629,3 +642,67 @@ def test_diagnose_judges_the_thrust_scale_in_the_candidates_family(monkeypatch):
     # scored at single-shooting fits: one segment over the whole record
     span = problem.record.t[-1] - problem.record.t[0]
     assert len(intervals) == 2 and all(i > span for i in intervals)
+
+
+def _two_sensor_fit():
+    """A joint output-error fit of one line `a + b t` read by two sensors that
+    disagree: the second reads the line `a + 0.3 + (b - 0.2) t` (a structural
+    error of known size), each with its own white noise (0.1 and 0.2)."""
+    import jax.numpy as jnp
+
+    import diffpegasus as dp
+
+    t = np.linspace(0.0, 4.0, 161)
+    rng = np.random.default_rng(7)
+    y1 = 1.0 + 0.5 * t + 0.1 * rng.standard_normal(t.size)
+    y2 = 1.3 + 0.3 * t + 0.2 * rng.standard_normal(t.size)
+    model = dp.Model(
+        ("s",),
+        ("time",),
+        ("one", "two"),
+        ("a", "b"),
+        lambda t, x, u, p: jnp.zeros(1),
+        lambda t, x, u, p: jnp.stack([p["a"] + p["b"] * u[0]] * 2),
+        start=(0.0, 0.0),
+    )
+    record = dp.Record(t, t[:, None], np.column_stack([y1, y2]), x0=np.zeros(1))
+    return dp.fit(model, record), t, np.column_stack([y1, y2])
+
+
+def test_sensor_estimates_are_each_sensors_own_least_squares():
+    """The structural-error band's measure, `sensor_estimates`, against numpy on a
+    linear case with a known disagreement between two sensors: each sensor's own
+    estimate is its own straight-line least squares (one Gauss-Newton step from
+    the joint optimum is exact on a linear model), its covariance the
+    coloured-residual sandwich `M^-1 J^T T J M^-1` (T the Toeplitz matrix of the
+    joint residuals' biased autocovariance, every lag) written out by a double
+    sum; `between_variance` of the two is `d^2 - v`, the planted offsets showing
+    beyond the noise."""
+    fit, t, y = _two_sensor_fit()
+    x, c = dr.sensor_estimates(fit, ("a", "b"))
+    j = np.column_stack([np.ones_like(t), t])
+    # the joint maximum-likelihood fit: least squares weighted by each channel's
+    # residual variance R
+    w = 1.0 / np.sqrt(np.asarray(fit.R))
+    joint = np.linalg.lstsq(
+        np.vstack([j * w[0], j * w[1]]), (y * w).T.reshape(-1), rcond=None
+    )[0]
+    # the fit stops when det(R) changes by 1e-7: its estimates within 4e-6
+    np.testing.assert_allclose(fit.params, joint, rtol=2e-5)
+    for s in range(2):
+        own = np.linalg.lstsq(j, y[:, s], rcond=None)[0]
+        np.testing.assert_allclose(x[s], own, rtol=1e-7, atol=1e-9)
+        e = y[:, s] - j @ fit.params
+        n = t.size
+        acov = np.array([e[: n - k] @ e[k:] / n for k in range(n)])
+        toeplitz = acov[np.abs(np.subtract.outer(np.arange(n), np.arange(n)))]
+        m = np.linalg.inv(j.T @ j)
+        np.testing.assert_allclose(c[s], m @ j.T @ toeplitz @ j @ m, rtol=1e-6)
+    # the offsets planted (0.3 in a, -0.2 in b) show beyond the noise: tau^2 =
+    # d^2 - v, zero where d lies within it
+    d = x[1] - x[0]
+    v = np.diag(c[0] + c[1])
+    np.testing.assert_allclose(dr.between_variance(d, v), np.clip(d**2 - v, 0, None))
+    assert np.all(np.abs(d - [0.3, -0.2]) < 3 * np.sqrt(v))
+    assert np.all(dr.between_variance(d, v) > 0)
+    np.testing.assert_array_equal(dr.between_variance([0.1, -0.05], [0.02, 0.01]), 0)

@@ -5,7 +5,7 @@ import diffpegasus.rocket as dr
 rocket = dr.read_rocket("rocket.toml")
 problem = dr.prepare(rocket, log)          # log: a rocket log (channels, events)
 result = dr.fit_rocket(problem)            # CD(Mach) knots, thrust scale, baro
-cd, stderr = result.cd([0.3, 0.6, 0.9])    # with its coloured-residual band
+cd, stderr = result.cd([0.3, 0.6, 0.9])    # coloured-residual band + sensors' spread
 named, tests, _ = dr.diagnose(problem)     # missing effects
 """
 
@@ -22,6 +22,12 @@ from ._rocket._identify import (
     simulate_flight as simulate_flight,
 )
 from ._rocket._pipeline import run_flight as run_flight
+from ._rocket._spread import (
+    between_variance as between_variance,
+    sensor_estimates as sensor_estimates,
+    Spread as Spread,
+    structural_spread as structural_spread,
+)
 from ._vehicle._rocket import (
     axial_specific_force as axial_specific_force,
     baro_altitude as baro_altitude,

@@ -98,6 +98,7 @@ def diagnose(problem: Problem, *, level: float = 0.01, rounds: int = 3):
         start={"thrust_scale": THRUST_ABSENT},
         shooting_interval=single,
         throw=False,
+        spread=False,  # the scores do not read the band
     )
     top = float(np.max(base.mach))
     pool = [THRUST] + candidates(problem, top)
@@ -159,6 +160,7 @@ def diagnose(problem: Problem, *, level: float = 0.01, rounds: int = 3):
             start=warm,
             shooting_interval=single,
             throw=False,
+            spread=False,
         )
     _aliases(rows, found_names)
     return named, rows, current

@@ -42,7 +42,9 @@ class RocketFit:
     barometric altitude, `accel` `(samples,)` m/s^2 its axial specific force, `mach`
     `(samples,)`, `apogee` m (barometric, as the log reports it), `apogee_time` s,
     `tries` (label -> `(det(R) of the try's own fit, det(R) of its parameters
-    flown from the pad, converged)`, the fits [`fit_rocket`][] chose from).
+    flown from the pad, converged)`, the fits [`fit_rocket`][] chose from),
+    `spread` the sensors' disagreement over the drag knots ([`Spread`][], `None`
+    with one sensor), whose between-sensor variance joins `CD`'s band.
     """
 
     rocket: Rocket
@@ -58,14 +60,18 @@ class RocketFit:
     apogee: float
     apogee_time: float
     tries: dict = dataclasses.field(default_factory=dict)
+    spread: object = None
 
     @property
     def knots(self) -> DragKnots:
         return self.flight.knots
 
-    def cd(self, mach):
+    def cd(self, mach, structural: bool = True):
         """`(cd, stderr)` of power-off `CD` at `mach` `(m,)` from the knots and their
-        covariance (coloured-residual standard errors, estimate correlations)."""
+        covariance (coloured-residual standard errors, estimate correlations) and,
+        with `structural` and two sensors, the between-sensor variance
+        (`spread.tau`, the model's structural error the log shows, knot by knot,
+        carried fully correlated through the interpolation)."""
         names = self.fit.model.parameters
         idx = [names.index(n) for n in self.knots.names]
         est = self.fit.params[idx] * self.fit.params[names.index("cd_scale")]
@@ -73,6 +79,8 @@ class RocketFit:
         cov = self.fit.correlation[np.ix_(idx, idx)] * np.outer(sd, sd)
         w = self.knots.weights(mach)
         var = np.einsum("mk,kl,ml->m", w, cov, w)
+        if structural and self.spread is not None:
+            var = var + (np.abs(w) @ self.spread.tau) ** 2
         return w @ est, np.sqrt(np.clip(var, 0, None))
 
     def estimate(self, name) -> tuple[float, float]:
@@ -359,6 +367,7 @@ def fit_rocket(
     hold: tuple[str, ...] = (),
     single: bool = True,
     throw: bool = True,
+    spread: bool = True,
 ) -> RocketFit:
     """Fit the rocket's model to the ascent, by continuation: the start curve's
     shape scaled by one factor first (with the thrust scale, motor time and the
@@ -392,6 +401,8 @@ def fit_rocket(
     - `single`: follow the multiple-shooting tries by single shooting from the
       best of them (the lower det(R) kept).
     - `throw`: raise on a failed fit (else the fit carries its result code).
+    - `spread`: with two sensors, measure their disagreement over the drag knots
+      ([`structural_spread`][]) and carry it in `CD`'s band.
 
     **Returns:** a [`RocketFit`][].
     """
@@ -430,13 +441,18 @@ def fit_rocket(
     result = tried[label]
     if throw and not result.converged:
         raise RuntimeError(result.reason)
-    return dataclasses.replace(
+    from ._spread import structural_spread
+
+    fitted = dataclasses.replace(
         trajectory(problem.rocket, problem.flight, result, record, problem.outputs),
         tries={
             k: (float(f.cost), float(flown[k]), bool(f.converged))
             for k, f in tried.items()
         },
     )
+    if not spread or drag != "knots" or not np.isfinite(result.cost):
+        return fitted
+    return dataclasses.replace(fitted, spread=structural_spread(fitted))
 
 
 def flown_cost(problem: Problem, record, result) -> float:

@@ -60,7 +60,9 @@ def run_flight(rocket, log, out=None, *, free=None) -> dict:
     figures and `summary.json` there.
 
     **Returns:** the summary (see [`summary`][]) with `cd_table` rows (Mach, CD,
-    standard error, team CD) added.
+    standard error with the sensors' spread and of the noise alone, team CD) and,
+    with two sensors, `cd_structural` (the spread's Birge ratio and `tau` at the
+    knots) added.
     """
     from ._identify import default_free
     from ._report import figures, summary
@@ -80,15 +82,28 @@ def run_flight(rocket, log, out=None, *, free=None) -> dict:
     row = summary(problem, result, prediction, team, log_apogee, seconds)
     mach = np.array(problem.flight.knots.mach)
     cd, sd = result.cd(mach)
+    _, noise = result.cd(mach, structural=False)
     team_cd = (
         np.interp(mach, *rocket.team_drag_off)
         if rocket.team_drag_off is not None
         else np.full(len(mach), np.nan)
     )
     row["cd_table"] = [
-        {"mach": float(m), "cd": float(c), "stderr": float(s), "team_cd": float(tc)}
-        for m, c, s, tc in zip(mach, cd, sd, team_cd, strict=True)
+        {
+            "mach": float(m),
+            "cd": float(c),
+            "stderr": float(s),
+            "stderr_noise": float(n),
+            "team_cd": float(tc),
+        }
+        for m, c, s, n, tc in zip(mach, cd, sd, noise, team_cd, strict=True)
     ]
+    # the sensors' disagreement the band carries (none with one sensor)
+    if result.spread is not None:
+        row["cd_structural"] = {
+            "birge": result.spread.birge,
+            "tau_at_knots": result.spread.tau.tolist(),
+        }
     model = result.fit.model
     row["estimates"] = {
         k: list(result.estimate(k))

@@ -111,8 +111,23 @@ def figures(problem, result, prediction, team, ee, out) -> list[pathlib.Path]:
     top = float(np.max(result.mach))
     m = np.linspace(0.05, top, 200)
     cd, sd = result.cd(m)
+    _, noise = result.cd(m, structural=False)
+    if result.spread is not None:
+        ax.fill_between(
+            m,
+            cd - 1.96 * sd,
+            cd + 1.96 * sd,
+            color="C0",
+            alpha=0.15,
+            label="95% band with the sensors' disagreement",
+        )
     ax.fill_between(
-        m, cd - 1.96 * sd, cd + 1.96 * sd, color="C0", alpha=0.25, label="95% band"
+        m,
+        cd - 1.96 * noise,
+        cd + 1.96 * noise,
+        color="C0",
+        alpha=0.3,
+        label="95% band of the noise",
     )
     ax.plot(m, cd, "C0", label="identified (power off)")
     ax.plot(result.knots.mach, result.cd(np.array(result.knots.mach))[0], "C0o", ms=4)
