@@ -69,7 +69,9 @@ def main():
         flat = {n: 0.5 for n in problem.flight.knots.names}
         before = option("--start-from", None)
         if before is None:
-            result = dr.fit_rocket(problem, free=free, start=flat, throw=False)
+            result = dr.fit_rocket(
+                problem, free=free, start=flat, throw=False, spread=True
+            )
         else:
             kept = json.loads(pathlib.Path(before).read_text())[folder.name]
             warm = {n: v for n, (v, _) in kept["estimates"].items()}
@@ -80,6 +82,7 @@ def main():
                 start=warm,
                 shooting_interval=single,
                 throw=False,
+                spread=True,
             )
         seconds = time.perf_counter() - t0
         mach_true, cd_true = rocket.team_drag_off

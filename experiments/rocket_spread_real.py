@@ -19,7 +19,7 @@ for name in sys.argv[1:]:
     rocket = dr.read_rocket(path)
     log = read_rocket_log(path)
     p = dr.prepare(rocket, log)
-    r = dr.fit_rocket(p, throw=False)
+    r = dr.fit_rocket(p, throw=False, spread=True)
     m = np.array(r.knots.mach)
     cd, sd = r.cd(m)
     _, sn = r.cd(m, structural=False)

@@ -47,6 +47,16 @@ AttitudeOption = Annotated[
 ]
 
 
+SpreadOption = Annotated[
+    bool,
+    typer.Option(
+        "--sensor-spread",
+        help="Add the disagreement between the barometer and the accelerometer to "
+        "CD's band (checked on simulated flights; too wide on some real ones)",
+    ),
+]
+
+
 def _load(toml, logs, columns, attitude=False):
     from .._vehicle._rocket import read_rocket
 
@@ -78,6 +88,7 @@ def fit_command(
     out: OutOption = None,
     as_json: JsonOption = False,
     attitude: AttitudeOption = False,
+    sensor_spread: SpreadOption = False,
 ):
     """Fit CD(Mach), thrust scale and the barometer to the ascent; reconstruct and
     predict the apogee (from the log up to 2 s after burnout); re-simulate with the
@@ -85,7 +96,7 @@ def fit_command(
     from .._rocket._pipeline import run_flight
 
     rocket, flight_log = _load(toml, log, columns, attitude)
-    row = run_flight(rocket, flight_log, out)
+    row = run_flight(rocket, flight_log, out, spread=sensor_spread)
     if as_json:
         typer.echo(json.dumps(row, default=float))
         return

@@ -54,10 +54,11 @@ def predict(problem, until: float):
     )
 
 
-def run_flight(rocket, log, out=None, *, free=None) -> dict:
+def run_flight(rocket, log, out=None, *, free=None, spread=False) -> dict:
     """Fit the ascent, predict the apogee from the log up to two seconds after
     burnout, re-simulate with the team's drag curve, and (with `out`) write the
-    figures and `summary.json` there.
+    figures and `summary.json` there. `spread`: carry the disagreement between
+    the log's sensors in CD's band (see [`fit_rocket`][]).
 
     **Returns:** the summary (see [`summary`][]) with `cd_table` rows (Mach, CD,
     standard error with the sensors' spread and of the noise alone, team CD) and,
@@ -72,7 +73,7 @@ def run_flight(rocket, log, out=None, *, free=None) -> dict:
     if free is None:
         free = default_free(problem)
     free = tuple(free)
-    result = fit_rocket(problem, free=free, throw=False)
+    result = fit_rocket(problem, free=free, throw=False, spread=spread)
     seconds = time.perf_counter() - t0
     cut = burnout_time(log, problem, result) + PREDICTION_HORIZON
     prediction = predict(problem, cut)
