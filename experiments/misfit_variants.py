@@ -246,7 +246,8 @@ def _across(rows, by, order):
             continue
         planted = by[f][2]
         a, b = six[f], r["named"]["sieve"]
-        named = {"6": a, "12": b, "either": b or a, "both": a if a == b else None}
+        same = a == b or {a, b} <= {"pitch_damping", "alpha_dot_damping"}  # tied
+        named = {"6": a, "12": b, "either": b or a, "both": a if same else None}
         cells = []
         for k, v in named.items():
             ok = _right(v, planted)
