@@ -3,7 +3,7 @@ one baseline fit per flight and Mach resolution, the score test's parts stored,
 then decision-rule variants evaluated in seconds without refitting.
 
     nice python experiments/misfit_null.py fit --knots 6 --flights 50:1 1000:7
-    python experiments/misfit_null.py evaluate [--table]
+    python experiments/misfit_null.py evaluate [--agree 9 12]
 
 `fit`: for each flight (`experiments/acceptance.py`'s list, independent generator
 `tests/independent_generator.py`) the baseline fit with `PegasusEntry(knots=K)`
@@ -139,13 +139,24 @@ def main():
     f.add_argument("--flights", nargs="+", default=None, metavar="RATE:SEED")
     e = sub.add_parser("evaluate")
     e.add_argument("--table", action="store_true")
+    e.add_argument(
+        "--agree",
+        type=int,
+        nargs=2,
+        default=None,
+        metavar="K",
+        help="only the stability rule across these two resolutions (stored thresholds)",
+    )
     args = p.parse_args()
     if args.cmd == "fit":
         fit(args)
     else:
-        from misfit_variants import evaluate
+        from misfit_variants import agree, evaluate
 
-        evaluate(args)
+        if args.agree:
+            agree(tuple(args.agree))
+        else:
+            evaluate(args)
 
 
 if __name__ == "__main__":

@@ -256,3 +256,31 @@ def _across(rows, by, order):
         print(f"| {f} | {planted or 'clean'} | " + " | ".join(cells) + " |")
     for k, oks in count.items():
         print(f"{k}: {sum(oks)}/{len(oks)} right")
+
+
+def agree(pair=(9, 12)):
+    """The rule's own stability across two Mach resolutions, sieve thresholds as
+    stored: an effect is named only when both resolutions' first findings name it
+    (the tied dampings count as one); what the misfit projects on moves from one
+    candidate to another as the baseline refines, an effect stays."""
+    by, order = _flights()
+    print(
+        f"| flight | planted | {pair[0]} functions | {pair[1]} functions | both | right |"
+    )
+    print("|---|---|---|---|---|---|")
+    oks = []
+    for f in order:
+        rate, seed, planted, _ = by[f]
+        d = [_load(rate, seed, k) for k in pair]
+        if any(x is None for x in d):
+            continue
+        a, b = (_first(x, float(x["thresholds"][0])) for x in d)
+        same = a == b or {a, b} <= {"pitch_damping", "alpha_dot_damping"}
+        named = a if same else None
+        ok = _right(named, planted)
+        oks.append(ok)
+        print(
+            f"| {f} | {planted or 'clean'} | {a or 'none'} | {b or 'none'} "
+            f"| {named or 'none'} | {'yes' if ok else 'no'} |"
+        )
+    print(f"both at {pair}: {sum(oks)}/{len(oks)} right")
