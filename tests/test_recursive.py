@@ -12,6 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+import scipy.optimize
 
 import diffpegasus as dp
 
@@ -426,18 +427,105 @@ def test_least_squares_ladder_is_batch_means_at_every_block_length():
         )
 
 
+def _centering_loss_reference(lam, size, n):
+    """Satterthwaite's count of the centered sum of squares of the block scores
+    (written here from the definition): blocks of `size` samples from the
+    newest (the newest partial), block `b`'s score variance `v_b = sum w_i^2`
+    and weight in the estimate `g_b = sum w_i`, `w_i = lam^age`; returns the
+    effective number of blocks `(sum v)^2 / sum v^2` less that count."""
+    age = np.arange(n)
+    edges = sorted({0, n % size} | set(range(n % size, n + 1, size)))
+    g = np.array(
+        [np.sum(lam ** age[a:b]) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+    )
+    v = np.array(
+        [
+            np.sum(lam ** (2 * age[a:b]))
+            for a, b in zip(edges[:-1], edges[1:], strict=True)
+        ]
+    )
+    b = np.eye(len(g)) - np.outer(g, np.ones(len(g))) / g.sum()
+    a = b.T @ b @ np.diag(v)
+    return v.sum() ** 2 / (v**2).sum() - np.trace(a) ** 2 / np.trace(a @ a)
+
+
+def test_least_squares_dof_is_the_score_spread_written_here():
+    """The band's degrees of freedom under forgetting against Satterthwaite's
+    count written here in NumPy: least squares re-run sample by sample, each
+    completed block's score `U_b` taken at the estimate of the sample that
+    completes it (the newest, partial block at the final estimate), block `b`'s
+    term of the bound `x_b = lam^(2 age_b) (P U_b)_a^2`, the count `3 (sum
+    x)^2 / sum x^2 - 2` less the centering loss, at the longest block length
+    whose information leaves at least three effective blocks; and the band, the
+    Student-t quantile (Cornish-Fisher) there times the fitted batch-means
+    bound."""
+    n, lam, levels = 150, 0.99, 5
+    h, y, o = _regression(n=n)
+    y = y + jnp.asarray(_ar1(np.random.default_rng(5), n, 0.8, 0.05).T)
+    est = dp.RecursiveLeastSquares(
+        forgetting=lam, derivative=(False,), dt=DT, levels=levels
+    )
+    out = dp.replay(est, h, y, o, jnp.zeros(3), at=(n - 1,))
+
+    hh, yy = np.asarray(h[:, 0, :]), np.asarray(y[:, 0])
+    info, rhs, thetas = np.eye(3) / 1e6, np.zeros(3), []
+    for k in range(n):
+        info = lam * info + np.outer(hh[k], hh[k])
+        rhs = lam * rhs + hh[k] * yy[k]
+        thetas.append(np.linalg.solve(info, rhs))
+    theta, pm = thetas[-1], np.linalg.inv(info)
+    w = lam ** np.arange(n)[::-1]
+
+    def ladder_level(j):
+        size = 2**j
+        cut = [slice(a, min(a + size, n)) for a in range(0, n, size)]
+        cb = [(hh[b] * w[b, None] ** 2).T @ hh[b] for b in cut]
+        share = np.array([np.diag(pm @ c @ pm) for c in cb])
+        x = []
+        for b in cut:
+            end = b.stop - 1
+            at = thetas[end] if b.stop - b.start == size else theta
+            wb = lam ** (end - np.arange(b.start, b.stop))
+            u = (hh[b] * wb[:, None]).T @ (yy[b] - hh[b] @ at)
+            x.append(lam ** (2 * (n - 1 - end)) * (pm @ u) ** 2)
+        x = np.array(x)
+        count = np.maximum(3 * x.sum(0) ** 2 / (x**2).sum(0) - 2, 1)
+        return share.sum(0) ** 2 / (share**2).sum(0), count, cut
+
+    j = max(j for j in range(levels) if np.all(ladder_level(j)[0] >= 3))
+    _, count, cut = ladder_level(j)
+    dof = np.maximum(count - _centering_loss_reference(lam, 2**j, n), 1)
+    np.testing.assert_allclose(out.dof[0], dof, rtol=1e-10)
+    sb = [(hh[b] * w[b, None]).T @ (yy[b] - hh[b] @ theta) for b in cut]
+    k = sum(np.kron(g, g) for g in ((hh[b] * w[b, None]).T @ hh[b] for b in cut))
+    middle = sum(np.outer(s, s) for s in sb)
+    v = np.linalg.solve(np.eye(9) - np.kron(pm, pm) @ k, (pm @ middle @ pm).ravel())
+    z = 1.959963984540054
+    tq = (
+        z
+        + (z**3 + z) / (4 * dof)
+        + (5 * z**5 + 16 * z**3 + 3 * z) / (96 * dof**2)
+        + (3 * z**7 + 19 * z**5 + 17 * z**3 - 15 * z) / (384 * dof**3)
+    )
+    # the bound's solve and float64 sums in another order: 1e-7 as the ladder's
+    np.testing.assert_allclose(
+        out.halfwidth[0], tq * np.sqrt(np.diag(v.reshape(3, 3))), rtol=1e-7
+    )
+
+
 def _fourier_bound_reference(a, b, freqs, n):
     """The recursive Fourier transform's estimate and bound for one equation,
     written here in NumPy after the flight from its transforms `a` `(f, p)`, `b`
     `(f,)` over `n` samples, by the hat matrix rather than the estimator's
     closed form: complex least squares as real least squares on the stacked
     real and imaginary parts; for a residual spectrum `S_f` each of the
-    quadratics `(1 - u)^2, 2 u (1 - u), u^2` (`u` the frequency scaled to
-    0..1) the covariance of the transforms
+    quadratics `(1 - u)^2, 2 u (1 - u), u^2` (`u` the differenced white
+    noise's power `sin^2(pi f dt)` scaled to 0..1) the covariance of the transforms
     `kappa_fg (S_f + S_g) / 2` (`kappa` the direct sum `mean_i z^i`), in the
     real representation `Sigma`, and the residuals' expected products the
     diagonal of `(I - H) Sigma (I - H)^T`; the residual powers `|e_f|^2` fitted
-    by least squares to those three columns, first unweighted, then weighted by the
+    by non-negative least squares (scipy's `nnls`) to those three columns, first
+    unweighted, then weighted by the
     inverse of that first fit, the bound `G Sigma(S) G^T` at the
     fitted spectrum (`G` the estimate's row of the noise), and Satterthwaite's
     degrees of freedom of the bound as the linear function of the `|e_f|^2` it
@@ -451,9 +539,9 @@ def _fourier_bound_reference(a, b, freqs, n):
     hat = np.eye(2 * f) - x @ g
     diff = freqs[:, None] - freqs[None, :]
     kappa = np.mean(np.exp(-2j * np.pi * diff[..., None] * DT * np.arange(n)), -1)
-    u = (freqs - 0.5 * (freqs[0] + freqs[-1])) / (0.5 * (freqs[-1] - freqs[0]))
+    sq = np.sin(np.pi * freqs * DT) ** 2  # |1 - z|^2 / 4
+    u = (sq - sq[0]) / (sq[-1] - sq[0])
     cols, bounds = [], []
-    u = 0.5 * (u + 1)
     shapes = [(1 - u) ** 2, 2 * u * (1 - u), u * u]  # Bernstein quadratics
     for shape in shapes:
         c = kappa * 0.5 * (shape[:, None] + shape[None, :])
@@ -465,7 +553,10 @@ def _fourier_bound_reference(a, b, freqs, n):
     design = np.array(cols).T  # (f, 3)
 
     def fitted(scale):  # coefficients per unit |e_f|^2, and at these powers
-        fit = np.linalg.pinv(design / scale[:, None]) / scale[None]
+        coef, _ = scipy.optimize.nnls(design / scale[:, None], power / scale)
+        on = coef > 0  # the linear map on the coefficients left free
+        fit = np.zeros((3, f))
+        fit[on] = np.linalg.pinv(design[:, on] / scale[:, None]) / scale[None]
         return fit, fit @ power
 
     _, coef = fitted(np.ones(f))

@@ -62,10 +62,14 @@ from jaxtyping import Array, Bool, Complex, Float, Int
 class _Spread(eqx.Module):
     """Per block length, forgetting-weighted sums over the blocks of `vec C_b`
     and of `vec C_b vec C_b^T`, `C_b = sum_(i in b) w_i^2 G_i`: how the data are
-    spread over the blocks of the memory."""
+    spread over the blocks of the memory; and the same of the block scores'
+    outer products `vec S_b`, `S_b = U_b U_b^T` (`U_b` the block's score at
+    the estimate when the block completed): how the score variance is spread."""
 
     g2: Float[Array, "levels pp"]
     g4: Float[Array, "levels pp pp"]
+    s2: Float[Array, "levels pp"]
+    s4: Float[Array, "levels pp pp"]
 
 
 class RecursiveState(eqx.Module):
@@ -253,7 +257,12 @@ def _empty_state(p, q, levels, frequencies, dt, theta0, prior, scores):
         rotation=rotation,
         filt=jnp.zeros((2, q, p + 1)),
         rows=jnp.zeros((q, p + 2, p + 2)),
-        spread=_Spread(jnp.zeros((levels, pp)), jnp.zeros((levels, pp, pp))),
+        spread=_Spread(
+            jnp.zeros((levels, pp)),
+            jnp.zeros((levels, pp, pp)),
+            jnp.zeros((levels, pp)),
+            jnp.zeros((levels, pp, pp)),
+        ),
     )
 
 
@@ -423,20 +432,28 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
         k = state.count
 
         def complete(j, carry):
-            pairs, g2, g4, last = carry
+            pairs, g2, g4, s2, s4, last = carry
             f = jnp.power(lam, (k - last[j]).astype(float))
             pairs = pairs.at[j].set(f**2 * pairs[j] + jnp.outer(bz[j], bz[j]))
             g2 = g2.at[j].set(f**2 * g2[j] + bg[j])
             g4 = g4.at[j].set(f**4 * g4[j] + jnp.outer(bg[j], bg[j]))
-            return pairs, g2, g4, last.at[j].set(k)
+            # the block's score at this estimate, kept for the spread of the
+            # score variance (its fourth moments: a square of the score's
+            # outer product, which the pair sums cannot give)
+            u = bz[j, :p] - bz[j, p:].reshape(p, p) @ theta
+            su = jnp.outer(u, u).reshape(p * p)
+            s2 = s2.at[j].set(f**2 * s2[j] + su)
+            s4 = s4.at[j].set(f**4 * s4[j] + jnp.outer(su, su))
+            return pairs, g2, g4, s2, s4, last.at[j].set(k)
 
-        pairs, g2, g4, last = jax.lax.fori_loop(
+        sp = state.spread
+        pairs, g2, g4, s2, s4, last = jax.lax.fori_loop(
             0,
             jnp.sum(done),
             complete,
-            (state.pairs, state.spread.g2, state.spread.g4, state.block_t),
+            (state.pairs, sp.g2, sp.g4, sp.s2, sp.s4, state.block_t),
         )
-        spread = _Spread(g2, g4)
+        spread = _Spread(g2, g4, s2, s4)
         block_z = jnp.where(done[:, None], 0.0, bz)
         block_g = jnp.where(done[:, None], 0.0, bg)
         return eqx.tree_at(
@@ -478,6 +495,28 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
         square = jnp.einsum("ai,lij,aj->la", pp, g4, pp)
         return total**2 / jnp.maximum(square, 1e-300)
 
+    def _score_blocks(self, state, pm, level):
+        """The effective number of independent blocks `(levels, p)` behind each
+        parameter's bound counted from how the *score variance* is spread over
+        them, by Satterthwaite: block `b`'s term of the bound, `x_b = omega_b
+        (P U_b)_a^2` (`omega_b` the forgetting since the block, squared), is
+        `sigma_b^2` times a one-degree chi-square for a Gaussian score, so
+        `E[(sum x)^2] = (sum sigma^2)^2 + 2 sum sigma^4` and `E[sum x^2] = 3 sum
+        sigma^4`; the count `(sum sigma^2)^2 / sum sigma^4` is estimated as
+        `3 (sum x)^2 / sum x^2 - 2` (at least 1; the newest, partial block
+        included at the current estimate), for the blocks of one level."""
+        p = state.theta.shape[0]
+        f2 = self._since(state)[level] ** 2
+        bz = state.block_z[level]
+        u = bz[:p] - bz[p:].reshape(p, p) @ state.theta
+        su = jnp.outer(u, u).reshape(p * p)
+        s2 = f2 * state.spread.s2[level] + su
+        s4 = f2**2 * state.spread.s4[level] + jnp.outer(su, su)
+        pp = jnp.einsum("ab,ac->abc", pm, pm).reshape(p, p * p)
+        total = pp @ s2
+        square = jnp.einsum("ai,ij,aj->a", pp, s4, pp)
+        return jnp.maximum(3.0 * total**2 / jnp.maximum(square, 1e-300) - 2.0, 1.0)
+
     def _variance(self, state, pm, level):
         """The bound's variance `(p,)` from the block sums of one level (the
         partial block included), with the current estimate's scores `s = [I,
@@ -514,7 +553,8 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
         ok = jnp.any(usable) & (var_c > 0)
         var_c = jnp.where(ok, var_c, white)
         loss = _centering_loss(self.forgetting, 2**j, state.count)
-        dof = jnp.where(ok, jnp.maximum(blocks[j] - loss, 1.0), 1.0)
+        scored = self._score_blocks(state, pm, j)
+        dof = jnp.where(ok, jnp.maximum(scored - loss, 1.0), 1.0)
         return _finish(state.theta, white, var_c, dof, student=True)
 
 
@@ -641,7 +681,7 @@ class RecursiveFourier(AbstractRecursiveEstimator):
         pm = jnp.where(jnp.outer(known, known), cov, 0.0)
         var = jnp.where(known, jnp.clip(jnp.diag(cov), 0.0), jnp.inf)
         var_c, dof = _smooth_spectrum_bound(
-            fh, hw, e, w, pm, kappa, jnp.asarray(self.frequencies)
+            fh, hw, e, w, pm, kappa, jnp.asarray(self.frequencies), self.dt
         )
         var_c = jnp.where(known & (var_c > 0), var_c, var)
         return _finish(theta[:p0], var[:p0], var_c[:p0], dof[:p0], student=True)
@@ -664,7 +704,67 @@ def _hermitian_basis(q):
     return np.stack(out)
 
 
-def _smooth_spectrum_bound(fh, hw, e, w, pm, kappa, frequencies):
+def _nonnegative_least_squares(design, obs, free, iters=None):
+    """`argmin |design c - obs|^2` with `c_i >= 0` where not `free`, by Lawson
+    and Hanson's active set (the free coefficients always passive), and the
+    `(k, rows)` linear map from `obs` to `c` on the final active set (the
+    solution is that map times `obs`).
+
+    `design` `(rows, k)`, `obs` `(rows,)`, `free` `(k,)` bool. A fixed number of
+    passes (`3 k` by default) bounds the loop under `jit`."""
+    k = design.shape[1]
+    iters = 3 * k if iters is None else iters
+    gram = design.T @ design
+    rhs = design.T @ obs
+    scale = jnp.sqrt(jnp.maximum(jnp.diag(gram), 1e-300))
+    gram = gram / jnp.outer(scale, scale)
+    rhs = rhs / scale
+    # a relative ridge: the Bernstein columns of one equation are nearly
+    # collinear, and an equation without rows has all-zero columns
+    ridge = 1e-10 * jnp.max(jnp.diag(gram))
+
+    def solve(passive):
+        a = jnp.where(passive[:, None] & passive[None, :], gram, 0.0)
+        a = a + jnp.diag(jnp.where(passive, ridge, 1.0))
+        return jnp.linalg.solve(a, jnp.where(passive, rhs, 0.0)), a
+
+    def inner(carry):
+        x, passive, z, n = carry
+        bad = passive & ~free & (z <= 0.0)
+        step = jnp.min(jnp.where(bad, x / jnp.maximum(x - z, 1e-300), jnp.inf))
+        x = x + jnp.clip(step, 0.0, 1.0) * (z - x)
+        passive = passive & (free | (x > 1e-12 * jnp.max(jnp.abs(x))))
+        x = jnp.where(passive, x, 0.0)
+        z, _ = solve(passive)
+        return x, passive, z, n + 1
+
+    def outer(carry):
+        x, passive, n = carry
+        grad = jnp.where(passive, -jnp.inf, rhs - gram @ x)
+        passive = passive.at[jnp.argmax(grad)].set(True)
+        z, _ = solve(passive)
+        x, passive, z, _ = jax.lax.while_loop(
+            lambda c: jnp.any(c[1] & ~free & (c[2] <= 0.0)) & (c[3] < k),
+            inner,
+            (x, passive, z, 0),
+        )
+        return z, passive, n + 1
+
+    def more(carry):
+        x, passive, n = carry
+        grad = rhs - gram @ x
+        tol = 1e-10 * jnp.maximum(jnp.max(jnp.abs(rhs)), 1e-300)
+        return jnp.any(~passive & (grad > tol)) & (n < iters)
+
+    x0, _ = solve(free)
+    x, passive, _ = jax.lax.while_loop(more, outer, (x0, free, 0))
+    _, a = solve(passive)
+    cols = jnp.where(passive[:, None], design.T / scale[:, None], 0.0)
+    mapping = jnp.linalg.solve(a, cols) / scale[:, None]
+    return mapping @ obs, mapping
+
+
+def _smooth_spectrum_bound(fh, hw, e, w, pm, kappa, frequencies, dt):
     """The variance `(p,)` of the estimate and its Satterthwaite degrees of freedom
     `(p,)` from the residual spectrum estimated unbiased at the estimate.
 
@@ -690,15 +790,27 @@ def _smooth_spectrum_bound(fh, hw, e, w, pm, kappa, frequencies):
     freedom are `2 (sum_f tr(Q_f S_f))^2 / sum_fg |kappa_fg|^2 tr(Q_f S_f Q_g
     S_g)` (each `T_f` a complex Gaussian's outer product)."""
     f, q, p = fh.shape
-    x = (frequencies - 0.5 * (frequencies[0] + frequencies[-1])) / jnp.maximum(
-        0.5 * (frequencies[-1] - frequencies[0]), 1e-12
-    )
-    u = 0.5 * (x + 1.0)  # 0 to 1 across the band
-    # the quadratics in Bernstein form (non-negative coefficients would keep the
-    # spectrum non-negative across the band; the fit does not impose them, and a
-    # negative bound falls back to the white-residual one)
+    # the quadratics in Bernstein form in the differenced white noise's own
+    # shape, `|1 - z|^2 = 4 sin^2(pi f dt)`, 0 to 1 across the band: white
+    # noise and differenced white noise are then straight lines with positive
+    # ends, inside the non-negative coefficients the fit keeps, not on their
+    # edge (in `f` a differenced noise's lowest coefficient is near zero)
+    s = jnp.sin(jnp.pi * frequencies * dt) ** 2
+    u = (s - s[0]) / jnp.maximum(s[-1] - s[0], 1e-300)
     prof = jnp.stack([(1.0 - u) ** 2, 2.0 * u * (1.0 - u), u * u])  # (k, f)
-    herm = jnp.asarray(_hermitian_basis(q))  # (m, q, q)
+    herm_np = _hermitian_basis(q)
+    herm = jnp.asarray(herm_np)  # (m, q, q)
+    # each equation's own power non-negative at the three Bernstein
+    # coefficients: a non-negative spectrum across the band
+    diagonal = np.array(
+        [
+            np.trace(np.abs(b)) == 1
+            and np.all(b.imag == 0)
+            and np.count_nonzero(b) == 1
+            for b in herm_np
+        ]
+    )
+    free = jnp.asarray(np.tile(~diagonal, 3))
     a0 = jnp.einsum("fg,gqb->fqb", kappa, hw)  # sum_g kappa_fg hw_g
     ak = jnp.einsum("fg,kg,gqb->kfqb", kappa, prof, hw)  # ... times b_k(g)
     # M for S_f = b_k(f) E_m, (k, m, p, p)
@@ -727,8 +839,9 @@ def _smooth_spectrum_bound(fh, hw, e, w, pm, kappa, frequencies):
         design = (pred * scale[None, None]).reshape(-1, f * q * q)
         design = jnp.concatenate([design.real, design.imag], axis=1).T
         obs = (t_f * scale).reshape(-1)
-        pinv = jnp.linalg.pinv(design, rtol=1e-10)  # (k m, rows)
-        return pinv, pinv @ jnp.concatenate([obs.real, obs.imag])
+        obs = jnp.concatenate([obs.real, obs.imag])
+        coef, mapping = _nonnegative_least_squares(design, obs, free)
+        return mapping, coef
 
     # first each equation scaled by its weight; then each frequency's products
     # by the first fit's spectrum there (generalised least squares: the
