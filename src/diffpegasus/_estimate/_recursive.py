@@ -34,15 +34,17 @@ evaluated with the current estimate; the fitted residuals' first-order loss `sum
 G_b V G_b` is solved for. `stderr` is the bound of single samples (white residuals);
 `stderr_corrected` the one from the longest blocks that leave at least three
 (effectively, counted from how the information is spread over them), and the 95%
-band (`halfwidth`) the Student-t quantile at their number less what taking the
-residuals at the estimate costs (`_centering_loss`: one block without
-forgetting, about 0.2 with it) times it. For the
+band (`halfwidth`) the Student-t quantile times it, at the number of blocks the
+score variance is spread over (Satterthwaite, from the block scores' fourth
+moments, `_score_blocks`) less what taking the residuals at the estimate costs
+(`_centering_loss`: one block without forgetting, about 0.2 with it). For the
 recursive Fourier transform the state equations' two end terms (the
 differenced state's transform telescopes to its ends) are estimated with the
 parameters, and the bound is the per-frequency sandwich of the batch
 method ([`frequency_equation_error`][]) with the cross-frequency terms the finite
 transform's leakage makes (`_leakage`: `kappa_fg (S_f + S_g) / 2`), the residual
-spectrum `S_f` a quadratic in frequency fitted to the residual transforms' products
+spectrum `S_f` a quadratic in `sin^2(pi f dt)` with non-negative powers, fitted
+to the residual transforms' products
 through their expectation at the estimate, `(I - H) S (I - H)^H` at each frequency
 (`_smooth_spectrum_bound`), and the band the Student-t quantile at Satterthwaite's
 degrees of freedom of that bound. With `bandwidth`, the differenced
@@ -779,13 +781,17 @@ def _smooth_spectrum_bound(fh, hw, e, w, pm, kappa, frequencies, dt):
 
     linear in `S` (the hat matrix `H`'s `(I - H) S (I - H)^H` at frequency `f`,
     without taking the spectrum as flat). `S_f` is modelled as a quadratic in
-    frequency (Bernstein form) with Hermitian coefficients (white noise and differenced white
-    noise, `|1 - z|^2` per sample, span it across a band well under the Nyquist
-    frequency; a first-order lag's spectrum is smooth there), and the
-    coefficients are the least squares fit of that expectation to the residual
-    products `T_f = e_f e_f^H` (scaled by the local residual power): unbiased
-    for `S` in that family, so `V(S)` is too (a bound that comes out
-    negative falls back to the white-residual one). The bound is a linear function of
+    `|1 - z|^2 = 4 sin^2(pi f dt)` (Bernstein form) with Hermitian coefficients
+    (white noise and differenced white noise are straight lines in it; a
+    first-order lag's spectrum is smooth there), and the coefficients are the
+    least squares fit of that expectation to the residual products `T_f = e_f
+    e_f^H` (scaled by the local residual power) with each equation's own
+    power non-negative at its three coefficients
+    (`_nonnegative_least_squares`): for white and differenced white noise
+    the truth lies inside that constraint, so the fit stays unbiased for
+    them. Cross-spectra are not constrained: a fitted spectrum that is not
+    positive semi-definite can still give a negative bound, which falls back
+    to the white-residual one. The bound is a linear function of
     the `T_f`, `V_aa = sum_f Re tr(Q_f T_f)`: Satterthwaite's degrees of
     freedom are `2 (sum_f tr(Q_f S_f))^2 / sum_fg |kappa_fg|^2 tr(Q_f S_f Q_g
     S_g)` (each `T_f` a complex Gaussian's outer product)."""
