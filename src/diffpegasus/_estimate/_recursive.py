@@ -34,10 +34,9 @@ evaluated with the current estimate; the fitted residuals' first-order loss `sum
 G_b V G_b` is solved for. `stderr` is the bound of single samples (white residuals);
 `stderr_corrected` the one from the longest blocks that leave at least three
 (effectively, counted from how the information is spread over them), and the 95%
-band (`halfwidth`) the Student-t quantile times it, at the number of blocks the
-score variance is spread over (Satterthwaite, from the block scores' fourth
-moments, `_score_blocks`) less what taking the residuals at the estimate costs
-(`_centering_loss`: one block without forgetting, about 0.2 with it). For the
+band (`halfwidth`) the Student-t quantile at their number less what taking the
+residuals at the estimate costs (`_centering_loss`: one block without
+forgetting, about 0.2 with it) times it. For the
 recursive Fourier transform the state equations' two end terms (the
 differenced state's transform telescopes to its ends) are estimated with the
 parameters, and the bound is the per-frequency sandwich of the batch
@@ -64,14 +63,10 @@ from jaxtyping import Array, Bool, Complex, Float, Int
 class _Spread(eqx.Module):
     """Per block length, forgetting-weighted sums over the blocks of `vec C_b`
     and of `vec C_b vec C_b^T`, `C_b = sum_(i in b) w_i^2 G_i`: how the data are
-    spread over the blocks of the memory; and the same of the block scores'
-    outer products `vec S_b`, `S_b = U_b U_b^T` (`U_b` the block's score at
-    the estimate when the block completed): how the score variance is spread."""
+    spread over the blocks of the memory."""
 
     g2: Float[Array, "levels pp"]
     g4: Float[Array, "levels pp pp"]
-    s2: Float[Array, "levels pp"]
-    s4: Float[Array, "levels pp pp"]
 
 
 class RecursiveState(eqx.Module):
@@ -259,12 +254,7 @@ def _empty_state(p, q, levels, frequencies, dt, theta0, prior, scores):
         rotation=rotation,
         filt=jnp.zeros((2, q, p + 1)),
         rows=jnp.zeros((q, p + 2, p + 2)),
-        spread=_Spread(
-            jnp.zeros((levels, pp)),
-            jnp.zeros((levels, pp, pp)),
-            jnp.zeros((levels, pp)),
-            jnp.zeros((levels, pp, pp)),
-        ),
+        spread=_Spread(jnp.zeros((levels, pp)), jnp.zeros((levels, pp, pp))),
     )
 
 
@@ -434,28 +424,20 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
         k = state.count
 
         def complete(j, carry):
-            pairs, g2, g4, s2, s4, last = carry
+            pairs, g2, g4, last = carry
             f = jnp.power(lam, (k - last[j]).astype(float))
             pairs = pairs.at[j].set(f**2 * pairs[j] + jnp.outer(bz[j], bz[j]))
             g2 = g2.at[j].set(f**2 * g2[j] + bg[j])
             g4 = g4.at[j].set(f**4 * g4[j] + jnp.outer(bg[j], bg[j]))
-            # the block's score at this estimate, kept for the spread of the
-            # score variance (its fourth moments: a square of the score's
-            # outer product, which the pair sums cannot give)
-            u = bz[j, :p] - bz[j, p:].reshape(p, p) @ theta
-            su = jnp.outer(u, u).reshape(p * p)
-            s2 = s2.at[j].set(f**2 * s2[j] + su)
-            s4 = s4.at[j].set(f**4 * s4[j] + jnp.outer(su, su))
-            return pairs, g2, g4, s2, s4, last.at[j].set(k)
+            return pairs, g2, g4, last.at[j].set(k)
 
-        sp = state.spread
-        pairs, g2, g4, s2, s4, last = jax.lax.fori_loop(
+        pairs, g2, g4, last = jax.lax.fori_loop(
             0,
             jnp.sum(done),
             complete,
-            (state.pairs, sp.g2, sp.g4, sp.s2, sp.s4, state.block_t),
+            (state.pairs, state.spread.g2, state.spread.g4, state.block_t),
         )
-        spread = _Spread(g2, g4, s2, s4)
+        spread = _Spread(g2, g4)
         block_z = jnp.where(done[:, None], 0.0, bz)
         block_g = jnp.where(done[:, None], 0.0, bg)
         return eqx.tree_at(
@@ -497,28 +479,6 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
         square = jnp.einsum("ai,lij,aj->la", pp, g4, pp)
         return total**2 / jnp.maximum(square, 1e-300)
 
-    def _score_blocks(self, state, pm, level):
-        """The effective number of independent blocks `(levels, p)` behind each
-        parameter's bound counted from how the *score variance* is spread over
-        them, by Satterthwaite: block `b`'s term of the bound, `x_b = omega_b
-        (P U_b)_a^2` (`omega_b` the forgetting since the block, squared), is
-        `sigma_b^2` times a one-degree chi-square for a Gaussian score, so
-        `E[(sum x)^2] = (sum sigma^2)^2 + 2 sum sigma^4` and `E[sum x^2] = 3 sum
-        sigma^4`; the count `(sum sigma^2)^2 / sum sigma^4` is estimated as
-        `3 (sum x)^2 / sum x^2 - 2` (at least 1; the newest, partial block
-        included at the current estimate), for the blocks of one level."""
-        p = state.theta.shape[0]
-        f2 = self._since(state)[level] ** 2
-        bz = state.block_z[level]
-        u = bz[:p] - bz[p:].reshape(p, p) @ state.theta
-        su = jnp.outer(u, u).reshape(p * p)
-        s2 = f2 * state.spread.s2[level] + su
-        s4 = f2**2 * state.spread.s4[level] + jnp.outer(su, su)
-        pp = jnp.einsum("ab,ac->abc", pm, pm).reshape(p, p * p)
-        total = pp @ s2
-        square = jnp.einsum("ai,ij,aj->a", pp, s4, pp)
-        return jnp.maximum(3.0 * total**2 / jnp.maximum(square, 1e-300) - 2.0, 1.0)
-
     def _variance(self, state, pm, level):
         """The bound's variance `(p,)` from the block sums of one level (the
         partial block included), with the current estimate's scores `s = [I,
@@ -555,8 +515,7 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
         ok = jnp.any(usable) & (var_c > 0)
         var_c = jnp.where(ok, var_c, white)
         loss = _centering_loss(self.forgetting, 2**j, state.count)
-        scored = self._score_blocks(state, pm, j)
-        dof = jnp.where(ok, jnp.maximum(scored - loss, 1.0), 1.0)
+        dof = jnp.where(ok, jnp.maximum(blocks[j] - loss, 1.0), 1.0)
         return _finish(state.theta, white, var_c, dof, student=True)
 
 
