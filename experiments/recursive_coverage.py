@@ -114,9 +114,21 @@ def input_signal(t):
     return de
 
 
-def simulate(n_flights, duration, rate, seed, scale=1.0):
+def _ar1(rng, shape, rho, sigma):
+    """First-order autoregressive noise along the last axis, stationary,
+    standard deviation `sigma`."""
+    e = rng.normal(size=shape) * sigma
+    e[..., 1:] *= np.sqrt(1 - rho**2)
+    for k in range(1, shape[-1]):
+        e[..., k] += rho * e[..., k - 1]
+    return e
+
+
+def simulate(n_flights, duration, rate, seed, scale=1.0, sensor_time=0.0):
     """Noise-free states exactly (matrix exponential with inputs linear between
-    samples), then per-flight noise."""
+    samples), then per-flight noise (with `sensor_time` > 0 s, the w and q
+    sensors' noise first-order coloured with that correlation time instead of
+    white)."""
     dt = 1.0 / rate
     t = np.arange(0.0, duration + 0.5 * dt, dt)
     de = input_signal(t)
@@ -146,6 +158,10 @@ def simulate(n_flights, duration, rate, seed, scale=1.0):
     for k in range(1, len(t)):
         col[:, k] = rho * col[:, k - 1] + drive[:, k]
     white[..., 0] = col
+    if sensor_time > 0:
+        rho_s = np.exp(-dt / sensor_time)
+        for j, name in ((1, "w"), (2, "q")):
+            white[..., j] = _ar1(rng, (n_flights, len(t)), rho_s, NOISE[name] * scale)
     return t, de, clean[None] + white
 
 
@@ -196,6 +212,12 @@ def main():
         "--noise-scale", type=float, default=1.0, help="multiplies every noise level"
     )
     parser.add_argument(
+        "--sensor-correlation",
+        type=float,
+        default=0.0,
+        help="s: w and q sensor noise first-order coloured (0: white)",
+    )
+    parser.add_argument(
         "--methods", default="rls,rls_memory_10s,rft", help="comma-separated labels"
     )
     parser.add_argument(
@@ -209,7 +231,12 @@ def main():
         TRUE = UNSTABLE
         MODEL = make_model(TRUE)
     t, de, measured = simulate(
-        args.flights, args.duration, args.rate, args.seed, args.noise_scale
+        args.flights,
+        args.duration,
+        args.rate,
+        args.seed,
+        args.noise_scale,
+        args.sensor_correlation,
     )
     dt = 1.0 / args.rate
     regs = [
@@ -247,6 +274,7 @@ def main():
         "duration_s": args.duration,
         "rate_hz": args.rate,
         "noise_scale": args.noise_scale,
+        "sensor_correlation_s": args.sensor_correlation,
         "aircraft": args.aircraft,
         "rls_bandwidth_hz": RLS_BAND,
         "noise": NOISE,
@@ -272,7 +300,7 @@ def main():
                 batched, h[i : i + CHUNK], y[i : i + CHUNK], o[i : i + CHUNK],
                 args.out / "chunks" / (
                     f"{label}_{args.aircraft}_{args.duration:g}s_rate{args.rate:g}_"
-                    f"noise{args.noise_scale:g}_"
+                    f"noise{args.noise_scale:g}_sensor{args.sensor_correlation:g}_"
                     f"seed{args.seed}_of{args.flights}_{i}.npz"
                 ),
             )

@@ -168,7 +168,9 @@ def main():
         )
         out["leverage"].append(np.diag(v.reshape(p, p))[:p0])
         if not args.frequency_shape:  # the estimator weights whole equations
-            var_s, dof_s = spectrum_bound(fh, hw, fy - fh @ th, wq[0], pm, kappa, freqs)
+            var_s, dof_s = spectrum_bound(
+                fh, hw, fy - fh @ th, wq[0], pm, kappa, freqs, dt
+            )
             out["spectrum"].append(np.asarray(var_s)[:p0])
             out["spectrum_dof"].append(np.asarray(dof_s)[:p0])
             out["white"].append(np.diag(pm)[:p0])  # the estimator's fallback

@@ -12,6 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+import scipy.optimize
 
 import diffpegasus as dp
 
@@ -432,12 +433,13 @@ def _fourier_bound_reference(a, b, freqs, n):
     `(f,)` over `n` samples, by the hat matrix rather than the estimator's
     closed form: complex least squares as real least squares on the stacked
     real and imaginary parts; for a residual spectrum `S_f` each of the
-    quadratics `(1 - u)^2, 2 u (1 - u), u^2` (`u` the frequency scaled to
-    0..1) the covariance of the transforms
+    quadratics `(1 - u)^2, 2 u (1 - u), u^2` (`u` the differenced white
+    noise's power `sin^2(pi f dt)` scaled to 0..1) the covariance of the transforms
     `kappa_fg (S_f + S_g) / 2` (`kappa` the direct sum `mean_i z^i`), in the
     real representation `Sigma`, and the residuals' expected products the
     diagonal of `(I - H) Sigma (I - H)^T`; the residual powers `|e_f|^2` fitted
-    by least squares to those three columns, first unweighted, then weighted by the
+    by non-negative least squares (scipy's `nnls`) to those three columns, first
+    unweighted, then weighted by the
     inverse of that first fit, the bound `G Sigma(S) G^T` at the
     fitted spectrum (`G` the estimate's row of the noise), and Satterthwaite's
     degrees of freedom of the bound as the linear function of the `|e_f|^2` it
@@ -451,9 +453,9 @@ def _fourier_bound_reference(a, b, freqs, n):
     hat = np.eye(2 * f) - x @ g
     diff = freqs[:, None] - freqs[None, :]
     kappa = np.mean(np.exp(-2j * np.pi * diff[..., None] * DT * np.arange(n)), -1)
-    u = (freqs - 0.5 * (freqs[0] + freqs[-1])) / (0.5 * (freqs[-1] - freqs[0]))
+    sq = np.sin(np.pi * freqs * DT) ** 2  # |1 - z|^2 / 4
+    u = (sq - sq[0]) / (sq[-1] - sq[0])
     cols, bounds = [], []
-    u = 0.5 * (u + 1)
     shapes = [(1 - u) ** 2, 2 * u * (1 - u), u * u]  # Bernstein quadratics
     for shape in shapes:
         c = kappa * 0.5 * (shape[:, None] + shape[None, :])
@@ -465,7 +467,10 @@ def _fourier_bound_reference(a, b, freqs, n):
     design = np.array(cols).T  # (f, 3)
 
     def fitted(scale):  # coefficients per unit |e_f|^2, and at these powers
-        fit = np.linalg.pinv(design / scale[:, None]) / scale[None]
+        coef, _ = scipy.optimize.nnls(design / scale[:, None], power / scale)
+        on = coef > 0  # the linear map on the coefficients left free
+        fit = np.zeros((3, f))
+        fit[on] = np.linalg.pinv(design[:, on] / scale[:, None]) / scale[None]
         return fit, fit @ power
 
     _, coef = fitted(np.ones(f))

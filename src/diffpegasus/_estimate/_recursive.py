@@ -42,7 +42,8 @@ differenced state's transform telescopes to its ends) are estimated with the
 parameters, and the bound is the per-frequency sandwich of the batch
 method ([`frequency_equation_error`][]) with the cross-frequency terms the finite
 transform's leakage makes (`_leakage`: `kappa_fg (S_f + S_g) / 2`), the residual
-spectrum `S_f` a quadratic in frequency fitted to the residual transforms' products
+spectrum `S_f` a quadratic in `sin^2(pi f dt)` with non-negative powers, fitted
+to the residual transforms' products
 through their expectation at the estimate, `(I - H) S (I - H)^H` at each frequency
 (`_smooth_spectrum_bound`), and the band the Student-t quantile at Satterthwaite's
 degrees of freedom of that bound. With `bandwidth`, the differenced
@@ -641,7 +642,7 @@ class RecursiveFourier(AbstractRecursiveEstimator):
         pm = jnp.where(jnp.outer(known, known), cov, 0.0)
         var = jnp.where(known, jnp.clip(jnp.diag(cov), 0.0), jnp.inf)
         var_c, dof = _smooth_spectrum_bound(
-            fh, hw, e, w, pm, kappa, jnp.asarray(self.frequencies)
+            fh, hw, e, w, pm, kappa, jnp.asarray(self.frequencies), self.dt
         )
         var_c = jnp.where(known & (var_c > 0), var_c, var)
         return _finish(theta[:p0], var[:p0], var_c[:p0], dof[:p0], student=True)
@@ -664,7 +665,67 @@ def _hermitian_basis(q):
     return np.stack(out)
 
 
-def _smooth_spectrum_bound(fh, hw, e, w, pm, kappa, frequencies):
+def _nonnegative_least_squares(design, obs, free, iters=None):
+    """`argmin |design c - obs|^2` with `c_i >= 0` where not `free`, by Lawson
+    and Hanson's active set (the free coefficients always passive), and the
+    `(k, rows)` linear map from `obs` to `c` on the final active set (the
+    solution is that map times `obs`).
+
+    `design` `(rows, k)`, `obs` `(rows,)`, `free` `(k,)` bool. A fixed number of
+    passes (`3 k` by default) bounds the loop under `jit`."""
+    k = design.shape[1]
+    iters = 3 * k if iters is None else iters
+    gram = design.T @ design
+    rhs = design.T @ obs
+    scale = jnp.sqrt(jnp.maximum(jnp.diag(gram), 1e-300))
+    gram = gram / jnp.outer(scale, scale)
+    rhs = rhs / scale
+    # a relative ridge: the Bernstein columns of one equation are nearly
+    # collinear, and an equation without rows has all-zero columns
+    ridge = 1e-10 * jnp.max(jnp.diag(gram))
+
+    def solve(passive):
+        a = jnp.where(passive[:, None] & passive[None, :], gram, 0.0)
+        a = a + jnp.diag(jnp.where(passive, ridge, 1.0))
+        return jnp.linalg.solve(a, jnp.where(passive, rhs, 0.0)), a
+
+    def inner(carry):
+        x, passive, z, n = carry
+        bad = passive & ~free & (z <= 0.0)
+        step = jnp.min(jnp.where(bad, x / jnp.maximum(x - z, 1e-300), jnp.inf))
+        x = x + jnp.clip(step, 0.0, 1.0) * (z - x)
+        passive = passive & (free | (x > 1e-12 * jnp.max(jnp.abs(x))))
+        x = jnp.where(passive, x, 0.0)
+        z, _ = solve(passive)
+        return x, passive, z, n + 1
+
+    def outer(carry):
+        x, passive, n = carry
+        grad = jnp.where(passive, -jnp.inf, rhs - gram @ x)
+        passive = passive.at[jnp.argmax(grad)].set(True)
+        z, _ = solve(passive)
+        x, passive, z, _ = jax.lax.while_loop(
+            lambda c: jnp.any(c[1] & ~free & (c[2] <= 0.0)) & (c[3] < k),
+            inner,
+            (x, passive, z, 0),
+        )
+        return z, passive, n + 1
+
+    def more(carry):
+        x, passive, n = carry
+        grad = rhs - gram @ x
+        tol = 1e-10 * jnp.maximum(jnp.max(jnp.abs(rhs)), 1e-300)
+        return jnp.any(~passive & (grad > tol)) & (n < iters)
+
+    x0, _ = solve(free)
+    x, passive, _ = jax.lax.while_loop(more, outer, (x0, free, 0))
+    _, a = solve(passive)
+    cols = jnp.where(passive[:, None], design.T / scale[:, None], 0.0)
+    mapping = jnp.linalg.solve(a, cols) / scale[:, None]
+    return mapping @ obs, mapping
+
+
+def _smooth_spectrum_bound(fh, hw, e, w, pm, kappa, frequencies, dt):
     """The variance `(p,)` of the estimate and its Satterthwaite degrees of freedom
     `(p,)` from the residual spectrum estimated unbiased at the estimate.
 
@@ -679,26 +740,42 @@ def _smooth_spectrum_bound(fh, hw, e, w, pm, kappa, frequencies):
 
     linear in `S` (the hat matrix `H`'s `(I - H) S (I - H)^H` at frequency `f`,
     without taking the spectrum as flat). `S_f` is modelled as a quadratic in
-    frequency (Bernstein form) with Hermitian coefficients (white noise and differenced white
-    noise, `|1 - z|^2` per sample, span it across a band well under the Nyquist
-    frequency; a first-order lag's spectrum is smooth there), and the
-    coefficients are the least squares fit of that expectation to the residual
-    products `T_f = e_f e_f^H` (scaled by the local residual power): unbiased
-    for `S` in that family, so `V(S)` is too (a bound that comes out
-    negative falls back to the white-residual one). The bound is a linear function of
+    `|1 - z|^2 = 4 sin^2(pi f dt)` (Bernstein form) with Hermitian coefficients
+    (white noise and differenced white noise are straight lines in it; a
+    first-order lag's spectrum is smooth there), and the coefficients are the
+    least squares fit of that expectation to the residual products `T_f = e_f
+    e_f^H` (scaled by the local residual power) with each equation's own
+    power non-negative at its three coefficients
+    (`_nonnegative_least_squares`): for white and differenced white noise
+    the truth lies inside that constraint, so the fit stays unbiased for
+    them. Cross-spectra are not constrained: a fitted spectrum that is not
+    positive semi-definite can still give a negative bound, which falls back
+    to the white-residual one. The bound is a linear function of
     the `T_f`, `V_aa = sum_f Re tr(Q_f T_f)`: Satterthwaite's degrees of
     freedom are `2 (sum_f tr(Q_f S_f))^2 / sum_fg |kappa_fg|^2 tr(Q_f S_f Q_g
     S_g)` (each `T_f` a complex Gaussian's outer product)."""
     f, q, p = fh.shape
-    x = (frequencies - 0.5 * (frequencies[0] + frequencies[-1])) / jnp.maximum(
-        0.5 * (frequencies[-1] - frequencies[0]), 1e-12
-    )
-    u = 0.5 * (x + 1.0)  # 0 to 1 across the band
-    # the quadratics in Bernstein form (non-negative coefficients would keep the
-    # spectrum non-negative across the band; the fit does not impose them, and a
-    # negative bound falls back to the white-residual one)
+    # the quadratics in Bernstein form in the differenced white noise's own
+    # shape, `|1 - z|^2 = 4 sin^2(pi f dt)`, 0 to 1 across the band: white
+    # noise and differenced white noise are then straight lines with positive
+    # ends, inside the non-negative coefficients the fit keeps, not on their
+    # edge (in `f` a differenced noise's lowest coefficient is near zero)
+    s = jnp.sin(jnp.pi * frequencies * dt) ** 2
+    u = (s - s[0]) / jnp.maximum(s[-1] - s[0], 1e-300)
     prof = jnp.stack([(1.0 - u) ** 2, 2.0 * u * (1.0 - u), u * u])  # (k, f)
-    herm = jnp.asarray(_hermitian_basis(q))  # (m, q, q)
+    herm_np = _hermitian_basis(q)
+    herm = jnp.asarray(herm_np)  # (m, q, q)
+    # each equation's own power non-negative at the three Bernstein
+    # coefficients: a non-negative spectrum across the band
+    diagonal = np.array(
+        [
+            np.trace(np.abs(b)) == 1
+            and np.all(b.imag == 0)
+            and np.count_nonzero(b) == 1
+            for b in herm_np
+        ]
+    )
+    free = jnp.asarray(np.tile(~diagonal, 3))
     a0 = jnp.einsum("fg,gqb->fqb", kappa, hw)  # sum_g kappa_fg hw_g
     ak = jnp.einsum("fg,kg,gqb->kfqb", kappa, prof, hw)  # ... times b_k(g)
     # M for S_f = b_k(f) E_m, (k, m, p, p)
@@ -727,8 +804,9 @@ def _smooth_spectrum_bound(fh, hw, e, w, pm, kappa, frequencies):
         design = (pred * scale[None, None]).reshape(-1, f * q * q)
         design = jnp.concatenate([design.real, design.imag], axis=1).T
         obs = (t_f * scale).reshape(-1)
-        pinv = jnp.linalg.pinv(design, rtol=1e-10)  # (k m, rows)
-        return pinv, pinv @ jnp.concatenate([obs.real, obs.imag])
+        obs = jnp.concatenate([obs.real, obs.imag])
+        coef, mapping = _nonnegative_least_squares(design, obs, free)
+        return mapping, coef
 
     # first each equation scaled by its weight; then each frequency's products
     # by the first fit's spectrum there (generalised least squares: the
