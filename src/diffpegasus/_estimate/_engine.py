@@ -599,6 +599,14 @@ def solve(
         broken = ~(jnp.all(jnp.isfinite(h)) & jnp.all(jnp.isfinite(g)))
         broken = broken | ~jnp.all(jnp.isfinite(r))
         stepped = active | first
+        # the pass that only linearises cannot break a fit that stopped well: where
+        # it is not finite (R reproduced to the last bit on noise-free data gives
+        # infinite weights) the linearisation the last step started from is kept
+        kept = ~stepped & broken
+        broken = jnp.where(stepped, broken, state.broken)
+        h, g = jnp.where(kept, state.information, h), jnp.where(kept, state.gradient, g)
+        jyw = jnp.where(kept, state.jacobian, jyw)
+        ew = jnp.where(kept, state.whitened, ew)
         done = jnp.where(stepped, small | ~accepted | broken, state.done)
         change = jnp.where(
             stepped, jnp.abs(cost_prev - cost) / jnp.abs(cost), state.change
