@@ -3,6 +3,7 @@
 import functools
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 import diffpegasus as dp
@@ -47,3 +48,22 @@ def rocket_sim_log(folder):
         events={"liftoff": types.SimpleNamespace(t=0.0), "apogee": apogee},
         pad={},
     )
+
+
+# a linear short-period model (alpha, q; elevator de; outputs alpha, q, az) in the
+# form `Model` takes, shared by the filter-error and input-timing tests
+SHORT_PERIOD_SPEED = 50.0  # m/s, so that az = V alpha_dot-ish is of order 1
+
+
+def short_period_rates(t, x, u, p):
+    del t
+    a, q = x[0], x[1]
+    return jnp.stack(
+        [p["Za"] * a + q + p["Zd"] * u[0], p["Ma"] * a + p["Mq"] * q + p["Md"] * u[0]]
+    )
+
+
+def short_period_outputs(t, x, u, p):
+    del t
+    a = x[0]
+    return jnp.stack([a, x[1], SHORT_PERIOD_SPEED * (p["Za"] * a + p["Zd"] * u[0])])

@@ -23,30 +23,25 @@ from diffpegasus._estimate._riccati import (
     solve_filter_riccati,
 )
 
+from .helpers import short_period_outputs, short_period_rates, SHORT_PERIOD_SPEED
+
 
 TRUE = {"Za": -1.2, "Zd": -0.15, "Ma": -4.0, "Mq": -1.5, "Md": -6.0}
-V = 50.0  # m/s, so that az = V alpha_dot-ish is of order 1
+V = SHORT_PERIOD_SPEED
 DT = 0.05
 N = 400
 F_TRUE = (0.01, 0.05)  # alpha (rad/sqrt(s)), q (rad/s/sqrt(s)): turbulence-like
 NOISE = (2e-3, 4e-3, 0.05)  # measurement noise std of alpha, q, az
 
 
-def _rates(t, x, u, p):
-    del t
-    a, q = x[0], x[1]
-    return jnp.stack(
-        [p["Za"] * a + q + p["Zd"] * u[0], p["Ma"] * a + p["Mq"] * q + p["Md"] * u[0]]
-    )
-
-
-def _observe(t, x, u, p):
-    del t
-    a = x[0]
-    return jnp.stack([a, x[1], V * (p["Za"] * a + p["Zd"] * u[0])])
-
-
-MODEL = Model(("alpha", "q"), ("de",), ("alpha", "q", "az"), TRUE, _rates, _observe)
+MODEL = Model(
+    ("alpha", "q"),
+    ("de",),
+    ("alpha", "q", "az"),
+    TRUE,
+    short_period_rates,
+    short_period_outputs,
+)
 
 
 def _matrices(p):

@@ -3,16 +3,17 @@ decision: its directions against a numpy Kalman filter and simulation, and what 
 recovers on a linear short-period flight whose elevator steps between samples
 (integrated exactly here by the matrix exponential)."""
 
-import jax.numpy as jnp
 import numpy as np
 import scipy.linalg as sl
 
 from diffpegasus._diagnose._input_timing import project_out, timing_directions
 from diffpegasus._estimate._model import Model, Record
 
+from .helpers import short_period_outputs, short_period_rates, SHORT_PERIOD_SPEED
+
 
 TRUE = {"Za": -1.2, "Zd": -0.15, "Ma": -4.0, "Mq": -1.5, "Md": -6.0}
-V = 50.0
+V = SHORT_PERIOD_SPEED
 DT = 0.05
 N = 300
 NOISE = np.array([2e-4, 4e-4, 0.005])  # alpha, q (rad, rad/s), az (m/s^2)
@@ -22,20 +23,14 @@ FRACTION = 0.8
 SWITCHES = [(1.0, 0.05), (3.0, -0.1), (4.0, 0.1), (5.0, -0.05)]  # s, rad change
 
 
-def _rates(t, x, u, p):
-    del t
-    a, q = x[0], x[1]
-    return jnp.stack(
-        [p["Za"] * a + q + p["Zd"] * u[0], p["Ma"] * a + p["Mq"] * q + p["Md"] * u[0]]
-    )
-
-
-def _observe(t, x, u, p):
-    del t
-    return jnp.stack([x[0], x[1], V * (p["Za"] * x[0] + p["Zd"] * u[0])])
-
-
-MODEL = Model(("alpha", "q"), ("de",), ("alpha", "q", "az"), TRUE, _rates, _observe)
+MODEL = Model(
+    ("alpha", "q"),
+    ("de",),
+    ("alpha", "q", "az"),
+    TRUE,
+    short_period_rates,
+    short_period_outputs,
+)
 A = np.array([[TRUE["Za"], 1.0], [TRUE["Ma"], TRUE["Mq"]]])
 B = np.array([TRUE["Zd"], TRUE["Md"]])
 C = np.array([[1.0, 0.0], [0.0, 1.0], [V * TRUE["Za"], 0.0]])
