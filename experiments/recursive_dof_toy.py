@@ -10,10 +10,10 @@ noise low-passed (the pitch equation's residual in the short-period Monte Carlo)
 plus white. For each case, over `--flights` records: the scatter over the band's
 root mean square, and the coverage of the 95% band with the normal quantile, with
 the Student-t quantile at the effective number of blocks less Satterthwaite's
-centering loss (the estimator before), and with the exact critical value of the
+centering loss (the estimator's band), and with the exact critical value of the
 band's statistic for independent Gaussian block scores under the forgetting's
-weights (Imhof's inversion by adaptive quadrature, independent of the estimator's
-own code).
+weights (Imhof's inversion by adaptive quadrature; tried in the estimator and not
+adopted, see docs/guides/recursive.md).
 
 Run: `python experiments/recursive_dof_toy.py [--flights 4000]`.
 """
@@ -44,7 +44,7 @@ def geometry(lam, size, count, seen=64):
 
 
 def satterthwaite_loss(g, v):
-    """The centering loss used before: effective blocks less Satterthwaite's count
+    """The estimator's centering loss: effective blocks less Satterthwaite's count
     of the centered sum of squares."""
     n, total = len(g), g.sum()
     btb = np.eye(n) - (g[:, None] + g[None, :]) / total + (g**2).sum() / total**2
@@ -75,6 +75,12 @@ def critical(g, v, alpha=0.05):
     return scipy.optimize.brentq(lambda c: exceed(c) - alpha, 1.0, 60.0, xtol=1e-12)
 
 
+def block_sums(x, nb, size, pad):
+    """Sums of `x` along its last axis over `nb` blocks of `size` samples."""
+    x = np.concatenate([x, np.zeros(x.shape[:-1] + (pad,))], axis=-1)
+    return x.reshape(x.shape[:-1] + (nb, size)).sum(-1)
+
+
 def case(rng, flights, n, lam, residual, regressor, levels=12):
     t = np.arange(n)
     if regressor == "constant":
@@ -103,11 +109,10 @@ def case(rng, flights, n, lam, residual, regressor, levels=12):
     best = None
     for j in range(levels):
         size = 2**j
-        idx = t // size
-        nb = idx.max() + 1
-        ub = np.stack([(w * s)[:, idx == b].sum(1) for b in range(nb)], 1)
-        gb = np.array([(w * gi)[idx == b].sum() for b in range(nb)])
-        cb = np.array([(w**2 * gi)[idx == b].sum() for b in range(nb)])
+        nb = -(-n // size)
+        pad = nb * size - n  # blocks counted from the first sample, the last partial
+
+        ub, gb, cb = (block_sums(x, nb, size, pad) for x in (w * s, w * gi, w**2 * gi))
         kish = cb.sum() ** 2 / (cb**2).sum()
         if kish < 3:
             break
@@ -116,7 +121,7 @@ def case(rng, flights, n, lam, residual, regressor, levels=12):
     size, var, kish = best
     g, v = geometry(lam, size, n)
     old = scipy.stats.t.ppf(0.975, kish - satterthwaite_loss(g, v))
-    # the new count: the effective blocks less (the geometry's count less the
+    # the exact count: the effective blocks less (the geometry's count less the
     # degrees of freedom whose t quantile is the exact critical value)
     c = critical(g, v)
     nu = scipy.optimize.brentq(lambda d: scipy.stats.t.ppf(0.975, d) - c, 0.3, 1e6)
@@ -134,8 +139,8 @@ def main():
     rng = np.random.default_rng(1)
     n = args.samples
     print(
-        "memory | residual | regressor | block | blocks | t before | exact | "
-        "scatter/band | coverage normal, before, exact"
+        "memory | residual | regressor | block | blocks | t (estimator) | exact | "
+        "scatter/band | coverage normal, estimator, exact"
     )
     for lam in (1.0, 1 - 3.0 / n):
         for residual in (("ar1", 1e-3), ("ar1", 5.0), ("ar1", 15.0), ("diff", 3.0)):

@@ -351,97 +351,16 @@ def test_least_squares_bound_is_the_batch_means_written_here():
     n_blocks = share.sum(0) ** 2 / (share**2).sum(0)
     np.testing.assert_allclose(out.theta[0], theta, rtol=1e-8)
     np.testing.assert_allclose(out.stderr_corrected[0] ** 2, var, rtol=1e-6)
-    # the dof: the effective number of blocks less what the band's statistic
-    # costs (the blocks' lengths as their weights and variances: the exact
-    # critical value's Student-t dof, 5.3 here, under the blocks' 6.25)
+    # the dof: the effective number of blocks less what centering at the
+    # estimate costs (Satterthwaite's count of the centered sum of squares, the
+    # blocks' lengths as their weights and variances: 0.954 blocks here, one
+    # for blocks of equal length)
     length = np.array([min(32, 200 - a) for a in range(0, 200, 32)], float)
-    loss = length.sum() ** 2 / (length**2).sum() - _t_dof(_critical(length, length))
-    np.testing.assert_allclose(out.dof[0], n_blocks - loss, rtol=1e-10)
-
-
-_LOG_U = np.linspace(np.log(1e-4), np.log(1e6), 201)
-
-
-def _critical(g, v, alpha=0.05):
-    """NumPy re-implementation of the band's critical value for independent
-    Gaussian block scores of variances `v` weighed by `g` in the estimate: the
-    quadratic form `e^2 (1 - k) - c^2 U^T B^T B U` (`B = I - g 1^T`, sums
-    scaled to 1), its characteristic function from the matrix's eigenvalues,
-    Gil-Pelaez's inversion by the trapezoid in log u on the estimator's grid,
-    the root by scipy."""
-    g, v = g / g.sum(), v / v.sum()
-    k, n = (g**2).sum(), len(g)
-    a = np.sqrt(v)
-    btb = np.eye(n) - (g[:, None] + g[None, :]) + k
-    u = np.exp(_LOG_U)
-
-    def exceed(c):
-        lam = np.linalg.eigvalsh(
-            ((1 - k) * np.outer(a, a) - c**2 * a[:, None] * btb * a) / c**2
-        )
-        phi = np.prod((1 - 2j * u[:, None] * lam) ** -0.5, axis=1)  # principal
-        # branches: each factor's phase within pi / 4 of zero, so no wrapping
-        im = phi.imag
-        ds = _LOG_U[1] - _LOG_U[0]
-        tail = lam.sum() * u[0]  # below the grid Im phi = u tr M
-        return 0.5 + (ds * (im.sum() - 0.5 * (im[0] + im[-1])) + tail) / np.pi
-
-    return scipy.optimize.brentq(lambda c: exceed(c) - alpha, 1.96, 60.0, xtol=1e-14)
-
-
-def _t_dof(c, z=1.959963984540054):
-    """The dof whose Cornish-Fisher Student-t quantile is `c`."""
-
-    def quantile(v):
-        return (
-            z
-            + (z**3 + z) / (4 * v)
-            + (5 * z**5 + 16 * z**3 + 3 * z) / (96 * v**2)
-            + (3 * z**7 + 19 * z**5 + 17 * z**3 - 15 * z) / (384 * v**3)
-        )
-
-    return scipy.optimize.brentq(lambda v: quantile(v) - c, 1.0, 1e6, xtol=1e-14)
-
-
-def test_band_critical_value_is_exact_for_independent_block_scores():
-    """The critical value of the band's statistic `e / sqrt(V)`, `e = sum U_b`,
-    `V` the centred block sums' squares with the fitted residuals' loss solved
-    for: without forgetting and equal blocks the Student-t quantile at one block
-    fewer (scipy); under forgetting its coverage over 200 000 draws of the
-    block scores (newest blocks dominating both the error and the bound) is 95%
-    where the Student-t quantile at Satterthwaite's count of the centred sum of
-    squares (the estimator before) covered 96.3%."""
-    import scipy.stats
-
-    from diffpegasus._estimate import _recursive as rc
-
-    loss = jax.jit(rc._centering_loss, static_argnums=(0, 1))
-    # five equal blocks, no partial one: the loss is one block, up to the
-    # Cornish-Fisher quantile's own error at 4 dof (its dof for scipy's
-    # quantile, 3.985) and the grid's (4e-7 in the critical value, measured)
-    np.testing.assert_allclose(
-        5.0 - loss(1.0, 4, 20), _t_dof(scipy.stats.t.ppf(0.975, 4)), rtol=1e-5
-    )
-
-    lam, size, count = 1 - 1 / 500, 128, 1500
-    g, v = (np.asarray(x) for x in rc._block_geometry(lam, size, count))
-    live = v > 0
-    crit = _critical(g[live], v[live])
-    # the estimator's own (the matrix determinant lemma, Illinois) against the
-    # eigenvalues' here: the same grid, so to rounding
-    blocks = v.sum() ** 2 / (v**2).sum()
-    np.testing.assert_allclose(
-        loss(lam, size, count), blocks - _t_dof(crit), rtol=1e-10
-    )
-    rng = np.random.default_rng(0)
-    u = rng.normal(size=(200_000, live.sum())) * np.sqrt(v[live])
-    gn = g[live] / g[live].sum()
-    e = u.sum(1)
-    r = u - gn * e[:, None]
-    band = np.sqrt((r**2).sum(1) / (1 - (gn**2).sum()))
-    cover = np.mean(np.abs(e) <= crit * band)
-    # binomial standard error 0.05%; measured 95.0%
-    assert abs(cover - 0.95) < 0.002, cover
+    b = np.eye(7) - np.outer(length, np.ones(7)) / length.sum()
+    a = b.T @ b @ np.diag(length)
+    nu = np.trace(a) ** 2 / np.trace(a @ a)
+    loss = length.sum() ** 2 / (length**2).sum() - nu
+    np.testing.assert_allclose(out.dof[0], n_blocks - loss, rtol=1e-8)
 
 
 def test_least_squares_bands_cover_over_a_monte_carlo():
