@@ -519,6 +519,61 @@ def test_coloured_information_matches_direct_sum():
     np.testing.assert_allclose(fast, direct, rtol=1e-8, atol=1e-10)
 
 
+def test_coloured_standard_errors_do_not_depend_on_the_padding(monkeypatch):
+    """A record's rows are padded to a length bucket (400 samples to 416) so that
+    records of similar length share one program; the padding rows are no samples,
+    so the coloured-residual correction is the same as on the unpadded layout (it
+    was sqrt(400 / 416) = 0.981 of it when the autocovariance was divided by the
+    padded row count)."""
+    from diffpegasus._estimate import _fit
+
+    from .helpers import short_period_outputs, short_period_rates
+
+    truth = {"Za": -1.2, "Zd": -0.15, "Ma": -4.0, "Mq": -1.5, "Md": -6.0}
+    model = dp.Model(
+        ("alpha", "q"),
+        ("de",),
+        ("alpha", "q", "az"),
+        truth,
+        short_period_rates,
+        short_period_outputs,
+    )
+    n, dt = 400, 0.05
+    t = dt * np.arange(n)
+    de = 0.05 * (((t >= 1) & (t < 4)) * 1.0 - ((t >= 4) & (t < 6)) + (t >= 12) * 0.5)
+    x = np.zeros((n, 2))
+    for k in range(n - 1):  # Euler at a tenth of the step: the data's own truth
+        xk = x[k]
+        for _ in range(10):
+            xk = xk + dt / 10 * np.asarray(
+                short_period_rates(0, xk, de[k : k + 1], truth)
+            )
+        x[k + 1] = xk
+    y = np.stack(
+        [
+            np.asarray(short_period_outputs(0, xi, de[i : i + 1], truth))
+            for i, xi in enumerate(x)
+        ]
+    )
+    # coloured noise (a first-order autoregression), so the correction is above 1
+    rng = np.random.default_rng(4)
+    white = rng.normal(size=y.shape) * np.array([2e-3, 4e-3, 0.05])
+    noise = np.zeros_like(white)
+    for k in range(1, n):
+        noise[k] = 0.9 * noise[k - 1] + white[k]
+    rec = dp.Record(t, de[:, None], y + noise, x0=np.zeros(2))
+    assert _fit._bucket(n) == 416
+    padded = dp.fit(model, rec)
+    monkeypatch.setattr(_fit, "_bucket", lambda rows: rows)
+    unpadded = dp.fit(model, rec)
+    np.testing.assert_allclose(padded.params, unpadded.params, rtol=1e-10)
+    ratio = np.asarray(padded.stderr_corrected / padded.stderr)
+    assert np.all(ratio[[0, 1, 2, 3, 4]] > 1.2), ratio  # the correction is in play
+    np.testing.assert_allclose(
+        padded.stderr_corrected, unpadded.stderr_corrected, rtol=1e-10
+    )
+
+
 @pytest.fixture(scope="module")
 def unstable():
     _require(unstable_aircraft.DEFAULT_DATA)

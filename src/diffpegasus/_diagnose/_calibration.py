@@ -396,6 +396,22 @@ def statistics(
     return np.asarray(_observed(rows, residuals, curvature, offset))[:k]
 
 
+# The refit operator's unknowns are padded with zero columns to a multiple of this:
+# they leave `e - basis basis^T e` unchanged, and a diagnosis after an effect is added
+# (one more free unknown) runs the bootstrap compiled for the first one (it compiled
+# it again, 3 s of XLA, for every effect added)
+UNKNOWNS_QUANTUM = 32
+
+
+def _pad_unknowns(basis) -> np.ndarray:
+    """`basis` `(samples, outputs, unknowns)` with zero columns appended up to a
+    multiple of [`UNKNOWNS_QUANTUM`][] unknowns."""
+    basis = np.asarray(basis, float)
+    u = basis.shape[-1]
+    extra = -u % UNKNOWNS_QUANTUM
+    return np.concatenate([basis, np.zeros(basis.shape[:-1] + (extra,))], axis=-1)
+
+
 def calibrate(
     rows: Float[Array, "samples outputs k"],
     residuals: Float[Array, "samples outputs"],
@@ -470,7 +486,7 @@ def calibrate(
         jnp.asarray(curvature, float),
         jnp.asarray(offset),
         key,
-        None if basis is None else jnp.asarray(basis, float),
+        None if basis is None else jnp.asarray(_pad_unknowns(basis)),
         replicates=int(replicates),
         chunk=64,
     )

@@ -235,6 +235,50 @@ def _speed_of_sound(
     return jax.vmap(lambda x: atmosphere.at(x)[1])(h)
 
 
+@eqx.filter_jit
+def _secant_derivatives(aerodynamics, names: tuple[str, ...], geometry, theta, m, a):
+    """The secant derivatives `(CLa, CDa, CMa, CLde, CDde, CMde)` (1/rad) of an
+    aerodynamics part at Mach `m` and alpha `a` (rad), and their Jacobian in the
+    parameters `theta` `(params,)` named `names`; `geometry` `(c_ref, s_ref)` (m,
+    m^2). One compiled program per part and parameter names (static), so a second
+    log's table compiles nothing (a closure made per call compiled two programs
+    every time)."""
+    from .._vehicle._effects import FlightCondition
+
+    c_ref, s_ref = geometry
+
+    def coefficients(th, de, alpha):
+        zero = jnp.zeros(())
+        c = FlightCondition(
+            t=zero,
+            alpha=alpha,
+            alpha_dot=zero,
+            airspeed=zero + 1.0,
+            mach=m,
+            qbar=zero,
+            q=zero,
+            qdot=zero,
+            theta=zero,
+            h=zero,
+            de=de,
+            thrust=zero,
+            c_ref=c_ref,
+            s_ref=s_ref,
+            mass=zero + 1.0,
+            xcg=zero,
+        )
+        p = {name: th[i] for i, name in enumerate(names)}
+        return jnp.stack(aerodynamics.coefficients(c, p))
+
+    def derivatives(th):
+        zero = jnp.zeros(())
+        secant = (coefficients(th, zero, a) - coefficients(th, zero, zero)) / a
+        slope = jax.jacfwd(lambda de: coefficients(th, de, a))(zero)
+        return jnp.concatenate([secant, slope])
+
+    return derivatives(theta), jax.jacfwd(derivatives)(theta)
+
+
 def derivative_table(ff: FlightFit, points: int = 5) -> list[dict] | None:
     """The fitted aerodynamic derivatives (1/rad) with Cramér-Rao standard errors
     at `points` Mach numbers spread over the record, each at the record's mean
@@ -243,7 +287,6 @@ def derivative_table(ff: FlightFit, points: int = 5) -> list[dict] | None:
     at zero elevator, from the vehicle's aerodynamics part (any part), with
     standard errors by the delta method: `{"mach", "alpha", "CLa": [est, sd],
     ...}`. `None` for a model that is not a vehicle, or without airspeed."""
-    from .._vehicle._effects import FlightCondition
 
     vehicle = ff.spec.vehicle
     v, alpha = ff.channel("V"), ff.channel("alpha")
@@ -259,40 +302,19 @@ def derivative_table(ff: FlightFit, points: int = 5) -> list[dict] | None:
     cov = np.asarray(ff.result.correlation) * np.outer(sd, sd)
     theta = np.asarray(ff.result.params)
 
-    def coefficients(th, m, a, de):
-        zero = jnp.zeros(())
-        c = FlightCondition(
-            t=zero,
-            alpha=a,
-            alpha_dot=zero,
-            airspeed=zero + 1.0,
-            mach=m,
-            qbar=zero,
-            q=zero,
-            qdot=zero,
-            theta=zero,
-            h=zero,
-            de=de,
-            thrust=zero,
-            c_ref=vehicle.geometry.c_ref,
-            s_ref=vehicle.geometry.s_ref,
-            mass=zero + 1.0,
-            xcg=zero,
-        )
-        return jnp.stack(vehicle.aerodynamics.coefficients(c, model.named(th)))
-
-    def derivatives(th, m, a):
-        secant = (coefficients(th, m, a, 0.0) - coefficients(th, m, 0.0, 0.0)) / a
-        slope = jax.jacfwd(lambda de: coefficients(th, m, a, de))(0.0)
-        return jnp.concatenate([secant, slope])
-
-    jac = jax.jit(jax.jacfwd(derivatives))
-    value = jax.jit(derivatives)
+    geometry = (float(vehicle.geometry.c_ref), float(vehicle.geometry.s_ref))
     rows = []
     for chunk in np.array_split(np.argsort(mach), points):
         m, a = float(mach[chunk].mean()), float(alpha[chunk].mean())
-        d = np.asarray(value(jnp.asarray(theta), m, a))
-        g = np.asarray(jac(jnp.asarray(theta), m, a))[:, free]
+        d, g = _secant_derivatives(
+            vehicle.aerodynamics,
+            model.parameters,
+            geometry,
+            jnp.asarray(theta),
+            jnp.asarray(m),
+            jnp.asarray(a),
+        )
+        d, g = np.asarray(d), np.asarray(g)[:, free]
         var = np.einsum("ij,jk,ik->i", g, cov[np.ix_(free, free)], g)
         row = {"mach": m, "alpha": a}
         for k, label in enumerate(("CLa", "CDa", "CMa", "CLde", "CDde", "CMde")):

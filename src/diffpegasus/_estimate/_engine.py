@@ -796,18 +796,20 @@ def row_jacobian(layout, jyw, cols, nx, p):
     return out.reshape(-1, out.shape[2], out.shape[3])
 
 
-def coloured_information(jw, vw):
+def coloured_information(jw, vw, samples=None):
     """Sum over lags of residual autocorrelation times Jacobian cross-correlation,
     per output channel (Morelli and Klein's correction), by FFT.
 
-    `jw`: `(samples, outputs, k)` whitened Jacobian rows; `vw`: `(samples, outputs)`
-    whitened residuals. Returns `(k, k)`.
+    `jw`: `(rows, outputs, k)` whitened Jacobian rows; `vw`: `(rows, outputs)`
+    whitened residuals, both zero on padding rows. `samples`: how many rows are
+    samples (the residuals' autocovariance is their sum of lagged products over
+    this count); default every row. Returns `(k, k)`.
     """
     n = jw.shape[0]
     m = 2 * n
     a = jnp.fft.fft(jw, n=m, axis=0)
     v = jnp.fft.fft(vw, n=m, axis=0)
-    power = jnp.abs(v) ** 2 / n
+    power = jnp.abs(v) ** 2 / (n if samples is None else samples)
     total = jnp.einsum("fo,fop,foq->pq", power, jnp.conj(a), a) / m
     return jnp.real(total)
 
@@ -816,4 +818,6 @@ def coloured_covariance(layout, jyw, ew, cov_cols, nx, p):
     """`K^T Sigma K` with `K = J cov[:, cols]` and Sigma the residuals'
     autocovariance per output: the covariance corrected for coloured residuals."""
     k = row_jacobian(layout, jyw, cov_cols, nx, p)
-    return coloured_information(k, ew.reshape(-1, ew.shape[-1]))
+    # the padding rows (zero) are no samples: the autocovariance is over the valid ones
+    samples = jnp.sum(layout.valid)
+    return coloured_information(k, ew.reshape(-1, ew.shape[-1]), samples)
