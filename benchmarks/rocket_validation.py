@@ -21,7 +21,6 @@ import pathlib
 import sys
 import time
 import tomllib
-import types
 
 import numpy as np
 
@@ -31,19 +30,11 @@ SIM = ROOT / "tests" / "data" / "rocket_sim"
 
 
 def sim_log(folder):
-    a = np.loadtxt(folder / "log.csv", delimiter=",", skiprows=1)
+    """The flight's `log.csv` read by the library's reader (its liftoff and apogee
+    events found from the data, as on any log)."""
+    from diffpegasus._log._rocketlogs import read_rocket_log
 
-    def channel(j):
-        return types.SimpleNamespace(t=a[:, 0], values=a[:, j], filtered=False)
-
-    return types.SimpleNamespace(
-        channels={"altitude": channel(1), "accel_axial": channel(2)},
-        events={
-            "liftoff": types.SimpleNamespace(t=0.0),
-            "apogee": types.SimpleNamespace(t=float(a[-1, 0])),
-        },
-        pad={},
-    )
+    return read_rocket_log(pathlib.Path(folder) / "log.csv")
 
 
 def main():
@@ -108,6 +99,12 @@ def main():
             "half_width_structural_pct": float(np.mean(196.0 * sd_all / cd)),
             "tau": None if spread is None else spread.tau.tolist(),
             "birge": None if spread is None else spread.birge,
+            "sensor_fitted": None
+            if spread is None or spread.fitted is None
+            else dict(zip(spread.outputs, spread.fitted.tolist(), strict=True)),
+            "sensor_converged": None
+            if spread is None or spread.converged is None
+            else spread.converged.tolist(),
             "sensor_knots": None
             if spread is None
             else dict(zip(spread.outputs, spread.knots.tolist(), strict=True)),

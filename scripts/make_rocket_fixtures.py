@@ -15,7 +15,9 @@ catalogue curve, RocketPy flies the scaled one), constant wind, barometer lag
 (first-order), static-pressure error (per dynamic pressure) and white noise on both
 channels. Run: `python scripts/make_rocket_fixtures.py` (RocketPy from PyPI); with
 `--validation DIR` it writes the benchmark's further flights (`VALIDATION`) to DIR;
-`--held-out DIR` three flights no choice of the drag band was tuned on (`HELD_OUT`);
+`--held-out DIR` three flights no choice of the drag band was tuned on (`HELD_OUT`),
+`--held-out-2 DIR` two more, written before the sensor-by-sensor band was run
+(`HELD_OUT_2`);
 `--validation DIR --smooth` the committed two and those, each through the exact
 standard-atmosphere pressure instead of RocketPy's table (`clean-smooth`'s option).
 """
@@ -145,6 +147,38 @@ HELD_OUT = {
     ),
     "heldout-b-s23-40hz": dict(
         FLIGHTS["clean"], drag=CURVE_B, lag=0.08, noise=(0.8, 0.6), seed=23, rate=40.0
+    ),
+}
+
+# Held out from the sensor-by-sensor refit of the band (written before it was run on
+# anything): another drag curve, seeds, winds, rates, thrust and sensor errors.
+CURVE_E = [
+    (0.0, 0.48),
+    (0.35, 0.43),
+    (0.55, 0.44),
+    (0.75, 0.49),
+    (0.95, 0.64),
+    (1.2, 0.74),
+]
+HELD_OUT_2 = {
+    "heldout-e-s31-30hz": dict(
+        FLIGHTS["clean"],
+        drag=CURVE_E,
+        scale=1.03,
+        wind=(-4.0, -3.0),
+        noise=(0.6, 0.35),
+        seed=31,
+        rate=30.0,
+    ),
+    "heldout-e-s32-50hz": dict(
+        FLIGHTS["clean"],
+        drag=CURVE_E,
+        wind=(2.0, 7.0),
+        lag=0.1,
+        static=0.03,
+        noise=(0.9, 0.45),
+        seed=32,
+        rate=50.0,
     ),
 }
 
@@ -331,8 +365,9 @@ max_mach = {float(fl.max_mach_number):.4f}
 if __name__ == "__main__":
     import sys
 
-    if len(sys.argv) > 2 and sys.argv[1] == "--held-out":
-        for name, spec in HELD_OUT.items():
+    if len(sys.argv) > 2 and sys.argv[1] in ("--held-out", "--held-out-2"):
+        held = HELD_OUT if sys.argv[1] == "--held-out" else HELD_OUT_2
+        for name, spec in held.items():
             flight(name, spec, pathlib.Path(sys.argv[2]))
     elif len(sys.argv) > 2 and sys.argv[1] == "--validation":
         # `--smooth`: every flight (the committed two too) through the exact

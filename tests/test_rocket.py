@@ -263,6 +263,41 @@ def test_cli_refuses_a_bad_rocket_file_in_one_line(tmp_path):
     assert len(res.output.strip().splitlines()) == 1
 
 
+@pytest.mark.validation
+def test_cli_fit_with_the_sensors_spread_reports_both_bands(tmp_path):
+    """`rocket fit --sensor-spread --json` on the committed clean RocketPy flight
+    (a whole fit, prediction and re-simulation: minutes, hence validation): the
+    JSON carries the band with the sensors' disagreement and the noise's, the
+    first never narrower, and the structural term at the knots (zero or more,
+    the sensors' own fits converged); without the flag the two are one."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from diffpegasus._cli import app
+
+    folder = tmp_path / "clean"
+    folder.mkdir()
+    for f in (SIM / "clean").iterdir():
+        (folder / f.name).write_bytes(f.read_bytes())
+    (folder / "rocket.toml").write_text(
+        (SIM / "clean" / "rocket.toml").read_text() + '\n[log]\nfile = "log.csv"\n'
+    )
+    runner = CliRunner()
+    res = runner.invoke(
+        app, ["rocket", "fit", str(folder / "rocket.toml"), "--sensor-spread", "--json"]
+    )
+    assert res.exit_code == 0, res.output
+    row = json.loads(res.output.strip().splitlines()[-1])
+    table = row["cd_table"]
+    sd = np.array([r["stderr"] for r in table])
+    noise = np.array([r["stderr_noise"] for r in table])
+    assert np.all(noise > 0) and np.all(sd >= noise)
+    tau = np.array(row["cd_structural"]["tau_at_knots"])
+    assert tau.shape == (len(table),) and np.all(tau >= 0) and np.any(tau > 0)
+    assert all(row["cd_structural"]["converged"])
+
+
 @pytest.mark.parametrize("name, planted", [("clean", 1.0), ("planted", 0.94)])
 def test_thrust_scale_start_from_the_accelerometer(name, planted):
     """The equation-error thrust scale (the fit's start) on RocketPy's flights:
@@ -645,64 +680,149 @@ def test_diagnose_judges_the_thrust_scale_in_the_candidates_family(monkeypatch):
 
 
 def _two_sensor_fit():
-    """A joint output-error fit of one line `a + b t` read by two sensors that
-    disagree: the second reads the line `a + 0.3 + (b - 0.2) t` (a structural
-    error of known size), each with its own white noise (0.1 and 0.2)."""
+    """A joint output-error fit of a decay `a exp(-b t)` (two "knots", `a` and
+    `b`, a held `cd_scale` of 1) read by two sensors that disagree: the second
+    reads it with `b` 0.1 larger (a structural error of known size) plus a drift
+    `c t` only it sees, each with its own white noise (0.05 and 0.02)."""
     import jax.numpy as jnp
 
     import diffpegasus as dp
 
     t = np.linspace(0.0, 4.0, 161)
     rng = np.random.default_rng(7)
-    y1 = 1.0 + 0.5 * t + 0.1 * rng.standard_normal(t.size)
-    y2 = 1.3 + 0.3 * t + 0.2 * rng.standard_normal(t.size)
+    y1 = 2.0 * np.exp(-0.5 * t) + 0.05 * rng.standard_normal(t.size)
+    y2 = 2.0 * np.exp(-0.6 * t) + 0.1 * t + 0.02 * rng.standard_normal(t.size)
     model = dp.Model(
         ("s",),
         ("time",),
         ("one", "two"),
-        ("a", "b"),
+        ("cd_a", "cd_b", "c", "cd_scale"),
         lambda t, x, u, p: jnp.zeros(1),
-        lambda t, x, u, p: jnp.stack([p["a"] + p["b"] * u[0]] * 2),
-        start=(0.0, 0.0),
+        lambda t, x, u, p: (
+            p["cd_scale"] * p["cd_a"] * jnp.exp(-p["cd_b"] * u[0])
+            + jnp.stack([0.0, p["c"] * u[0]])
+        ),
+        start=(1.0, 0.3, 0.0, 1.0),
+        fixed=("cd_scale",),
     )
     record = dp.Record(t, t[:, None], np.column_stack([y1, y2]), x0=np.zeros(1))
     return dp.fit(model, record), t, np.column_stack([y1, y2])
 
 
-def test_sensor_estimates_are_each_sensors_own_least_squares():
-    """The structural-error band's measure, `sensor_estimates`, against numpy on a
-    linear case with a known disagreement between two sensors: each sensor's own
-    estimate is its own straight-line least squares (one Gauss-Newton step from
-    the joint optimum is exact on a linear model), its covariance the
-    coloured-residual sandwich `M^-1 J^T T J M^-1` (T the Toeplitz matrix of the
-    joint residuals' biased autocovariance, every lag) written out by a double
-    sum; `between_variance` of the two is `d^2 - v`, the planted offsets showing
-    beyond the noise."""
+def _sandwich(j, e):
+    # the coloured-residual covariance M^-1 J^T T J M^-1 (T the Toeplitz matrix of
+    # the residuals' biased autocovariance, every lag), written out
+    n = e.size
+    acov = np.array([e[: n - k] @ e[k:] / n for k in range(n)])
+    toeplitz = acov[np.abs(np.subtract.outer(np.arange(n), np.arange(n)))]
+    m = np.linalg.inv(j.T @ j)
+    return m @ j.T @ toeplitz @ j @ m
+
+
+def test_sensor_estimates_are_each_sensors_own_converged_fit():
+    """The structural-error band's measure against numpy and scipy on a nonlinear
+    case with a known disagreement between two sensors: each parameter goes to
+    the sensor with the smaller marginal variance on its own (numpy on the
+    analytic Jacobian at the joint optimum); each sensor's own estimate is its
+    converged least squares (scipy) with the others held at the joint values; its
+    covariance the coloured-residual sandwich at its own minimum; the band's
+    structural variance `max(0, d^2 - v)` with `v = C_sensor - C_joint`, the
+    planted offset in `b` showing beyond the noise."""
+    import types
+
+    from scipy.optimize import least_squares
+
     fit, t, y = _two_sensor_fit()
-    x, c = dr.sensor_estimates(fit, ("a", "b"))
-    j = np.column_stack([np.ones_like(t), t])
-    # the joint maximum-likelihood fit: least squares weighted by each channel's
-    # residual variance R
-    w = 1.0 / np.sqrt(np.asarray(fit.R))
-    joint = np.linalg.lstsq(
-        np.vstack([j * w[0], j * w[1]]), (y * w).T.reshape(-1), rcond=None
-    )[0]
-    # the fit stops when det(R) changes by 1e-7: its estimates within 4e-6
-    np.testing.assert_allclose(fit.params, joint, rtol=2e-5)
+    a, b, c = fit.params[:3]
+
+    def model(q):
+        return np.column_stack(
+            [q[0] * np.exp(-q[1] * t), q[0] * np.exp(-q[1] * t) + q[2] * t]
+        )
+
+    def jac(q, s):
+        g = np.column_stack([np.exp(-q[1] * t), -q[0] * t * np.exp(-q[1] * t), t * s])
+        return g
+
+    # which parameters each sensor determines on its own: marginal variance from
+    # its own information at most twice (two sensors) the joint one, the worst
+    # held and the rest tried again (the first sees nothing of c)
+    f0, f1 = jac(fit.params, 0), jac(fit.params, 1)
+    f0[:, 2] = 0.0
+    info = [f0.T @ f0 / fit.R[0], f1.T @ f1 / fit.R[1]]
+    joint_var = np.diag(np.linalg.inv(info[0] + info[1]))
+    mask = np.zeros((2, 3), bool)
+    for s, m in enumerate(info):
+        keep = [i for i in range(3) if m[i, i] > 0]
+        while keep:
+            var = np.diag(np.linalg.inv(m[np.ix_(keep, keep)]))
+            ratio = var / (2 * joint_var[keep])
+            if ratio.max() <= 1:
+                break
+            keep.pop(int(np.argmax(ratio)))
+        mask[s, keep] = True
+    # the quieter second sensor determines a and c, the first b once a is held
+    assert mask.tolist() == [[False, True, False], [True, False, True]]
+    own = dr.sensor_estimates(fit, ("cd_a", "cd_b", "c"))
+    np.testing.assert_array_equal(own.fitted, mask)
+    assert own.converged.all()
     for s in range(2):
-        own = np.linalg.lstsq(j, y[:, s], rcond=None)[0]
-        np.testing.assert_allclose(x[s], own, rtol=1e-7, atol=1e-9)
-        e = y[:, s] - j @ fit.params
-        n = t.size
-        acov = np.array([e[: n - k] @ e[k:] / n for k in range(n)])
-        toeplitz = acov[np.abs(np.subtract.outer(np.arange(n), np.arange(n)))]
-        m = np.linalg.inv(j.T @ j)
-        np.testing.assert_allclose(c[s], m @ j.T @ toeplitz @ j @ m, rtol=1e-6)
-    # the offsets planted (0.3 in a, -0.2 in b) show beyond the noise: tau^2 =
-    # d^2 - v, zero where d lies within it
-    d = x[1] - x[0]
-    v = np.diag(c[0] + c[1])
-    np.testing.assert_allclose(dr.between_variance(d, v), np.clip(d**2 - v, 0, None))
-    assert np.all(np.abs(d - [0.3, -0.2]) < 3 * np.sqrt(v))
-    assert np.all(dr.between_variance(d, v) > 0)
+        mine = np.flatnonzero(mask[s])
+
+        def residual(v, s=s, mine=mine):
+            q = np.array(fit.params[:3], float)
+            q[mine] = v
+            return y[:, s] - model(q)[:, s]
+
+        ref = least_squares(
+            residual, fit.params[mine], xtol=1e-14, ftol=1e-14, gtol=1e-14
+        ).x
+        q = np.array(fit.params[:3], float)
+        q[mine] = ref
+        # stopped when the cost falls by less than 1e-7 of itself: within 1e-6
+        np.testing.assert_allclose(own.estimates[s], q, rtol=1e-6, atol=1e-8)
+        j = jac(q, s)[:, mine]
+        cov = np.zeros((3, 3))
+        cov[np.ix_(mine, mine)] = _sandwich(j, y[:, s] - model(q)[:, s])
+        np.testing.assert_allclose(own.covariances[s], cov, rtol=1e-5, atol=1e-14)
+    # the noise of the joint estimate less a sensor's own, both linearised at the
+    # joint optimum in every sample's noise (unwhitened here: the joint estimate
+    # moves by M^-1 sum_c F_c^T n_c / R_c, the sensor's by its own least squares
+    # of its samples less the held parameters' joint move), coloured per channel
+    p = fit.params
+    f = [jac(p, 0), jac(p, 1)]
+    f[0][:, 2] = 0.0
+    m = sum(f[k].T @ f[k] / fit.R[k] for k in range(2))
+    joint_rows = [np.linalg.pinv(m) @ f[k].T / fit.R[k] for k in range(2)]
+    e = y - model(p)
+    tau2 = []
+    for k in range(2):
+        s = int(np.flatnonzero(mask[:, k])[0])
+        mine, held = np.flatnonzero(mask[s]), np.flatnonzero(~mask[s])
+        fs, fh = f[s][:, mine], f[s][:, held]
+        a_inv = np.linalg.inv(fs.T @ fs)
+        v = 0.0
+        for ch in range(2):
+            own_rows = -a_inv @ fs.T @ fh @ joint_rows[ch][held]
+            if ch == s:
+                own_rows = own_rows + a_inv @ fs.T
+            row = (joint_rows[ch][mine] - own_rows)[list(mine).index(k)]
+            n = t.size
+            acov = np.array([e[: n - i, ch] @ e[i:, ch] / n for i in range(n)])
+            toeplitz = acov[np.abs(np.subtract.outer(np.arange(n), np.arange(n)))]
+            v += row @ toeplitz @ row
+        np.testing.assert_allclose(own.difference[s, k, k], v, rtol=1e-6)
+        d = fit.params[k] - own.estimates[s, k]
+        tau2.append(max(0.0, d**2 - v))
+    result = types.SimpleNamespace(
+        fit=fit,
+        outputs=("one", "two"),
+        knots=types.SimpleNamespace(names=("cd_a", "cd_b")),
+    )
+    spread = dr.structural_spread(result)
+    np.testing.assert_allclose(spread.tau, np.sqrt(tau2), rtol=1e-6)
+    # b (first sensor's): the joint fit, pulled by the second sensor's larger b,
+    # lies above the first's own by a part of the planted 0.1, beyond the noise
+    assert spread.tau[1] > 0 and 0.01 < fit.params[1] - own.estimates[0, 1] < 0.1
+    np.testing.assert_allclose(dr.between_variance([0.3, 0.1], [0.04, 0.02]), [0.05, 0])
     np.testing.assert_array_equal(dr.between_variance([0.1, -0.05], [0.02, 0.01]), 0)

@@ -25,7 +25,9 @@ from ._rocket._identify import (
 from ._rocket._pipeline import run_flight as run_flight
 from ._rocket._spread import (
     between_variance as between_variance,
+    determined as determined,
     sensor_estimates as sensor_estimates,
+    SensorFits as SensorFits,
     Spread as Spread,
     structural_spread as structural_spread,
 )

@@ -52,7 +52,7 @@ SpreadOption = Annotated[
     typer.Option(
         "--sensor-spread",
         help="Add the disagreement between the barometer and the accelerometer to "
-        "CD's band (checked on simulated flights; too wide on some real ones)",
+        "CD's band (each sensor's own fit from the joint one; slower)",
     ),
 ]
 

@@ -402,10 +402,9 @@ def fit_rocket(
       best of them (the lower det(R) kept).
     - `throw`: raise on a failed fit (else the fit carries its result code).
     - `spread`: with two sensors, measure their disagreement over the drag knots
-      ([`structural_spread`][]) and carry it in `CD`'s band. Off by default: each
-      sensor's estimate is one linearised step from the joint fit, and on real
-      flights with wide noise bands that step lands where the linearisation does
-      not hold (Hedy: +/-3.4 to 4.6 in CD).
+      ([`structural_spread`][]: each sensor's own converged fit from the joint
+      one) and carry it in `CD`'s band. Off by default: measured on part of the
+      simulated flights and real logs only (see the rockets' pages).
 
     **Returns:** a [`RocketFit`][].
     """

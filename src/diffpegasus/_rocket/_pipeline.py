@@ -104,6 +104,7 @@ def run_flight(rocket, log, out=None, *, free=None, spread=False) -> dict:
         row["cd_structural"] = {
             "birge": result.spread.birge,
             "tau_at_knots": result.spread.tau.tolist(),
+            "converged": [bool(c) for c in result.spread.converged],
         }
     model = result.fit.model
     row["estimates"] = {
