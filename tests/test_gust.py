@@ -251,3 +251,71 @@ def test_pitch_rate_gives_the_inertial_velocity_rates_through_a_wind():
 def test_pitch_rate_needs_airspeed_and_angle_of_attack():
     with pytest.raises(ValueError, match="airspeed and the angle of attack"):
         Gust(("alpha",), pitch_rate="q")
+
+
+def test_whiteness_beyond_signals_judges_only_what_the_signals_do_not_predict():
+    """The process-noise candidate's check (`whiteness_beyond_signals`: the own
+    lags' share of each innovation beyond the flight's signals) against closed
+    forms and a numpy least-squares re-implementation: chi-square with `lags`
+    degrees of freedom on white noise; a share of a signal mixed in (the
+    baseline's misfit, a nuisance of both hypotheses) leaves it chi-square,
+    where the whole check (`innovation_check`) grows by about N c^2 / (1 + c^2);
+    an AR(1) of coefficient rho adds about N rho^2."""
+    import scipy.signal
+    import scipy.stats
+
+    from diffpegasus._diagnose._process_noise import (
+        innovation_check,
+        whiteness_beyond_signals,
+    )
+
+    rng = np.random.default_rng(1)
+    n, lags = 1000, 10
+    t = np.arange(n)
+    z = np.column_stack([np.sin(t / 50.0), np.cos(t / 37.0)]) * np.sqrt(2.0)
+    white = np.concatenate(
+        [
+            whiteness_beyond_signals(rng.normal(size=(n, 2)), z, lags)[0]
+            for _ in range(150)
+        ]
+    )
+    assert whiteness_beyond_signals(rng.normal(size=(n, 2)), z, lags)[1] == lags
+    # chi-square(10): mean 10, sd of the mean of 300 draws 0.26
+    assert abs(white.mean() - 10.0) < 1.0, white.mean()
+    # false alarms at 0.01: 3 expected of 300
+    assert np.sum(white > scipy.stats.chi2.isf(0.01, lags)) <= 8
+    # the same statistic from numpy's least squares: N (S_z - S_z,lags) / S_z
+    e = rng.normal(size=(n, 1)) + 0.5 * z[:, :1]
+    y = e[:, 0] - e[:, 0].mean()
+    own = np.column_stack([np.r_[np.zeros(j), y[:-j]] for j in range(1, lags + 1)])
+    zs = (z - z.mean(0)) / z.std(0)
+
+    def rss(x):
+        rest = y - x @ np.linalg.lstsq(x, y, rcond=None)[0]
+        return rest @ rest
+
+    s_z = rss(np.column_stack([np.ones(n), zs]))
+    ref = n * (s_z - rss(np.column_stack([np.ones(n), zs, own]))) / s_z
+    np.testing.assert_allclose(
+        whiteness_beyond_signals(e, z, lags)[0][0], ref, rtol=1e-9
+    )
+    # a signal's share c = 0.5 mixed in: the whole check grows by about
+    # N 0.25 / 1.25 = 200; the part beyond the signals stays chi-square(10)
+    # (a statistic over the total variance, N (R^2[z, lags] - R^2[z]), would
+    # fall to about lags / 1.25: measured 7.7)
+    mixed = np.concatenate(
+        [
+            whiteness_beyond_signals(rng.normal(size=(n, 2)) + 0.5 * z[:, :1], z, lags)[
+                0
+            ]
+            for _ in range(50)
+        ]
+    )
+    assert abs(mixed.mean() - 10.0) < 1.5, mixed.mean()  # sd of the mean 0.45
+    whole = innovation_check(rng.normal(size=(n, 1)) + 0.5 * z[:, :1], z, lags)[0][0]
+    assert whole > 150.0, whole
+    # coloured: AR(1)s of coefficient 0.3, about N rho^2 = 90 plus the lags' own
+    # lags (1 - rho^2) = 9; the mean of 40 has an sd of about 2.6 (measured 92.3)
+    ar = scipy.signal.lfilter([1.0], [1.0, -0.3], rng.normal(size=(20, n, 2)), axis=1)
+    s_ar = np.concatenate([whiteness_beyond_signals(a, z, lags)[0] for a in ar])
+    assert 82.0 < s_ar.mean() < 108.0, s_ar.mean()
