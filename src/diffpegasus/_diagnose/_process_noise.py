@@ -125,87 +125,35 @@ def innovation_check(
     return stats, dof
 
 
-def whiteness_beyond_signals(
-    innovations: np.ndarray, regressors: np.ndarray, lags: int
-) -> tuple[np.ndarray, int]:
-    """Whether the part of a filter's innovations that the flight's own signals do
-    not predict is white: per output, `N R^2` of that part (the innovation less
-    its least-squares fit on `regressors`, the filter's predicted outputs and the
-    inputs) on the innovation's own `lags` previous values beyond the signals,
-    `N (S_signals - S_both) / S_signals` with `S` the residual sums of squares;
-    chi-square with `lags` degrees of freedom when that part is white (the
-    Lagrange-multiplier test of the lags with the signals as nuisance
-    regressors).
-
-    **Arguments:** `innovations` `(samples, outputs)`; `regressors` `(samples,
-    columns)`; `lags`.
-
-    **Returns:** `(statistics (outputs,), dof)`."""
-    e = np.asarray(innovations, float)
-    z = np.asarray(regressors, float)
-    n, m = e.shape
-    z = z[:, np.std(z, axis=0) > 0]
-    z = (z - z.mean(axis=0)) / z.std(axis=0)
-    stats = np.zeros(m)
-
-    def left(y, x):
-        q, _ = np.linalg.qr(x)
-        rest = y - q @ (q.T @ y)
-        return float(rest @ rest)
-
-    for i in range(m):
-        y = e[:, i] - e[:, i].mean()
-        if not np.any(y):
-            continue
-        own = np.column_stack(
-            [np.concatenate([np.zeros(j), y[:-j]]) for j in range(1, lags + 1)]
-        )
-        signals = np.column_stack([np.ones(n), z])
-        s_signals = left(y, signals)
-        if s_signals > 0:
-            stats[i] = n * (s_signals - left(y, np.column_stack([signals, own])))
-            stats[i] /= s_signals
-    return stats, lags
-
-
 def turbulence_evidence(
     result: Fit, fem: FilterErrorFit, rule: ProcessNoiseRule, innovations=None
 ):
     """Whether the filter-error model explains the record: process noise is named
-    only if the part of its filter's innovations that the flight's own signals
-    (the filter's predicted outputs, the inputs) do not predict is white on every
-    output ([`whiteness_beyond_signals`][], Bonferroni at `rule.significance`).
-    A structural misfit of the model is a function of the state and the inputs: a
-    filter absorbs part of it as process noise and its corrections then follow
-    the flight, so its innovations stay coloured; gusts are not. The part the
-    signals predict is the baseline's misfit under either hypothesis (output
-    error leaves it too): a nuisance of both, it says nothing about process
-    noise, and is reported (`predictable`, [`innovation_check`][]'s statistic
-    over lags and signals together), not judged.
+    only if its filter leaves innovations that pass [`innovation_check`][] on every
+    output (Bonferroni at `rule.significance`). A structural misfit of the model
+    is a function of the state and the inputs: a filter absorbs part of it as
+    process noise, but its corrections then follow the flight and its
+    innovations stay predictable from the flight's own signals; gusts are not.
     `innovations`: per record, the innovations to judge instead of the fit's
     (those less the input's unknown sub-sample motion, [`input_timing`][]).
 
     **Returns:** `{"passes", "statistic" (largest over outputs), "output",
-    "threshold", "dof", "lags", "predictable" (largest of the whole check, its
-    output, threshold and dof), "text"}`."""
+    "threshold", "dof", "lags", "text"}`."""
     n = sum(len(r.t) for r in fem.records)
     lags = rule.lags or int(min(np.ceil(10.0 * np.log10(n)), n // 4))
     # records are independent: their statistics and degrees of freedom add
-    outputs = fem.model.outputs
-    stat, full = np.zeros(len(outputs)), np.zeros(len(outputs))
-    dof = dof_full = 0
+    stat = np.zeros(len(fem.model.outputs))
+    dof = 0
     nus = fem.innovations if innovations is None else innovations
     for rec, nu, y in zip(fem.records, nus, fem.outputs, strict=True):
-        signals = np.column_stack([np.asarray(y), rec.inputs])
-        s, d = whiteness_beyond_signals(np.asarray(nu), signals, lags)
+        s, d = innovation_check(
+            np.asarray(nu), np.column_stack([np.asarray(y), rec.inputs]), lags
+        )
         stat, dof = stat + s, dof + d
-        s, d = innovation_check(np.asarray(nu), signals, lags)
-        full, dof_full = full + s, dof_full + d
-    level = rule.significance / len(outputs)
-    threshold = float(scipy.stats.chi2.isf(level, dof))
+    outputs = fem.model.outputs
+    threshold = float(scipy.stats.chi2.isf(rule.significance / len(outputs), dof))
     worst = int(np.argmax(stat))
     passes = bool(stat[worst] <= threshold)
-    most = int(np.argmax(full))
     return {
         "passes": passes,
         "statistic": float(stat[worst]),
@@ -213,18 +161,11 @@ def turbulence_evidence(
         "threshold": threshold,
         "dof": int(dof),
         "lags": int(lags),
-        "predictable": {
-            "statistic": float(full[most]),
-            "output": outputs[most],
-            "threshold": float(scipy.stats.chi2.isf(level, dof_full)),
-            "dof": int(dof_full),
-        },
         "text": (
-            f"the filter's innovations, beyond what the flight's signals predict, "
-            f"{'are' if passes else 'are not'} white (largest N R^2 of the own "
-            f"lags {stat[worst]:.3g}, on {outputs[worst]}, against {threshold:.3g}, "
-            f"the chi-square point on {dof} dof at {rule.significance:g} over "
-            f"{len(outputs)} outputs)"
+            f"the filter's innovations {'pass' if passes else 'fail'} the whiteness "
+            f"and orthogonality check (largest N R^2 {stat[worst]:.3g}, on "
+            f"{outputs[worst]}, against {threshold:.3g}, the chi-square point on "
+            f"{dof} dof at {rule.significance:g} over {len(outputs)} outputs)"
         ),
     }
 
