@@ -9,9 +9,10 @@ that variants of the check can be recomputed offline.
 
     python experiments/turbulence_check.py pegturb,100,7,1.5,10 pegclean,50,13 ...
 
-`pegturb,RATE,SEED,SIGMA,SECONDS[,knots4]`: the independent generator's turbulent
-launch-vehicle flight (diagnosed with `--knots 4 --rate 25` when SECONDS <= 10, as
-the test suite does); `pegclean,RATE,SEED[,EFFECT,VALUE]`: its 30 s acceptance
+`pegturb,RATE,SEED,SIGMA,SECONDS[,knotsK]`: the independent generator's turbulent
+launch-vehicle flight (diagnosed with `--knots K --rate 25` when SECONDS <= 10, K 4
+by default as the test suite does); `pegcalm,RATE,SEED,SECONDS[,knotsK]`: the same
+flight in calm air (`make_log`, the test suite's calm flight); `pegclean,RATE,SEED[,EFFECT,VALUE]`: its 30 s acceptance
 flight; `hfbgust,SIGMA,SEED` / `hfbcmq,SIGMA,SEED`: the package's HFB-320 simulator, 30 s
 at 10 Hz in Dryden gusts (CMq held at 0); `hfbreal`: the real HFB-320 record.
 Results: one pickle per flight under experiments/results/turbulence_check/ and a
@@ -69,8 +70,8 @@ def _driven(fem) -> np.ndarray:
     return mask
 
 
-def _recording(result, fem, rule):
-    out = _original(result, fem, rule)
+def _recording(result, fem, rule, innovations=None):
+    out = _original(result, fem, rule, innovations)
     n = sum(len(r.t) for r in fem.records)
     lags = out["lags"]
     per = np.zeros(len(fem.model.outputs))
@@ -79,7 +80,9 @@ def _recording(result, fem, rule):
             np.asarray(nu), np.column_stack([np.asarray(y), rec.inputs]), lags
         )
         per += s
-    _seen.update(
+    # every call (the judged fit with its input-timing adjusted innovations, then
+    # the report's check of each noise model's fit); the first is the verdict's
+    d = dict(
         evidence=out,
         per_output=dict(zip(fem.model.outputs, per.tolist(), strict=True)),
         driven=dict(
@@ -90,18 +93,34 @@ def _recording(result, fem, rule):
             )
         ),
         innovations=[np.asarray(x) for x in fem.innovations],
+        adjusted=None if innovations is None else [np.asarray(x) for x in innovations],
         predicted=[np.asarray(x) for x in fem.outputs],
         inputs=[np.asarray(r.inputs) for r in fem.records],
         outputs=tuple(fem.model.outputs),
+        oem_residuals=[
+            np.asarray(r.measured) - np.asarray(y)
+            for r, y in zip(result.records, result.outputs, strict=True)
+        ],
+        oem_predicted=[np.asarray(y) for y in result.outputs],
+        measured=[np.asarray(r.measured) for r in fem.records],
         noise_states=fem.process_noise,
         F=np.asarray(fem.F),
         R=np.asarray(fem.R),
         samples=n,
+        states=tuple(fem.model.states),
     )
+    if "evidence" not in _seen:
+        _seen.update(d)
+    _seen.setdefault("calls", []).append(d)
     return out
 
 
 pn.turbulence_evidence = _recording
+
+
+def _knots(extra: list) -> str:
+    """`knotsK` among a spec's trailing fields: K Mach functions (4 if absent)."""
+    return next((x[5:] for x in extra if x.startswith("knots")), "4")
 
 
 def _flight(spec: str):
@@ -114,7 +133,13 @@ def _flight(spec: str):
         if not csv.exists():
             gen.make_turbulent_log(csv, seed, rate, seconds, sigma)
         if seconds <= 10:
-            settings = ("--knots", "4", "--rate", "25")
+            settings = ("--knots", _knots(a[5:]), "--rate", "25")
+    elif a[0] == "pegcalm":
+        rate, seed, seconds = float(a[1]), int(a[2]), float(a[3])
+        csv = LOGS / f"pegcalm_{int(rate)}_{seed}_{seconds:g}.csv"
+        if not csv.exists():
+            gen.make_log(csv, seed, rate, seconds)
+        settings = ("--knots", _knots(a[4:]), "--rate", "25")
     elif a[0] == "pegclean":
         rate, seed = float(a[1]), int(a[2])
         effects = {a[3]: float(a[4])} if len(a) > 4 else None
@@ -177,13 +202,22 @@ def variants(d: dict) -> dict:
     predicted outputs, inputs), `lags` own lags only (whiteness),
     `inputs_given_lags` the inputs' share beyond the own lags (exogeneity:
     `N (R^2[lags, inputs] - R^2[lags])`), `signals_given_lags` the predicted
-    outputs' and inputs' share beyond the own lags; the records' statistics and
+    outputs' and inputs' share beyond the own lags, `lags_given_signals` the own
+    lags' share beyond the predicted outputs and inputs (whiteness of the part
+    the flight's signals do not predict); the records' statistics and
     degrees of freedom add."""
     lags = d["evidence"]["lags"]
-    names = ("full", "lags", "inputs_given_lags", "signals_given_lags")
+    names = (
+        "full",
+        "lags",
+        "inputs_given_lags",
+        "signals_given_lags",
+        "lags_given_signals",
+    )
     stat = {k: np.zeros(len(d["outputs"])) for k in names}
     dof = dict.fromkeys(names, 0)
-    for nu, yhat, u in zip(d["innovations"], d["predicted"], d["inputs"], strict=True):
+    judged = d.get("adjusted") or d["innovations"]
+    for nu, yhat, u in zip(judged, d["predicted"], d["inputs"], strict=True):
         nu, yhat, u = np.asarray(nu), _standardised(yhat), _standardised(u)
         n = len(nu)
         one = np.ones((n, 1))
@@ -195,14 +229,17 @@ def variants(d: dict) -> dict:
             r_lags = _r2(y, np.column_stack([one, own]))
             r_full = _r2(y, np.column_stack([one, own, yhat, u]))
             r_u = _r2(y, np.column_stack([one, own, u]))
+            r_signals = _r2(y, np.column_stack([one, yhat, u]))
             stat["full"][i] += n * r_full
             stat["lags"][i] += n * r_lags
             stat["inputs_given_lags"][i] += n * (r_u - r_lags)
             stat["signals_given_lags"][i] += n * (r_full - r_lags)
+            stat["lags_given_signals"][i] += n * (r_full - r_signals)
         dof["full"] += lags + yhat.shape[1] + u.shape[1]
         dof["lags"] += lags
         dof["inputs_given_lags"] += u.shape[1]
         dof["signals_given_lags"] += yhat.shape[1] + u.shape[1]
+        dof["lags_given_signals"] += lags
     m = len(d["outputs"])
     driven = [d["driven"][o] for o in d["outputs"]]
     out = {}
@@ -258,7 +295,12 @@ def summary():
                 _cell(v["full"], row["driven"], True),
                 *(
                     _cell(v[k], row["driven"], False)
-                    for k in ("lags", "inputs_given_lags", "signals_given_lags")
+                    for k in (
+                        "lags",
+                        "inputs_given_lags",
+                        "signals_given_lags",
+                        "lags_given_signals",
+                    )
                 ),
             ]
             if v

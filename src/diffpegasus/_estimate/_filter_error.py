@@ -771,6 +771,13 @@ def filter_error(
         )
         if gain != first:
             prob = problem(model, records, noise_states, gain, np.asarray(prob.x0))
+    if (
+        residuals is not None
+        and not isinstance(process_noise, Mapping)
+        and prob.schedule.shape[1] > 1
+    ):
+        # a scheduled gain: the program choose_gain compiled for these shapes
+        f0 = _solvable_start(model, prob, theta0, f0, residuals)
     z0 = np.concatenate([theta0, f0])
     free = np.concatenate([model.free, np.ones(len(names), bool)])
     sol = solve_filter_error(
@@ -916,6 +923,27 @@ def gain_variation(model, prob, theta, f, residuals) -> float:
     )
     change = np.abs(kc - kc[:, :1])
     return float(np.max(np.where(np.isfinite(change), change, np.inf)))
+
+
+def _solvable_start(model, prob, theta, f, residuals, tries: int = 4):
+    """Start intensities `f` scaled to residuals, divided by 10 (at most `tries`
+    times) while the steady-state gain has no solution at some schedule point of
+    `prob` (innovation covariance from `residuals`, as [`gain_variation`][]): a
+    gain that does not exist there makes the filter's innovations, and so the
+    start's det(R), non-finite, and the fit cannot take a step (measured: the
+    launch vehicle's 10 s transonic flight with 6 Mach functions, no solution at
+    Mach 1 from the output-error estimates). The intensities are estimated: only
+    the start moves."""
+    e = np.concatenate([np.asarray(r) for r in residuals])
+    rmat = jnp.diag(jnp.asarray(np.maximum(np.mean(e**2, axis=0), 1e-300)))
+    ref = jnp.where(jnp.isnan(prob.reference), prob.x0[:, None, :], prob.reference)
+    f = np.asarray(f, float)
+    for _ in range(tries):
+        kc = _kc_at_points(model, prob, jnp.asarray(theta), jnp.asarray(f), rmat, ref)
+        if np.all(np.isfinite(np.asarray(kc))):
+            break
+        f = f / 10.0
+    return f
 
 
 def choose_gain(model, records, noise_states, x0, theta, f, residuals, points=16):
