@@ -483,7 +483,7 @@ def flown_cost(problem: Problem, record, result) -> float:
     t, x, inputs = _flown(result.model, result.params, record)
     ys = np.asarray(
         _observed(problem.flight, t, x, inputs, result.params, result.model.parameters)
-    )
+    )[:, [0, 1, 3]]  # the outputs' order: altitude, accel, gyro
     n = len(record.t)
     has = record.inputs[:, 1:] > 0
     e = np.where(has, record.measured - ys[:n, : has.shape[1]], 0.0)
@@ -708,8 +708,9 @@ _OBSERVED: dict = {}
 
 
 def _observed(flight, t, x, u, params, names):
-    """`(samples, 3)`: barometric altitude, axial specific force, Mach (one compiled
-    program per flight)."""
+    """`(samples, 4)`: barometric altitude, axial specific force, Mach and the
+    lateral body rate (0 without the attitude) (one compiled program per
+    flight)."""
     import jax
     import jax.numpy as jnp
 
@@ -719,8 +720,8 @@ def _observed(flight, t, x, u, params, names):
         def one(t, x, u, params):
             p = dict(zip(names, params, strict=True))
             _, _, air = flight.forces(t, x, u, p)
-            y = _observe(flight, t, x, jnp.stack([u[0], 1.0, 1.0]), p)
-            return jnp.stack([y[0], y[1], air[3]])
+            y = _observe(flight, t, x, jnp.stack([u[0], 1.0, 1.0, 1.0]), p)
+            return jnp.stack([y[0], y[1], air[3], y[2]])
 
         _OBSERVED[key] = (flight, jax.jit(jax.vmap(one, (0, 0, 0, None))))
     fn = _OBSERVED[key][1]
