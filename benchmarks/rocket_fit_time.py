@@ -1,9 +1,14 @@
 """One rocket flight's fit, cold (tracing and compilation included) and warm (the
 same fit again in the same process: what a second command costs once the
 persistent compilation cache holds the program; the continuation's two or three
-fits included), with the machine's load average. Writes benchmarks/results/rocket_fit_time.json.
+fits included), with the machine's load average. With `--attitude` each flight is
+fitted twice in the same run, as the point mass and with the attitude (its gyro
+column, where the log has one, fitted too), and the warm ratio written. Writes
+benchmarks/results/rocket_fit_time.json (`--out` another name).
 
-Run: `python benchmarks/rocket_fit_time.py FOLDER [FOLDER ...]`.
+Run: `python benchmarks/rocket_fit_time.py [--attitude] [--out NAME] FOLDER ...`;
+a FOLDER holds a `rocket.toml` with its `[log]` or a simulated flight's `log.csv`
+(scripts/make_rocket_fixtures.py).
 """
 
 import json
@@ -11,43 +16,84 @@ import os
 import pathlib
 import sys
 import time
+import types
+
+import numpy as np
 
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
-def main():
+def sim_log(folder):
+    """A simulated flight's `log.csv` as a rocket log."""
+    a = np.loadtxt(folder / "log.csv", delimiter=",", skiprows=1)
+    names = ("altitude", "accel_axial", "gyro_lateral")[: a.shape[1] - 1]
+    channels = {
+        n: types.SimpleNamespace(t=a[:, 0], values=a[:, j + 1], filtered=False)
+        for j, n in enumerate(names)
+    }
+    apogee = types.SimpleNamespace(t=float(a[-1, 0]), how="", value=np.nan)
+    return types.SimpleNamespace(
+        channels=channels,
+        events={"liftoff": types.SimpleNamespace(t=0.0), "apogee": apogee},
+        pad={},
+    )
+
+
+def timed(folder, attitude):
     from diffpegasus._log._rocketlogs import read_rocket_log
     from diffpegasus.rocket import fit_rocket, prepare, read_rocket
 
-    out = {"load_average": os.getloadavg()[0]}
-    for folder in map(pathlib.Path, sys.argv[1:]):
-        rocket = read_rocket(folder / "rocket.toml")
+    rocket = read_rocket(folder / "rocket.toml", attitude=attitude)
+    if (folder / "log.csv").exists():
+        log = sim_log(folder)
+    else:
         log = read_rocket_log(folder / "rocket.toml")
-        times = []
-        for _ in range(2):
-            t0 = time.perf_counter()
-            problem = prepare(rocket, log) if not times else problem  # noqa: F821
-            # the default effects (default_free: with the wind where an
-            # accelerometer spans the ascent), as the command fits them
-            result = fit_rocket(problem, throw=False)
-            times.append(time.perf_counter() - t0)
-        out[folder.name] = {
-            "cold_s": times[0],
-            "warm_s": times[1],
-            "iterations": int(result.fit.iterations),
-            "samples": len(result.record.t),
-            "free": [
-                n
-                for n, f in zip(
-                    result.fit.model.parameters, result.fit.model.free, strict=True
-                )
-                if f
-            ],
-            "load_average_after": os.getloadavg()[0],
-        }
-        print(folder.name, out[folder.name], flush=True)
-    path = ROOT / "benchmarks" / "results" / "rocket_fit_time.json"
+    times = []
+    for _ in range(2):
+        t0 = time.perf_counter()
+        problem = prepare(rocket, log) if not times else problem  # noqa: F821
+        # the default effects (default_free: with the wind where an
+        # accelerometer spans the ascent), as the command fits them
+        result = fit_rocket(problem, throw=False)
+        times.append(time.perf_counter() - t0)
+    return {
+        "cold_s": times[0],
+        "warm_s": times[1],
+        "iterations": int(result.fit.iterations),
+        "tries": {k: list(v) for k, v in result.tries.items()},
+        "samples": len(result.record.t),
+        "outputs": list(result.outputs),
+        "free": [
+            n
+            for n, f in zip(
+                result.fit.model.parameters, result.fit.model.free, strict=True
+            )
+            if f
+        ],
+        "load_average_after": os.getloadavg()[0],
+    }
+
+
+def main():
+    args = sys.argv[1:]
+    attitude = "--attitude" in args
+    args = [a for a in args if a != "--attitude"]
+    name = "rocket_fit_time.json"
+    if "--out" in args:
+        i = args.index("--out")
+        name = args[i + 1]
+        del args[i : i + 2]
+    out = {"load_average": os.getloadavg()[0]}
+    for folder in map(pathlib.Path, args):
+        row = timed(folder, False)
+        if attitude:
+            row = {"point_mass": row, "attitude": timed(folder, True)}
+            row["warm_ratio"] = row["attitude"]["warm_s"] / row["point_mass"]["warm_s"]
+            row["cold_ratio"] = row["attitude"]["cold_s"] / row["point_mass"]["cold_s"]
+        out[folder.name] = row
+        print(folder.name, json.dumps(row), flush=True)
+    path = ROOT / "benchmarks" / "results" / name
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(out, indent=1))
 

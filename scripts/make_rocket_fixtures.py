@@ -19,7 +19,9 @@ channels. Run: `python scripts/make_rocket_fixtures.py` (RocketPy from PyPI); wi
 `--held-out-2 DIR` two more, written before the sensor-by-sensor band was run
 (`HELD_OUT_2`);
 `--validation DIR --smooth` the committed two and those, each through the exact
-standard-atmosphere pressure instead of RocketPy's table (`clean-smooth`'s option).
+standard-atmosphere pressure instead of RocketPy's table (`clean-smooth`'s option);
+`--gyro DIR [NAME ...]` flights with a fourth column, the lateral body rate (rad/s)
+two gyros across the axis read.
 """
 
 import pathlib
@@ -299,12 +301,22 @@ def flight(name, spec, out=OUT):
     g = np.array([env.gravity(h) for h in z])
     f = np.einsum("ij,ij->i", acc, axis) + g * axis[:, 2]
     f += rng.normal(0, spec["noise"][1], len(t))
+    columns, header = [t, alt, f], "time_s,altitude_m,accel_axial_m_s2"
+    if spec.get("gyro"):
+        # two gyros across the axis (RocketPy's body rates w1, w2), each with white
+        # noise of `gyro` rad/s, read as the lateral rate sqrt(w1^2 + w2^2); drawn
+        # after the other channels' noise, which stays as without gyros
+        w1, w2 = (np.array([getattr(fl, f"w{i}")(s) for s in t]) for i in (1, 2))
+        w1 = w1 + rng.normal(0, spec["gyro"], len(t))
+        w2 = w2 + rng.normal(0, spec["gyro"], len(t))
+        columns.append(np.hypot(w1, w2))
+        header += ",gyro_lateral_rad_s"
     np.savetxt(
         folder / "log.csv",
-        np.column_stack([t, alt, f]),
+        np.column_stack(columns),
         delimiter=",",
-        fmt="%.3f",
-        header="time_s,altitude_m,accel_axial_m_s2",
+        fmt="%.5f" if spec.get("gyro") else "%.3f",
+        header=header,
         comments="",
     )
     (folder / "rocket.toml").write_text(f"""\
@@ -365,7 +377,14 @@ max_mach = {float(fl.max_mach_number):.4f}
 if __name__ == "__main__":
     import sys
 
-    if len(sys.argv) > 2 and sys.argv[1] in ("--held-out", "--held-out-2"):
+    if len(sys.argv) > 2 and sys.argv[1] == "--gyro":
+        # the committed two, the head wind and a held-out one, with gyros
+        # (0.003 rad/s of noise per axis, a MEMS gyro's at 50 Hz)
+        every = {**FLIGHTS, **VALIDATION, **HELD_OUT}
+        names = sys.argv[3:] or ["clean", "planted", "wind-s6", "heldout-c-s22"]
+        for name in names:
+            flight(name, dict(every[name], gyro=0.003), pathlib.Path(sys.argv[2]))
+    elif len(sys.argv) > 2 and sys.argv[1] in ("--held-out", "--held-out-2"):
         held = HELD_OUT if sys.argv[1] == "--held-out" else HELD_OUT_2
         for name, spec in held.items():
             flight(name, spec, pathlib.Path(sys.argv[2]))

@@ -92,6 +92,8 @@ def test_restoring_and_damping_moments_against_their_scalar_formulas():
         temperature=288.15,
         lapse_rate=-6.5,
         accel_scale=1.0,
+        cn_alpha_scale=1.0,
+        pitch_damping_scale=1.0,
     )
     p = {k: jnp.asarray(v) for k, v in p.items()}
     m_r, m_m = rocket.dry_mass - rocket.motor.dry_mass, rocket.motor.dry_mass

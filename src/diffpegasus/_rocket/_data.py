@@ -17,9 +17,11 @@ from .._model import Record
 MIN_STEP, MAX_STEP = 0.01, 0.05  # s: 100 Hz, 20 Hz
 
 
-def channels_of(log) -> tuple[str, ...]:
+def channels_of(log, gyro: bool = False) -> tuple[str, ...]:
     """The model outputs the log can feed: `altitude` (barometric, or from pressure)
-    and `accel` (axial specific force), in the model's order."""
+    and `accel` (axial specific force), in the model's order; with `gyro` (the
+    attitude asked for) and an accelerometer, `gyro` too where the log has the
+    lateral body rate (see [`lateral_rate`][])."""
     if "altitude" not in log.channels and "pressure" not in log.channels:
         raise LogError(
             "the log has no barometric altitude or pressure: a rocket fit needs one"
@@ -27,7 +29,35 @@ def channels_of(log) -> tuple[str, ...]:
     out = ("altitude",)
     if "accel_axial" in log.channels:
         out += ("accel",)
+        if gyro and lateral_rate(log) is not None:
+            out += ("gyro",)
     return out
+
+
+def lateral_rate(log):
+    """`(t, rad/s)`: the body rate across the rocket's axis, `sqrt(w1^2 + w2^2)` of
+    the two gyros across it (whatever the roll), or `None`. From a `gyro_lateral`
+    channel, else from `gyro_x/y/z` with the axial one the axis whose accelerometer
+    the log's `accel_axial` is (the one reading most along the boost)."""
+    ch = log.channels
+    if "gyro_lateral" in ch:
+        return ch["gyro_lateral"].t, ch["gyro_lateral"].values
+    names = ("x", "y", "z")
+    if not all(f"gyro_{a}" in ch for a in names) or "accel_axial" not in ch:
+        return None
+    axial = ch["accel_axial"]
+    along = None
+    for a in names:
+        c = ch.get(f"accel_{a}")
+        if c is not None and len(c.t) == len(axial.t):
+            if np.allclose(np.abs(c.values), np.abs(axial.values), equal_nan=True):
+                along = a
+    if along is None:
+        return None
+    across = [ch[f"gyro_{a}"] for a in names if a != along]
+    if len(across[0].t) != len(across[1].t):
+        return None
+    return across[0].t, np.hypot(across[0].values, across[1].values)
 
 
 def baro_channel(log):
@@ -65,19 +95,24 @@ def apogee_time(log) -> float:
     return float(t[np.argmax(h)])
 
 
-def ascent_record(log, until=None, name="flight") -> tuple[Record, tuple[str, ...]]:
+def ascent_record(
+    log, until=None, name="flight", gyro: bool = False
+) -> tuple[Record, tuple[str, ...]]:
     """The record of the ascent from just before liftoff to `until` (default the
-    apogee), and its output names.
+    apogee), and its output names (`gyro`: the lateral body rate where the log has
+    it, for the attitude).
 
     **Returns:** `(record, outputs)`; the record's inputs are `airbrake` (0 here,
     filled by the caller where the rocket has air brakes) and `has_<output>`.
     """
-    outputs = channels_of(log)
+    outputs = channels_of(log, gyro)
     end = apogee_time(log) if until is None else float(until)
     series = {"altitude": baro_channel(log)}
     if "accel" in outputs:
         c = log.channels["accel_axial"]
         series["accel"] = (c.t, c.values)
+    if "gyro" in outputs:
+        series["gyro"] = lateral_rate(log)
     steps = []
     for t, _ in series.values():
         inside = t[(t > -1.0) & (t <= end)]

@@ -26,6 +26,8 @@ SENSOR_FREE = ("baro_lag", "static_error")
 WIND_FREE = ("wind_along",)
 # the accelerometer fixes the length scale the barometer reads in, at every height
 ACCEL_FREE = ("temperature", "lapse_rate")
+# with gyros and the attitude: the weathercocking's stiffness and damping
+GYRO_FREE = ("cn_alpha_scale", "pitch_damping_scale")
 STANDARD_LAPSE = -6.5  # K/km
 # Mach between drag knots: an accelerometer reads drag directly, as finely as a
 # team's tables; an altitude alone carries it twice integrated, so half as finely
@@ -125,6 +127,8 @@ def default_start(rocket: Rocket, knots: DragKnots, temperature: float) -> dict:
         altitude_bias=0.0,
         accel_bias=0.0,
         accel_scale=1.0,
+        cn_alpha_scale=1.0,
+        pitch_damping_scale=1.0,
     )
     return start
 
@@ -266,7 +270,9 @@ def default_free(problem) -> tuple[str, ...]:
     56% low at Mach 0.15, 4 bands out); estimated, `CD`'s band carries it. An
     altitude alone: the static-pressure error only, which follows the dynamic
     pressure at once (a dip at burnout, no integration; Andromeda: 53 m RMS
-    without, 22 m with)."""
+    without, 22 m with). With gyros (the attitude asked for): the scales of the
+    normal-force slope and of the pitch damping, which the weathercocking's
+    frequency and decay in the body rate carry."""
     from .._vehicle._rocket._sensors import TRANSONIC_WIDTH
 
     if "accel" not in problem.outputs:
@@ -276,6 +282,8 @@ def default_free(problem) -> tuple[str, ...]:
         free += ("transonic_error",)
     if accel_covers_ascent(problem.record):
         free += WIND_FREE
+    if "gyro" in problem.outputs:
+        free += GYRO_FREE
     return free
 
 
@@ -299,7 +307,7 @@ def prepare(rocket: Rocket, log, *, knots: DragKnots | None = None) -> Problem:
     from .._vehicle._atmosphere import isa
     from .._vehicle._rocket import pressure_altitude
 
-    record, outputs = ascent_record(log)
+    record, outputs = ascent_record(log, gyro=rocket.airframe is not None)
     pressure = pad_pressure(log, rocket.elevation)
     temperature = rocket.surface_temperature
     if temperature is None:
@@ -432,9 +440,14 @@ def fit_rocket(
     if until is not None:
         record = record_until(record, until)
 
-    tried, flown = _tries(
-        problem, record, values, scaled, estimated, free, shooting_interval, single
-    )
+    if problem.rocket.airframe is None:
+        tried, flown = _tries(
+            problem, record, values, scaled, estimated, free, shooting_interval, single
+        )
+    else:
+        tried, flown = _attitude_tries(
+            problem, record, values, scaled, estimated, free, shooting_interval, single
+        )
     # the lowest det(R) flown from the pad, converged or not: a fit still creeping
     # down a valley when its budget ran out lies below one that converged in
     # another basin (a simulated clean flight: 0.029 unconverged against 1.11
@@ -469,7 +482,7 @@ def flown_cost(problem: Problem, record, result) -> float:
     t, x, inputs = _flown(result.model, result.params, record)
     ys = np.asarray(
         _observed(problem.flight, t, x, inputs, result.params, result.model.parameters)
-    )
+    )[:, [0, 1, 3]]  # the outputs' order: altitude, accel, gyro
     n = len(record.t)
     has = record.inputs[:, 1:] > 0
     e = np.where(has, record.measured - ys[:n, : has.shape[1]], 0.0)
@@ -536,6 +549,92 @@ def _tries(
             problem, record, tried["single from multiple"]
         )
     return tried, flown
+
+
+# one point-mass Flight per attitude Flight: every fit of one flight shares the
+# point mass's compiled program as it shares the attitude's
+_POINT_MASS: dict = {}
+
+
+def point_mass(problem: Problem, record=None) -> tuple[Problem, object]:
+    """`problem` (and `record`, by default its own) without the attitude: the rocket
+    pointing along its air-relative velocity, the gyro channel dropped."""
+    record = problem.record if record is None else record
+    keep = [o for o in problem.outputs if o != "gyro"]
+    cols = [0] + [1 + problem.outputs.index(o) for o in keep]
+
+    def strip(rec):
+        return type(rec)(
+            rec.t,
+            rec.inputs[:, cols],
+            rec.measured[:, [problem.outputs.index(o) for o in keep]],
+            x0=rec.x0[:6],
+            name=rec.name,
+        )
+
+    key = id(problem.flight)
+    if key not in _POINT_MASS or _POINT_MASS[key][0] is not problem.flight:
+        rocket = dataclasses.replace(problem.rocket, airframe=None)
+        _POINT_MASS[key] = (
+            problem.flight,
+            Flight(rocket, problem.flight.knots, problem.flight.pad_pressure),
+        )
+    flight = _POINT_MASS[key][1]
+    simple = dataclasses.replace(
+        problem,
+        rocket=flight.rocket,
+        flight=flight,
+        record=strip(problem.record),
+        outputs=tuple(keep),
+    )
+    return simple, strip(record)
+
+
+def _attitude_tries(
+    problem, record, values, scaled, estimated, free, interval, single_try=True
+):
+    """[`_tries`][] for a rocket with the attitude: the point mass's continuation
+    and single shooting first (its program, a fraction of the attitude's cost per
+    iteration), then the attitude by single shooting from its optimum (the
+    attitude's own states start from the pad, so no node holds them). With nodes,
+    the attitude's fit crept: on a simulated flight det(R) fell by 6e-5 of itself
+    per full Gauss-Newton step for over 100 steps. Where that single-shooting fit
+    fails, the attitude's own continuation by multiple shooting as before."""
+    simple, simple_record = point_mass(problem, record)
+    attitude_only = set(GYRO_FREE)
+    tried_pm, flown_pm = _tries(
+        simple,
+        simple_record,
+        values,
+        tuple(n for n in scaled if n not in attitude_only),
+        tuple(n for n in estimated if n not in attitude_only),
+        tuple(n for n in free if n not in attitude_only),
+        interval,
+        single_try,
+    )
+    best = min(tried_pm, key=lambda k: flown_pm[k])
+    tried, flown = {}, {}
+    if np.isfinite(flown_pm[best]):
+        pm = tried_pm[best]
+        named = dict(zip(pm.model.parameters, pm.params, strict=True))
+        named.update({k: values[k] for k in GYRO_FREE})
+        model = rocket_model(problem.flight, problem.outputs, named, estimated)
+        label = f"attitude from point mass {best}"
+        length = float(record.t[-1] - record.t[0]) + 1.0
+        tried[label] = fit(
+            model,
+            record,
+            shooting=MultipleShooting(interval=length, settle=None),
+            initial_state="fixed",
+            throw=False,
+        )
+        flown[label] = flown_cost(problem, record, tried[label])
+        if tried[label].converged and np.isfinite(flown[label]):
+            return tried, flown
+    more, more_flown = _tries(
+        problem, record, values, scaled, estimated, free, interval, single_try
+    )
+    return {**tried, **more}, {**flown, **more_flown}
 
 
 def simulate_flight(problem: Problem, start: dict | None = None) -> RocketFit:
@@ -608,8 +707,9 @@ _OBSERVED: dict = {}
 
 
 def _observed(flight, t, x, u, params, names):
-    """`(samples, 3)`: barometric altitude, axial specific force, Mach (one compiled
-    program per flight)."""
+    """`(samples, 4)`: barometric altitude, axial specific force, Mach and the
+    lateral body rate (0 without the attitude) (one compiled program per
+    flight)."""
     import jax
     import jax.numpy as jnp
 
@@ -619,8 +719,8 @@ def _observed(flight, t, x, u, params, names):
         def one(t, x, u, params):
             p = dict(zip(names, params, strict=True))
             _, _, air = flight.forces(t, x, u, p)
-            y = _observe(flight, t, x, jnp.stack([u[0], 1.0, 1.0]), p)
-            return jnp.stack([y[0], y[1], air[3]])
+            y = _observe(flight, t, x, jnp.stack([u[0], 1.0, 1.0, 1.0]), p)
+            return jnp.stack([y[0], y[1], air[3], y[2]])
 
         _OBSERVED[key] = (flight, jax.jit(jax.vmap(one, (0, 0, 0, None))))
     fn = _OBSERVED[key][1]

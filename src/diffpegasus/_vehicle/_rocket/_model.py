@@ -38,6 +38,16 @@ Parameters (name: unit, meaning):
 - `airbrake_cd`: CD added at full air-brake deployment (input `airbrake`).
 - `altitude_bias` (m), `accel_bias` (m/s^2): sensor offsets; `accel_scale`: the
   accelerometer's reading per m/s^2 of specific force (1 when calibrated).
+- `cn_alpha_scale`: factor on every surface's `CN_alpha` (Barrowman's) for the
+  force of the air's angle of attack (the centre of pressure kept);
+  `pitch_damping_scale`: factor on the force the rotation adds (the pitch damping
+  `Cmq` Barrowman's slopes give, `-sum CN_alpha_i (x_i - x_cg)^2 / d^2` per
+  radian of `q d / V`, scaled alone). Both 1 by default; with the attitude only
+  (without an airframe nothing depends on them).
+
+Outputs: `altitude` (m), `accel` (m/s^2) and, with the attitude, `gyro`: the
+lateral body rate `sqrt(w_pitch^2 + w_yaw^2)` (rad/s; what two gyros across the
+axis read whatever the roll).
 """
 
 import functools
@@ -57,7 +67,7 @@ from ._sensors import axial_specific_force, baro_altitude, layered_air
 
 STATES = ("e", "n", "u", "ve", "vn", "vu")
 ATTITUDE = ("ax_e", "ax_n", "ax_u", "w_e", "w_n", "w_u")
-OUTPUTS = ("altitude", "accel")  # the channels a log may give, in this order
+OUTPUTS = ("altitude", "accel", "gyro")  # the channels a log may give, in this order
 EFFECTS = (
     "cd_scale",
     "power_on_ratio",
@@ -77,6 +87,8 @@ EFFECTS = (
     "altitude_bias",
     "accel_bias",
     "accel_scale",
+    "cn_alpha_scale",
+    "pitch_damping_scale",
 )
 
 
@@ -154,7 +166,8 @@ class Flight(eqx.Module):
         )
         arm = jnp.asarray(frame.stations) - cg  # (k,) m forward of the CG
         cna = frame.cn_alpha(mach)
-        local = air[None, :] + jnp.cross(w[None, :], arm[:, None] * axis[None, :])
+        turn = jnp.cross(w[None, :], arm[:, None] * axis[None, :])
+        local = p["cn_alpha_scale"] * air[None, :] + p["pitch_damping_scale"] * turn
         perp = local - (local @ axis)[:, None] * axis[None, :]
         each = -0.5 * rho * speed * r.area * cna[:, None] * perp  # (k, 3) N
         moment = jnp.sum(jnp.cross(arm[:, None] * axis[None, :], each), axis=0)
@@ -226,8 +239,9 @@ def rates(flight: Flight, t, x, u, p):
 
 
 def observe(flight: Flight, t, x, u, p):
-    """The measured channels: barometric altitude (m AGL) and axial specific force
-    (m/s^2), each multiplied by its `has_` input (0 where the log has no sample)."""
+    """The measured channels: barometric altitude (m AGL), axial specific force
+    (m/s^2) and, with the attitude, the lateral body rate (rad/s), each multiplied
+    by its `has_` input (0 where the log has no sample)."""
     accel, axis, (q, rho, g, mach, reading, rate, _) = flight.forces(t, x, u, p)
     h = baro_altitude(
         reading,
@@ -242,17 +256,22 @@ def observe(flight: Flight, t, x, u, p):
         mach,
     )
     f = axial_specific_force(accel, g, axis)
-    y = jnp.stack([h + p["altitude_bias"], p["accel_scale"] * f + p["accel_bias"]])
+    gyro = jnp.sqrt(jnp.sum(x[9:12] ** 2) + 1e-12) if x.shape[0] > 6 else 0.0
+    y = jnp.stack(
+        [h + p["altitude_bias"], p["accel_scale"] * f + p["accel_bias"], gyro]
+    )
     return y[: u.shape[0] - 1] * u[1:]
 
 
 def rocket_model(flight: Flight, outputs, start: dict, free) -> Model:
     """The [`Model`][] of `flight` with the measured `outputs` (a prefix-ordered
-    subset of `("altitude", "accel")`), start values `start` (name -> value) and the
-    estimated parameter names `free`."""
+    subset of `("altitude", "accel", "gyro")`; `gyro` with an airframe only), start
+    values `start` (name -> value) and the estimated parameter names `free`."""
     outputs = tuple(outputs)
     if outputs != OUTPUTS[: len(outputs)]:
         raise ValueError(f"outputs must be a prefix of {OUTPUTS}, got {outputs}")
+    if "gyro" in outputs and flight.rocket.airframe is None:
+        raise ValueError("a gyro output needs the attitude (an airframe)")
     names = flight.knots.names + EFFECTS
     missing = [n for n in names if n not in start]
     if missing:
