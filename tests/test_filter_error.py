@@ -303,3 +303,42 @@ def test_survivor_threshold_from_white_innovations():
     np.testing.assert_allclose(flat.T @ flat, np.eye(3), atol=1e-12)
     stat = score_at_filter_error(fem, ["c"])[0]["statistic"]
     np.testing.assert_allclose(statistics(rows, res, s, g)[0], stat, rtol=1e-9)
+
+
+def test_coloured_correction_counts_samples_not_padding_rows():
+    """Records are padded to a length bucket (400 samples to 416 rows, zero
+    innovations and Jacobian rows there): the coloured-innovation correction is
+    the sum over lags of the valid samples' autocovariance (divided by 400, not
+    416), equal on the padded and unpadded layouts and to a direct lag sum in
+    numpy (Morelli and Klein's formula)."""
+    from diffpegasus._estimate._filter_error import _corrected_stderr
+
+    rng = np.random.default_rng(3)
+    n, pad, no, k = 400, 16, 3, 4
+    jac = rng.normal(size=(1, n, no, k))
+    white = rng.normal(size=(1, n, no))
+    innov = np.zeros_like(white)  # coloured: a first-order autoregression
+    for t in range(1, n):
+        innov[:, t] = 0.8 * innov[:, t - 1] + white[:, t]
+    a = rng.normal(size=(k, k))
+    cov = a @ a.T / k + np.eye(k)
+    padded = _corrected_stderr(
+        np.concatenate([jac, np.zeros((1, pad, no, k))], axis=1),
+        np.concatenate([innov, np.zeros((1, pad, no))], axis=1),
+        cov,
+        [n],
+    )
+    unpadded = _corrected_stderr(jac, innov, cov, [n])
+    kk = np.einsum("tok,kn->ton", jac[0], cov)
+    total = np.zeros((k, k))
+    idx = np.arange(n)
+    for o in range(no):
+        e = innov[0, :, o]
+        r = np.array([e[: n - d] @ e[d:] / n for d in range(n)])
+        lagged = r[np.abs(idx[:, None] - idx[None, :])]  # r(i - j)
+        total += kk[:, o].T @ lagged @ kk[:, o]
+    reference = np.sqrt(np.diag(total))
+    # measured: 1e-14 relative (FFT against the direct sum); the padded layout
+    # was sqrt(400 / 416) = 0.981 of the unpadded one when it divided by the rows
+    np.testing.assert_allclose(unpadded, reference, rtol=1e-10)
+    np.testing.assert_allclose(padded, unpadded, rtol=1e-10)

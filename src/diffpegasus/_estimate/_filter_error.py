@@ -813,7 +813,8 @@ def filter_error(
         free=np.asarray(model.free),
         stderr=sd[:p],
         stderr_corrected=np.maximum(
-            _corrected_stderr(sol.jacobian, sol.whitened, sol.covariance)[:p], sd[:p]
+            _corrected_stderr(sol.jacobian, sol.whitened, sol.covariance, lengths)[:p],
+            sd[:p],
         ),
         correlation=block / (d[:, None] * d[None, :]),
         process_noise=names,
@@ -1008,13 +1009,16 @@ def _gram(jacobian):
     return a.T @ a
 
 
-def _corrected_stderr(jacobian, whitened, covariance):
+def _corrected_stderr(jacobian, whitened, covariance, lengths):
     """Standard errors of all unknowns corrected for coloured innovations
-    (Morelli-Klein, per record, summed)."""
+    (Morelli-Klein, per record, summed). `lengths`: each record's samples; the
+    rows beyond them are padding (zero), not samples of the autocovariance."""
     total = np.zeros_like(covariance)
     for r in range(jacobian.shape[0]):
         k = np.einsum("tok,kn->ton", jacobian[r], covariance)
         total += np.asarray(
-            coloured_information(jnp.asarray(k), jnp.asarray(whitened[r]))
+            coloured_information(
+                jnp.asarray(k), jnp.asarray(whitened[r]), samples=lengths[r]
+            )
         )
     return np.sqrt(np.clip(np.diag(total), 0.0, None))
