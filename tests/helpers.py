@@ -67,3 +67,16 @@ def short_period_outputs(t, x, u, p):
     del t
     a = x[0]
     return jnp.stack([a, x[1], SHORT_PERIOD_SPEED * (p["Za"] * a + p["Zd"] * u[0])])
+
+
+def short_period_model(parameters: dict) -> dp.Model:
+    """The short-period model above (states alpha, q; input de; outputs alpha, q,
+    az) with `parameters` (`Za, Zd, Ma, Mq, Md`) as its values."""
+    return dp.Model(
+        ("alpha", "q"),
+        ("de",),
+        ("alpha", "q", "az"),
+        parameters,
+        short_period_rates,
+        short_period_outputs,
+    )

@@ -16,14 +16,17 @@ from diffpegasus._estimate._filter_error import (
     problem,
 )
 from diffpegasus._estimate._fit import fit
-from diffpegasus._estimate._model import Model, Record
+from diffpegasus._estimate._model import Record
 from diffpegasus._estimate._riccati import (
     discretise,
     solve_dare,
     solve_filter_riccati,
 )
 
-from .helpers import short_period_outputs, short_period_rates, SHORT_PERIOD_SPEED
+from .helpers import (
+    short_period_model,
+    SHORT_PERIOD_SPEED,
+)
 
 
 TRUE = {"Za": -1.2, "Zd": -0.15, "Ma": -4.0, "Mq": -1.5, "Md": -6.0}
@@ -34,14 +37,7 @@ F_TRUE = (0.01, 0.05)  # alpha (rad/sqrt(s)), q (rad/s/sqrt(s)): turbulence-like
 NOISE = (2e-3, 4e-3, 0.05)  # measurement noise std of alpha, q, az
 
 
-MODEL = Model(
-    ("alpha", "q"),
-    ("de",),
-    ("alpha", "q", "az"),
-    TRUE,
-    short_period_rates,
-    short_period_outputs,
-)
+MODEL = short_period_model(TRUE)
 
 
 def _matrices(p):

@@ -7,9 +7,12 @@ import numpy as np
 import scipy.linalg as sl
 
 from diffpegasus._diagnose._input_timing import project_out, timing_directions
-from diffpegasus._estimate._model import Model, Record
+from diffpegasus._estimate._model import Record
 
-from .helpers import short_period_outputs, short_period_rates, SHORT_PERIOD_SPEED
+from .helpers import (
+    short_period_model,
+    SHORT_PERIOD_SPEED,
+)
 
 
 TRUE = {"Za": -1.2, "Zd": -0.15, "Ma": -4.0, "Mq": -1.5, "Md": -6.0}
@@ -23,14 +26,7 @@ FRACTION = 0.8
 SWITCHES = [(1.0, 0.05), (3.0, -0.1), (4.0, 0.1), (5.0, -0.05)]  # s, rad change
 
 
-MODEL = Model(
-    ("alpha", "q"),
-    ("de",),
-    ("alpha", "q", "az"),
-    TRUE,
-    short_period_rates,
-    short_period_outputs,
-)
+MODEL = short_period_model(TRUE)
 A = np.array([[TRUE["Za"], 1.0], [TRUE["Ma"], TRUE["Mq"]]])
 B = np.array([TRUE["Zd"], TRUE["Md"]])
 C = np.array([[1.0, 0.0], [0.0, 1.0], [V * TRUE["Za"], 0.0]])

@@ -527,17 +527,10 @@ def test_coloured_standard_errors_do_not_depend_on_the_padding(monkeypatch):
     padded row count)."""
     from diffpegasus._estimate import _fit
 
-    from .helpers import short_period_outputs, short_period_rates
+    from .helpers import short_period_model, short_period_outputs, short_period_rates
 
     truth = {"Za": -1.2, "Zd": -0.15, "Ma": -4.0, "Mq": -1.5, "Md": -6.0}
-    model = dp.Model(
-        ("alpha", "q"),
-        ("de",),
-        ("alpha", "q", "az"),
-        truth,
-        short_period_rates,
-        short_period_outputs,
-    )
+    model = short_period_model(truth)
     n, dt = 400, 0.05
     t = dt * np.arange(n)
     de = 0.05 * (((t >= 1) & (t < 4)) * 1.0 - ((t >= 4) & (t < 6)) + (t >= 12) * 0.5)
