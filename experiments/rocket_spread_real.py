@@ -31,6 +31,8 @@ for name in sys.argv[1:]:
         round(r.apogee, 1),
         "rms",
         round(r.rms(), 2),
+        "converged",
+        bool(r.fit.converged),
         "birge",
         None if r.spread is None else round(r.spread.birge, 2),
         "half-width % noise",
@@ -51,5 +53,11 @@ for name in sys.argv[1:]:
         np.round(1.96 * sn, 3).tolist(),
         "\n hw spread",
         np.round(1.96 * sd, 3).tolist(),
+        "\n sensors converged",
+        None
+        if r.spread is None or r.spread.converged is None
+        else r.spread.converged.tolist(),
+        "\n note",
+        None if r.spread is None else r.spread.note,
         flush=True,
     )

@@ -679,11 +679,12 @@ def test_diagnose_judges_the_thrust_scale_in_the_candidates_family(monkeypatch):
     assert len(intervals) == 2 and all(i > span for i in intervals)
 
 
-def _two_sensor_fit():
+def _two_sensor_fit(max_iter=None):
     """A joint output-error fit of a decay `a exp(-b t)` (two "knots", `a` and
     `b`, a held `cd_scale` of 1) read by two sensors that disagree: the second
     reads it with `b` 0.1 larger (a structural error of known size) plus a drift
-    `c t` only it sees, each with its own white noise (0.05 and 0.02)."""
+    `c t` only it sees, each with its own white noise (0.05 and 0.02); with
+    `max_iter`, stopped on that budget."""
     import jax.numpy as jnp
 
     import diffpegasus as dp
@@ -706,7 +707,8 @@ def _two_sensor_fit():
         fixed=("cd_scale",),
     )
     record = dp.Record(t, t[:, None], np.column_stack([y1, y2]), x0=np.zeros(1))
-    return dp.fit(model, record), t, np.column_stack([y1, y2])
+    fit = dp.fit(model, record, max_iter=max_iter, throw=max_iter is None)
+    return fit, t, np.column_stack([y1, y2])
 
 
 def _sandwich(j, e):
@@ -820,9 +822,31 @@ def test_sensor_estimates_are_each_sensors_own_converged_fit():
         knots=types.SimpleNamespace(names=("cd_a", "cd_b")),
     )
     spread = dr.structural_spread(result)
+    assert spread.note is None
     np.testing.assert_allclose(spread.tau, np.sqrt(tau2), rtol=1e-6)
     # b (first sensor's): the joint fit, pulled by the second sensor's larger b,
     # lies above the first's own by a part of the planted 0.1, beyond the noise
     assert spread.tau[1] > 0 and 0.01 < fit.params[1] - own.estimates[0, 1] < 0.1
     np.testing.assert_allclose(dr.between_variance([0.3, 0.1], [0.04, 0.02]), [0.05, 0])
     np.testing.assert_array_equal(dr.between_variance([0.1, -0.05], [0.02, 0.01]), 0)
+
+
+def test_sensors_term_not_computed_at_an_unconverged_joint_fit():
+    """The same two disagreeing sensors, the joint fit stopped on a budget of two
+    iterations (not at a minimum, so no sensor's own minimum can be compared with
+    it): no sensor is fitted, the structural term is zero (the band the noise's)
+    and the spread says why; converged, the same data give a positive term
+    (above)."""
+    import types
+
+    fit, _, _ = _two_sensor_fit(max_iter=2)
+    assert not fit.converged
+    result = types.SimpleNamespace(
+        fit=fit,
+        outputs=("one", "two"),
+        knots=types.SimpleNamespace(names=("cd_a", "cd_b")),
+    )
+    spread = dr.structural_spread(result)
+    np.testing.assert_array_equal(spread.tau, 0.0)
+    assert "did not converge" in spread.note and spread.converged is None
+    assert np.isnan(spread.knots).all() and np.isnan(spread.birge)

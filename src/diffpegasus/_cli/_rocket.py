@@ -127,6 +127,9 @@ def fit_command(
         f"  thrust scale           {row['thrust_scale']:.3f} "
         f"+/- {row['thrust_scale_stderr']:.3f}"
     )
+    note = row.get("cd_structural", {}).get("note")
+    if note:
+        typer.echo(f"  CD band                {note}")
     if out is not None:
         typer.echo(f"  figures and summary.json in {out}")
 

@@ -102,9 +102,12 @@ def run_flight(rocket, log, out=None, *, free=None, spread=False) -> dict:
     # the sensors' disagreement the band carries (none with one sensor)
     if result.spread is not None:
         row["cd_structural"] = {
-            "birge": result.spread.birge,
+            "birge": None if result.spread.note else result.spread.birge,
             "tau_at_knots": result.spread.tau.tolist(),
-            "converged": [bool(c) for c in result.spread.converged],
+            "converged": None
+            if result.spread.converged is None
+            else [bool(c) for c in result.spread.converged],
+            "note": result.spread.note,
         }
     model = result.fit.model
     row["estimates"] = {

@@ -112,7 +112,7 @@ def figures(problem, result, prediction, team, ee, out) -> list[pathlib.Path]:
     m = np.linspace(0.05, top, 200)
     cd, sd = result.cd(m)
     _, noise = result.cd(m, structural=False)
-    if result.spread is not None:
+    if result.spread is not None and result.spread.note is None:
         ax.fill_between(
             m,
             cd - 1.96 * sd,

@@ -39,7 +39,9 @@ class Spread:
     a sensor's own against its noise (the largest over the sensors; above 1 they
     disagree beyond it); `fitted` `(sensors, knots)` which sensor estimated each
     knot (the others held it at the joint value); `converged` `(sensors,)` whether
-    each sensor's own fit stopped at a minimum.
+    each sensor's own fit stopped at a minimum; `note` why the sensors' term was
+    not computed (then `tau` is zero, the band the noise's, and the sensors'
+    fields NaN), `None` when it was.
     """
 
     outputs: tuple[str, ...]
@@ -49,6 +51,7 @@ class Spread:
     birge: float
     fitted: np.ndarray | None = None
     converged: np.ndarray | None = None
+    note: str | None = None
 
 
 def between_variance(
@@ -266,6 +269,11 @@ def structural_spread(result) -> Spread | None:
     values); beyond it, by the model's structural error. Each knot's `tau` is that
     sensor's [`between_variance`][] (the larger over the sensors); the Birge ratio is the whole difference's
     against its noise covariance (in the directions where it is positive).
+
+    Only at a converged joint fit: the comparison is of minima (each sensor's
+    own fit starts at the joint one and its noise is linearised there), and a
+    joint fit stopped on its budget is at neither. Then no sensor is fitted, `tau`
+    is zero (the band is the noise's) and `note` says why.
     """
     if result.fit is None or len(result.outputs) < 2:
         return None
@@ -275,6 +283,18 @@ def structural_spread(result) -> Spread | None:
     idx = [names.index(k) for k in knots]
     if not all(fit.free[i] for i in idx):
         return None
+    if not bool(fit.converged):
+        n, k = len(result.outputs), len(knots)
+        return Spread(
+            tuple(result.outputs),
+            np.full((n, k), np.nan),
+            np.full((n, k, k), np.nan),
+            np.zeros(k),
+            float("nan"),
+            note="the joint fit did not converge: the sensors' term not computed "
+            "(it compares each sensor's own minimum with the joint one); "
+            "the band is the noise's",
+        )
     own = sensor_estimates(fit, knots)
     scale = float(fit.params[names.index("cd_scale")])
     x, c = own.estimates * scale, own.covariances * scale**2
