@@ -265,11 +265,11 @@ def test_cli_refuses_a_bad_rocket_file_in_one_line(tmp_path):
 
 @pytest.mark.validation
 def test_cli_fit_with_the_sensors_spread_reports_both_bands(tmp_path):
-    """`rocket fit --sensor-spread --json` on the committed clean RocketPy flight
-    (a whole fit, prediction and re-simulation: minutes, hence validation): the
-    JSON carries the band with the sensors' disagreement and the noise's, the
-    first never narrower, and the structural term at the knots (zero or more,
-    the sensors' own fits converged); without the flag the two are one."""
+    """`rocket fit --json` (the default: the sensors' spread in the band) on the
+    committed clean RocketPy flight (a whole fit, prediction and re-simulation:
+    minutes, hence validation): the JSON carries the band with the sensors'
+    disagreement and the noise's, the first never narrower, and the structural
+    term at the knots (zero or more, the sensors' own fits converged)."""
     import json
 
     from typer.testing import CliRunner
@@ -284,9 +284,7 @@ def test_cli_fit_with_the_sensors_spread_reports_both_bands(tmp_path):
         (SIM / "clean" / "rocket.toml").read_text() + '\n[log]\nfile = "log.csv"\n'
     )
     runner = CliRunner()
-    res = runner.invoke(
-        app, ["rocket", "fit", str(folder / "rocket.toml"), "--sensor-spread", "--json"]
-    )
+    res = runner.invoke(app, ["rocket", "fit", str(folder / "rocket.toml"), "--json"])
     assert res.exit_code == 0, res.output
     row = json.loads(res.output.strip().splitlines()[-1])
     table = row["cd_table"]
@@ -296,6 +294,51 @@ def test_cli_fit_with_the_sensors_spread_reports_both_bands(tmp_path):
     tau = np.array(row["cd_structural"]["tau_at_knots"])
     assert tau.shape == (len(table),) and np.all(tau >= 0) and np.any(tau > 0)
     assert all(row["cd_structural"]["converged"])
+    assert row["cd_structural"]["note"] is None
+
+
+def test_cli_fit_carries_the_sensors_spread_by_default(tmp_path, monkeypatch):
+    """`rocket fit` asks for the sensors' spread unless told `--no-sensor-spread`,
+    and says when the band is the noise's because the joint fit did not converge
+    (the fit itself replaced: its band is tested above and on the two-sensor
+    case; this is the command's wiring, on the committed flight's files)."""
+    from typer.testing import CliRunner
+
+    from diffpegasus._cli import app
+    from diffpegasus._rocket import _pipeline
+
+    folder = tmp_path / "clean"
+    folder.mkdir()
+    for f in (SIM / "clean").iterdir():
+        (folder / f.name).write_bytes(f.read_bytes())
+    (folder / "rocket.toml").write_text(
+        (SIM / "clean" / "rocket.toml").read_text() + '\n[log]\nfile = "log.csv"\n'
+    )
+    asked = []
+    note = "the joint fit did not converge: the sensors' term not computed"
+
+    def fake_run(rocket, log, out=None, *, free=None, spread=True):
+        asked.append(spread)
+        row = {"flight": "clean", "outputs": list(log.channels), "converged": False}
+        row |= dict.fromkeys(
+            ("fit_seconds", "apogee_logged_m", "apogee_reconstructed_m")
+            + ("reconstructed_error_pct", "apogee_predicted_m", "predicted_error_pct")
+            + ("prediction_uses_log_to_s", "apogee_team_preflight_m")
+            + ("team_preflight_error_pct", "altitude_rms_m", "thrust_scale")
+            + ("altitude_rms_pct_of_apogee", "thrust_scale_stderr"),
+            1.0,
+        )
+        return row | {"cd_structural": {"note": note}}
+
+    monkeypatch.setattr(_pipeline, "run_flight", fake_run)
+    runner = CliRunner()
+    toml = str(folder / "rocket.toml")
+    res = runner.invoke(app, ["rocket", "fit", toml])
+    assert res.exit_code == 0, res.output
+    assert note in res.output and "NOT converged" in res.output
+    res = runner.invoke(app, ["rocket", "fit", toml, "--no-sensor-spread"])
+    assert res.exit_code == 0, res.output
+    assert asked == [True, False]
 
 
 @pytest.mark.parametrize("name, planted", [("clean", 1.0), ("planted", 0.94)])

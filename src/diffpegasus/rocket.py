@@ -5,8 +5,8 @@ import diffpegasus.rocket as dr
 rocket = dr.read_rocket("rocket.toml")
 problem = dr.prepare(rocket, log)          # log: a rocket log (channels, events)
 result = dr.fit_rocket(problem)            # CD(Mach) knots, thrust scale, baro
-cd, stderr = result.cd([0.3, 0.6, 0.9])    # coloured-residual band
-# dr.fit_rocket(problem, spread=True): the sensors' disagreement joins the band
+cd, stderr = result.cd([0.3, 0.6, 0.9])    # band: noise and sensors' disagreement
+# dr.fit_rocket(problem, spread=False): the noise's band alone
 named, tests, _ = dr.diagnose(problem)     # missing effects
 """
 

@@ -50,9 +50,10 @@ AttitudeOption = Annotated[
 SpreadOption = Annotated[
     bool,
     typer.Option(
-        "--sensor-spread",
+        "--sensor-spread/--no-sensor-spread",
         help="Add the disagreement between the barometer and the accelerometer to "
-        "CD's band (each sensor's own fit from the joint one; slower)",
+        "CD's band (each sensor's own fit from the joint one; --no-sensor-spread: "
+        "the noise's band alone, faster)",
     ),
 ]
 
@@ -88,7 +89,7 @@ def fit_command(
     out: OutOption = None,
     as_json: JsonOption = False,
     attitude: AttitudeOption = False,
-    sensor_spread: SpreadOption = False,
+    sensor_spread: SpreadOption = True,
 ):
     """Fit CD(Mach), thrust scale and the barometer to the ascent; reconstruct and
     predict the apogee (from the log up to 2 s after burnout); re-simulate with the

@@ -375,7 +375,7 @@ def fit_rocket(
     hold: tuple[str, ...] = (),
     single: bool = True,
     throw: bool = True,
-    spread: bool = False,
+    spread: bool = True,
 ) -> RocketFit:
     """Fit the rocket's model to the ascent, by continuation: the start curve's
     shape scaled by one factor first (with the thrust scale, motor time and the
@@ -411,8 +411,8 @@ def fit_rocket(
     - `throw`: raise on a failed fit (else the fit carries its result code).
     - `spread`: with two sensors, measure their disagreement over the drag knots
       ([`structural_spread`][]: each sensor's own converged fit from the joint
-      one) and carry it in `CD`'s band. Off by default: measured on part of the
-      simulated flights and real logs only (see the rockets' pages).
+      one; not at a joint fit that did not converge) and carry it in `CD`'s band;
+      `False`: the noise's band alone, without the sensors' own fits.
 
     **Returns:** a [`RocketFit`][].
     """

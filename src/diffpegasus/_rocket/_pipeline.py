@@ -54,11 +54,12 @@ def predict(problem, until: float):
     )
 
 
-def run_flight(rocket, log, out=None, *, free=None, spread=False) -> dict:
+def run_flight(rocket, log, out=None, *, free=None, spread=True) -> dict:
     """Fit the ascent, predict the apogee from the log up to two seconds after
     burnout, re-simulate with the team's drag curve, and (with `out`) write the
     figures and `summary.json` there. `spread`: carry the disagreement between
-    the log's sensors in CD's band (see [`fit_rocket`][]).
+    the log's sensors in CD's band (see [`fit_rocket`][]; `False`: the noise's
+    band alone).
 
     **Returns:** the summary (see [`summary`][]) with `cd_table` rows (Mach, CD,
     standard error with the sensors' spread and of the noise alone, team CD) and,
