@@ -338,3 +338,94 @@ def test_coloured_correction_counts_samples_not_padding_rows():
     # was sqrt(400 / 416) = 0.981 of the unpadded one when it divided by the rows
     np.testing.assert_allclose(unpadded, reference, rtol=1e-10)
     np.testing.assert_allclose(padded, unpadded, rtol=1e-10)
+
+
+def _bump_model():
+    """Two states, one output `x1 + x2 / 2`, input gains `b1`, `b2` estimated;
+    the dynamics stable except in a 0.1 s bump at t = 2 s, where they are those
+    of a strongly unstable pair (eigenvalues 8.8 and 16.7 1/s)."""
+    from diffpegasus._model import Model
+
+    a_stable = np.array([[-1.0, 1.0], [-2.0, -1.0]])
+    a_bump = np.array([[18.734, -14.443], [1.399, 6.791]])
+    c = np.array([1.0, 0.5])
+
+    def a_of(t):
+        w = jnp.exp(-(((t - 2.0) / 0.1) ** 2))
+        return jnp.asarray(a_stable) + w * jnp.asarray(a_bump - a_stable)
+
+    def rates(t, x, u, p):
+        return a_of(t) @ x + jnp.stack([p["b1"], p["b2"]]) * u[0]
+
+    def observe(t, x, u, p):
+        return (jnp.asarray(c) @ x) * jnp.ones(1)
+
+    model = Model(("x1", "x2"), ("u",), ("y",), ("b1", "b2"), rates, observe)
+    return model, a_of, c
+
+
+def test_scheduled_fit_moves_a_start_without_a_gain_to_one_with_it():
+    """A scheduled gain (5 points) whose start intensities, scaled to the
+    residuals, give no steady-state gain at the schedule point inside the
+    unstable bump (`gain_variation` infinite there; a tenth of them: finite):
+    given those intensities as the start the fit cannot take a step (non-finite
+    det R); from the residuals the start is divided by 10 until every point has
+    a gain (once here), and the fit converges where the fit given that start
+    does. Without the division the fit ends non-finite."""
+    from diffpegasus._estimate._filter_error import gain_variation, residual_intensities
+    from diffpegasus._estimate._filter_gain import ScheduledGain
+
+    model, a_of, c = _bump_model()
+    dt, n = 0.05, 81
+    t = dt * np.arange(n)
+    u = ((t >= 0.5) & (t < 1.0)).astype(float) - ((t >= 1.0) & (t < 1.5))
+    b = np.array([1.0, -2.0])
+    rng = np.random.default_rng(0)
+    x = np.zeros((n, 2))
+    for k in range(n - 1):  # RK4 at the sample step plus discrete process noise
+
+        def f(tt, xx, uu):
+            return np.asarray(a_of(tt)) @ xx + b * uu
+
+        tk, xk, um = t[k], x[k], 0.5 * (u[k] + u[k + 1])
+        k1 = f(tk, xk, u[k])
+        k2 = f(tk + dt / 2, xk + dt / 2 * k1, um)
+        k3 = f(tk + dt / 2, xk + dt / 2 * k2, um)
+        k4 = f(tk + dt, xk + dt * k3, u[k + 1])
+        _, q = discretise(a_of(tk + dt / 2), jnp.diag(jnp.array([0.005, 0.01])), dt)
+        x[k + 1] = xk + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        x[k + 1] += np.linalg.cholesky(np.asarray(q)) @ rng.normal(size=2)
+    y = (x @ c)[:, None] + 0.1 * rng.normal(size=(n, 1))
+    rec = Record(t, u[:, None], y, x0=np.zeros(2), name="bump")
+    residuals = [y - (x @ c)[:, None]]  # the measurement noise
+    sched = ScheduledGain(points=5)
+    f0 = residual_intensities(model, [rec], residuals, b, (0, 1))
+    prob = problem(model, [rec], (0, 1), sched)
+    assert gain_variation(model, prob, b, f0, residuals) == np.inf
+    assert np.isfinite(gain_variation(model, prob, b, f0 / 10, residuals))
+    start = np.array([1.2, -1.5])
+    common = dict(start=start, gain=sched, throw=False, rtol=1e-10)
+    given = fit_filter_error(
+        model, rec, process_noise=dict(zip(("x1", "x2"), f0, strict=True)), **common
+    )
+    assert not np.isfinite(given.cost)
+    moved = fit_filter_error(
+        model, rec, process_noise=("x1", "x2"), residuals=residuals, **common
+    )
+    # the fit given the solvable start f0 / 10 (where one division lands);
+    # measured: the optimum here is not unique (from f0 / 3, f0 / 5, f0 / 20 the
+    # fits converge to det R 0.01355, 0.01348, 0.01497 at other estimates), so
+    # the reference is the same start, not another one
+    solvable = fit_filter_error(
+        model,
+        rec,
+        process_noise=dict(zip(("x1", "x2"), f0 / 10, strict=True)),
+        **common,
+    )
+    assert moved.converged and solvable.converged
+    # it moved: measured b (0.815, -1.856) from the start (1.2, -1.5)
+    assert np.max(np.abs(moved.params - start)) > 0.3
+    # measured: identical (one program, one start)
+    np.testing.assert_allclose(moved.params, solvable.params, rtol=1e-8)
+    np.testing.assert_allclose(moved.F, solvable.F, rtol=1e-8)
+    np.testing.assert_allclose(moved.cost, solvable.cost, rtol=1e-8)
