@@ -189,13 +189,24 @@ def main():
         metavar="K",
         help="only the stability rule across these two resolutions (stored thresholds)",
     )
+    e.add_argument(
+        "--refine",
+        type=int,
+        default=None,
+        metavar="K",
+        help="the rule K functions then K + 1 where K names something",
+    )
+    e.add_argument("--new", action="store_true", help="the flights in NEW")
+    e.add_argument("--out", default=None, help="--refine's rows as JSON")
     args = p.parse_args()
     if args.cmd == "fit":
         fit(args)
     else:
-        from misfit_variants import agree, evaluate
+        from misfit_variants import agree, evaluate, refine
 
-        if args.agree:
+        if args.refine:
+            refine(args.refine, args.new, args.out)
+        elif args.agree:
             agree(tuple(args.agree))
         else:
             evaluate(args)
