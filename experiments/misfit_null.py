@@ -4,6 +4,7 @@ then decision-rule variants evaluated in seconds without refitting.
 
     nice python experiments/misfit_null.py fit --knots 6 --flights 50:1 1000:7
     python experiments/misfit_null.py evaluate [--agree 9 12]
+    python experiments/misfit_null.py evaluate --refine 12 [--second 9] [--new]
 
 `fit`: for each flight (`experiments/acceptance.py`'s list, independent generator
 `tests/independent_generator.py`) the baseline fit with `PegasusEntry(knots=K)`
@@ -196,16 +197,29 @@ def main():
         metavar="K",
         help="the rule K functions then K + 1 where K names something",
     )
+    e.add_argument(
+        "--second", type=int, default=None, help="--refine's second resolution"
+    )
     e.add_argument("--new", action="store_true", help="the flights in NEW")
+    e.add_argument(
+        "--columns",
+        type=int,
+        nargs="+",
+        default=None,
+        metavar="K",
+        help="each resolution's finding per flight, and the two-resolution rules",
+    )
     e.add_argument("--out", default=None, help="--refine's rows as JSON")
     args = p.parse_args()
     if args.cmd == "fit":
         fit(args)
     else:
-        from misfit_variants import agree, evaluate, refine
+        from misfit_variants import agree, columns, evaluate, refine
 
-        if args.refine:
-            refine(args.refine, args.new, args.out)
+        if args.columns:
+            columns(tuple(args.columns), args.new)
+        elif args.refine:
+            refine(args.refine, args.new, args.out, args.second)
         elif args.agree:
             agree(tuple(args.agree))
         else:

@@ -297,14 +297,15 @@ def _summary(rate, seed, knots):
     return row
 
 
-def refine(first: int = 12, new: bool = False, out=None):
+def refine(first: int = 12, new: bool = False, out=None, second: int | None = None):
     """The rule stated before measuring: the log's resolution `first` (what
     `choose_knots` picks on these flights) and one function more, fitted only
     where `first` names something; named only when both resolutions' first
     findings (the library's `significant`, as stored) agree, the tied dampings
-    counting as one. With `new` the flights of `misfit_null.NEW`."""
+    counting as one. With `new` the flights of `misfit_null.NEW`; `second`: another
+    second resolution than `first + 1` (the pair 9 and 12 measured before)."""
     by, order = _flights(new)
-    second = first + 1
+    second = first + 1 if second is None else second
     print(
         f"| flight | planted | {first} functions | {second} functions | named | right |"
     )
@@ -358,3 +359,38 @@ def _cell(row):
         return f"{name} ({stat:.1f} / {thr:.1f})"
     top = row["top"][0]
     return f"none ({top[0]} {top[1]:.1f} / {thr:.1f})"
+
+
+def columns(knots=(6, 9, 12, 13), new: bool = False):
+    """Each resolution's first finding per flight (stored summaries), and the
+    rules `12 then 13` (stated in advance) and `12 then 9` (the pair measured
+    before) where both are stored."""
+    by, order = _flights(new)
+    head = " | ".join(f"{k} functions" for k in knots)
+    print(f"| flight | planted | {head} | 12 then 13 | 12 then 9 |")
+    print("|---" * (len(knots) + 4) + "|")
+    for f in order:
+        rate, seed, planted, value = by[f]
+        rows = {k: _summary(rate, seed, k) for k in knots}
+        cells = [_cell(r) if r else "not fitted" for r in rows.values()]
+
+        def first(k, rows=rows):
+            r = rows.get(k)
+            return (r["significant"] or [None])[0] if r else "?"
+
+        rules = []
+        for second in (13, 9):
+            a = first(12)
+            b = first(second) if a else None
+            if a == "?" or b == "?":
+                rules.append("?")
+                continue
+            same = a == b or {a, b} <= {"pitch_damping", "alpha_dot_damping"}
+            named = a if same else None
+            ok = _right(named, planted)
+            rules.append(f"{named or 'none'} ({'yes' if ok else 'no'})")
+        print(
+            f"| {f} | {planted or 'clean'} {value or ''} | "
+            + " | ".join(cells + rules)
+            + " |"
+        )
