@@ -351,14 +351,21 @@ def refine(first: int = 12, new: bool = False, out=None, second: int | None = No
 
 
 def _cell(row):
-    """`effect (statistic / threshold)` of a stored summary, `none (top ...)`."""
+    """`effect (statistic / threshold)` of a stored summary; with nothing named,
+    `none (the largest statistic's candidate, statistic / threshold)` from the
+    stored score test (the summary's `top` follows the ranking's order)."""
     thr = row["threshold"]
     if row["significant"]:
         name = row["significant"][0]
         stat = next((t[1] for t in row["top"] if t[0] == name), row["top"][0][1])
         return f"{name} ({stat:.1f} / {thr:.1f})"
-    top = row["top"][0]
-    return f"none ({top[0]} {top[1]:.1f} / {thr:.1f})"
+    d = _load(row["rate"], row["seed"], row["knots"])
+    if d is None:
+        top = max(row["top"], key=lambda t: t[1])
+        return f"none ({top[0]} {top[1]:.1f} / {thr:.1f})"
+    j = int(np.argmax(d["statistic"]))
+    name = d["names"][j].split(".")[0]
+    return f"none ({name} {float(d['statistic'][j]):.1f} / {thr:.1f})"
 
 
 def columns(knots=(6, 9, 12, 13), new: bool = False):
