@@ -4,6 +4,7 @@ then decision-rule variants evaluated in seconds without refitting.
 
     nice python experiments/misfit_null.py fit --knots 6 --flights 50:1 1000:7
     python experiments/misfit_null.py evaluate [--agree 9 12]
+    python experiments/misfit_null.py evaluate --refine 12 [--second 9] [--new]
 
 `fit`: for each flight (`experiments/acceptance.py`'s list, independent generator
 `tests/independent_generator.py`) the baseline fit with `PegasusEntry(knots=K)`
@@ -37,10 +38,25 @@ sys.path.insert(0, str(HERE))
 
 ORDER = ["50:1", "1000:7", "200:8", "1000:4", "50:13", "50:10", "200:5"]
 
+# Flights no rule was chosen on (new seeds and rates, fixed before any of their
+# results was seen), to check a rule measured on the 14 above: `fit --flights new`.
+NEW = [
+    (100.0, 41, None, 0.0),
+    (400.0, 42, None, 0.0),
+    (50.0, 43, "moment_offset", 0.006),
+    (400.0, 44, "moment_offset", 0.006),
+    (100.0, 45, "thrust_misalignment", 0.006),
+]
 
-def _flights():
+
+def _flights(new: bool = False):
+    """`{"RATE:SEED": (rate, seed, planted, value)}` and their order: the
+    acceptance set's 14 flights, or with `new` the flights in `NEW`."""
     from acceptance import PEGASUS
 
+    if new:
+        by = {f"{r:g}:{s}": (r, s, p, v) for r, s, p, v in NEW}
+        return by, list(by)
     by = {f"{r:g}:{s}": (r, s, p, v) for _, r, s, p, v in PEGASUS}
     rest = [f for f in by if f not in ORDER]
     return by, ORDER + rest
@@ -48,6 +64,17 @@ def _flights():
 
 def _stem(rate, seed, knots):
     return f"pegasus_{int(rate)}_{seed}_k{knots}"
+
+
+def _named(rate, seed, knots) -> bool:
+    """Whether the stored fit at `knots` named an effect (no stored fit: True)."""
+    if not (RESULTS / "fits.jsonl").exists():
+        return True
+    for line in open(RESULTS / "fits.jsonl"):
+        r = json.loads(line)
+        if r["rate"] == rate and r["seed"] == seed and r["knots"] == knots:
+            return bool(r["significant"])
+    return True
 
 
 def fit(args):
@@ -91,8 +118,11 @@ def fit(args):
         return ranking, cals
 
     _rule.DecisionRule.decide = decide
-    by, order = _flights()
-    flights = args.flights or order
+    new = args.flights == ["new"]
+    by, order = _flights(new)
+    flights = order if new or not args.flights else args.flights
+    if args.only_named is not None:
+        flights = [f for f in flights if _named(*by[f][:2], args.only_named)]
     RESULTS.mkdir(parents=True, exist_ok=True)
     CACHE.mkdir(parents=True, exist_ok=True)
     folder = pathlib.Path(tempfile.mkdtemp(prefix="misfit_"))
@@ -136,7 +166,20 @@ def main():
     sub = p.add_subparsers(dest="cmd", required=True)
     f = sub.add_parser("fit")
     f.add_argument("--knots", type=int, default=6)
-    f.add_argument("--flights", nargs="+", default=None, metavar="RATE:SEED")
+    f.add_argument(
+        "--flights",
+        nargs="+",
+        default=None,
+        metavar="RATE:SEED",
+        help="a subset of the 14, or `new`: the flights in NEW",
+    )
+    f.add_argument(
+        "--only-named",
+        type=int,
+        default=None,
+        metavar="K",
+        help="only the flights whose stored fit at K functions named an effect",
+    )
     e = sub.add_parser("evaluate")
     e.add_argument("--table", action="store_true")
     e.add_argument(
@@ -147,13 +190,37 @@ def main():
         metavar="K",
         help="only the stability rule across these two resolutions (stored thresholds)",
     )
+    e.add_argument(
+        "--refine",
+        type=int,
+        default=None,
+        metavar="K",
+        help="the rule K functions then K + 1 where K names something",
+    )
+    e.add_argument(
+        "--second", type=int, default=None, help="--refine's second resolution"
+    )
+    e.add_argument("--new", action="store_true", help="the flights in NEW")
+    e.add_argument(
+        "--columns",
+        type=int,
+        nargs="+",
+        default=None,
+        metavar="K",
+        help="each resolution's finding per flight, and the two-resolution rules",
+    )
+    e.add_argument("--out", default=None, help="--refine's rows as JSON")
     args = p.parse_args()
     if args.cmd == "fit":
         fit(args)
     else:
-        from misfit_variants import agree, evaluate
+        from misfit_variants import agree, columns, evaluate, refine
 
-        if args.agree:
+        if args.columns:
+            columns(tuple(args.columns), args.new)
+        elif args.refine:
+            refine(args.refine, args.new, args.out, args.second)
+        elif args.agree:
             agree(tuple(args.agree))
         else:
             evaluate(args)

@@ -22,6 +22,7 @@ keeps its size as the baseline refines; a misfit's projection moves).
 """
 
 import json
+import pathlib
 
 import numpy as np
 from misfit_null import _flights, _stem, CACHE, HERE, RESULTS
@@ -284,3 +285,119 @@ def agree(pair=(9, 12)):
             f"| {named or 'none'} | {'yes' if ok else 'no'} |"
         )
     print(f"both at {pair}: {sum(oks)}/{len(oks)} right")
+
+
+def _summary(rate, seed, knots):
+    """The last stored summary line (`fits.jsonl`) of a flight's fit at `knots`."""
+    row = None
+    for line in open(RESULTS / "fits.jsonl"):
+        r = json.loads(line)
+        if r["rate"] == rate and r["seed"] == seed and r["knots"] == knots:
+            row = r
+    return row
+
+
+def refine(first: int = 12, new: bool = False, out=None, second: int | None = None):
+    """The rule stated before measuring: the log's resolution `first` (what
+    `choose_knots` picks on these flights) and one function more, fitted only
+    where `first` names something; named only when both resolutions' first
+    findings (the library's `significant`, as stored) agree, the tied dampings
+    counting as one. With `new` the flights of `misfit_null.NEW`; `second`: another
+    second resolution than `first + 1` (the pair 9 and 12 measured before)."""
+    by, order = _flights(new)
+    second = first + 1 if second is None else second
+    print(
+        f"| flight | planted | {first} functions | {second} functions | named | right |"
+    )
+    print("|---|---|---|---|---|---|")
+    rows, oks = [], []
+    for f in order:
+        rate, seed, planted, value = by[f]
+        a_row = _summary(rate, seed, first)
+        if a_row is None:
+            continue
+        a = a_row["significant"][0] if a_row["significant"] else None
+        cell_a = _cell(a_row)
+        b, cell_b = None, "not fitted"
+        if a is not None:
+            b_row = _summary(rate, seed, second)
+            if b_row is None:
+                continue
+            b = b_row["significant"][0] if b_row["significant"] else None
+            cell_b = _cell(b_row)
+        same = a == b or {a, b} <= {"pitch_damping", "alpha_dot_damping"}
+        named = a if same else None
+        ok = _right(named, planted)
+        oks.append(ok)
+        rows.append(
+            dict(
+                flight=f,
+                planted=planted,
+                value=value,
+                first=a,
+                second=b,
+                named=named,
+                right=ok,
+            )
+        )
+        print(
+            f"| {f} | {planted or 'clean'} {value or ''} | {cell_a} | {cell_b} "
+            f"| {named or 'none'} | {'yes' if ok else 'no'} |"
+        )
+    print(f"{first} then {second}: {sum(oks)}/{len(oks)} right")
+    if out is not None:
+        pathlib.Path(out).write_text(json.dumps(rows, indent=1) + "\n")
+    return rows
+
+
+def _cell(row):
+    """`effect (statistic / threshold)` of a stored summary; with nothing named,
+    `none (the largest statistic's candidate, statistic / threshold)` from the
+    stored score test (the summary's `top` follows the ranking's order)."""
+    thr = row["threshold"]
+    if row["significant"]:
+        name = row["significant"][0]
+        stat = next((t[1] for t in row["top"] if t[0] == name), row["top"][0][1])
+        return f"{name} ({stat:.1f} / {thr:.1f})"
+    d = _load(row["rate"], row["seed"], row["knots"])
+    if d is None:
+        top = max(row["top"], key=lambda t: t[1])
+        return f"none ({top[0]} {top[1]:.1f} / {thr:.1f})"
+    j = int(np.argmax(d["statistic"]))
+    name = d["names"][j].split(".")[0]
+    return f"none ({name} {float(d['statistic'][j]):.1f} / {thr:.1f})"
+
+
+def columns(knots=(6, 9, 12, 13), new: bool = False):
+    """Each resolution's first finding per flight (stored summaries), and the
+    rules `12 then 13` (stated in advance) and `12 then 9` (the pair measured
+    before) where both are stored."""
+    by, order = _flights(new)
+    head = " | ".join(f"{k} functions" for k in knots)
+    print(f"| flight | planted | {head} | 12 then 13 | 12 then 9 |")
+    print("|---" * (len(knots) + 4) + "|")
+    for f in order:
+        rate, seed, planted, value = by[f]
+        rows = {k: _summary(rate, seed, k) for k in knots}
+        cells = [_cell(r) if r else "not fitted" for r in rows.values()]
+
+        def first(k, rows=rows):
+            r = rows.get(k)
+            return (r["significant"] or [None])[0] if r else "?"
+
+        rules = []
+        for second in (13, 9):
+            a = first(12)
+            b = first(second) if a else None
+            if a == "?" or b == "?":
+                rules.append("?")
+                continue
+            same = a == b or {a, b} <= {"pitch_damping", "alpha_dot_damping"}
+            named = a if same else None
+            ok = _right(named, planted)
+            rules.append(f"{named or 'none'} ({'yes' if ok else 'no'})")
+        print(
+            f"| {f} | {planted or 'clean'} {value or ''} | "
+            + " | ".join(cells + rules)
+            + " |"
+        )
