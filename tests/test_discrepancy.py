@@ -174,6 +174,8 @@ PLANTED = [
     pytest.param("drag_offset", 0.05, marks=pytest.mark.validation),
     pytest.param("moment_offset", 0.01, marks=pytest.mark.validation),
     pytest.param("thrust_misalignment", 0.03, marks=pytest.mark.validation),
+    # far above the rule's threshold: on a 15 s flight of this kind (half the
+    # data) its statistic was 723 against the threshold 10.8, the refit 4.97 +/- 0.05
     ("vertical_wind", 5.0),
     pytest.param("sensor_bias:q", 0.002, marks=pytest.mark.validation),
 ]
