@@ -129,10 +129,20 @@ def test_model_jacobian_matches_finite_differences():
         assert np.max(np.abs(fd - jac[:, k]) / scale) < 1e-4, k
 
 
-# two clean flights (seed 6 is the hard one, a validation test: it repeats seed 3's
-# check and is a known failure); the false-alarm rate over many clean flights is
-# measured by experiments/decision_rule.py (independent generator)
-@pytest.mark.parametrize("seed", [3, pytest.param(6, marks=pytest.mark.validation)])
+# Validation tests (`-m validation`): a clean launch-vehicle flight flagging nothing
+# is checked by default on the independent generator's calm flight
+# (tests/test_fem_pegasus.py) and, on this simulator, by the last diagnosis of
+# test_two_effects_diagnose_add_diagnose_again (nothing significant once the planted
+# effects are in the model). Seed 6 is the hard one, a known failure; the
+# false-alarm rate over many clean flights is measured by
+# experiments/decision_rule.py (independent generator)
+@pytest.mark.parametrize(
+    "seed",
+    [
+        pytest.param(3, marks=pytest.mark.validation),
+        pytest.param(6, marks=pytest.mark.validation),
+    ],
+)
 def test_clean_flights_flag_nothing(seed):
     base, result = baseline((), seed)
     assert base.converged
@@ -154,16 +164,18 @@ def test_clean_flights_flag_nothing(seed):
 # diagnosed, added and recovered on this same flight by
 # test_two_effects_diagnose_add_diagnose_again, and the az bias alone through the
 # command line by test_cli_diagnose_and_fit_json_on_a_log_without_sidecar.
-# Three of them are validation tests (`-m validation`), repeats of a path a default
-# test takes: the drag offset an aerodynamic offset as the moment offset; the thrust
-# misalignment the moment offset's look-alike, planted and recovered on the
-# independent generator's 1 kHz flight in test_trust.py; the q bias a sensor bias
-# as the az bias of the two-effect and command-line tests.
+# One planted effect, the vertical wind (air data), is the default test that a
+# single planted effect is named first and recovered; the others are validation
+# tests (`-m validation`), repeats of that path with another effect. Their terms
+# (pitch damping, moment offset, thrust misalignment) are differentiated against
+# finite differences by test_model_jacobian_matches_finite_differences.
 PLANTED = [
-    ("pitch_damping", -10.0),
+    pytest.param("pitch_damping", -10.0, marks=pytest.mark.validation),
     pytest.param("drag_offset", 0.05, marks=pytest.mark.validation),
-    ("moment_offset", 0.01),
+    pytest.param("moment_offset", 0.01, marks=pytest.mark.validation),
     pytest.param("thrust_misalignment", 0.03, marks=pytest.mark.validation),
+    # far above the rule's threshold: on a 15 s flight of this kind (half the
+    # data) its statistic was 723 against the threshold 10.8, the refit 4.97 +/- 0.05
     ("vertical_wind", 5.0),
     pytest.param("sensor_bias:q", 0.002, marks=pytest.mark.validation),
 ]

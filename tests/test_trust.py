@@ -72,7 +72,7 @@ def test_generator_shares_no_code_with_the_package():
 
 
 def test_generator_log_format_and_sample_rates():
-    # the logs the clean-flight tests below diagnose (made once, shared)
+    # the logs the clean-flight validation tests below diagnose (made once, shared)
     for seed, rate in ((17, 1000.0), (3, 50.0)):
         lg = log(seed, rate)
         assert lg.sample_rate == pytest.approx(rate)
@@ -146,12 +146,17 @@ def test_residual_noise_sigma_ignores_signal():
 # Where the noise is low (1 kHz logs averaged to the model's 50 Hz) the rule
 # calibrated on the log may report them, with their sizes; nothing else may be flagged.
 # Seed 17 at 1 kHz: the largest of 20 clean flights (thrust-misalignment statistic
-# 102). One more flight at 50 Hz proves the point here (seed 3 at 1 kHz repeats it,
-# a validation test); the false-alarm rate over many clean flights is measured by
-# experiments/decision_rule.py.
+# 102). All three are validation tests (`-m validation`): a clean launch-vehicle
+# flight of this generator flagging nothing is checked by default in
+# tests/test_fem_pegasus.py (its calm flight); the false-alarm rate over many clean
+# flights is measured by experiments/decision_rule.py.
 @pytest.mark.parametrize(
     "seed,rate",
-    [pytest.param(3, 1000.0, marks=pytest.mark.validation), (3, 50.0), (17, 1000.0)],
+    [
+        pytest.param(3, 1000.0, marks=pytest.mark.validation),
+        pytest.param(3, 50.0, marks=pytest.mark.validation),
+        pytest.param(17, 1000.0, marks=pytest.mark.validation),
+    ],
 )
 def test_clean_generator_flights_flag_only_the_known_model_differences(seed, rate):
     base, result = baseline(seed, rate)
@@ -180,7 +185,7 @@ def test_clean_generator_flights_flag_only_the_known_model_differences(seed, rat
 # (statistic 38.3: above the 21.0 of a planted CM0 of 0.006 at 50 Hz, seed 1),
 # while the moment offset stays small (0.0025 +/- 0.0016). No noise: the fit and
 # its score are deterministic, so the bounds are near the measured values. A
-# validation test: the clean flights above cover the misfit's sign and bound.
+# validation test, as are the clean flights above that bound the misfit with noise.
 @pytest.mark.validation
 def test_noise_free_clean_flight_carries_a_misalignment_sized_misfit(tmp_path):
     path = gen.make_log(tmp_path / "clean_13_50.csv", 13, 50.0, 30.0, noise=False)
@@ -195,21 +200,19 @@ def test_noise_free_clean_flight_carries_a_misalignment_sized_misfit(tmp_path):
 
 # Planted effects, each at a rate where the issue found a problem; sizes a few
 # times what a clean flight's structural misfit mimics.
-# Validation tests (`-m validation`), each a repeat a default test covers: the delay
-# at 1 kHz (the same delay at 50 Hz here; the 1 kHz logs' block means by the clean
-# 1 kHz flight and the thrust misalignment), the az bias at 200 Hz (a sensor bias
-# found and recovered on the independent HFB-320 below and, through the command
-# line, in test_discrepancy.py; the gravity shift by the clean flights), pitch
-# damping at 1 kHz (a known
-# failure; planted and recovered at 50 Hz in test_discrepancy.py) and the moment
-# offset at 200 Hz (at the rule's detection limit, so it asserts nothing; planted
-# and recovered in test_discrepancy.py).
+# All validation tests (`-m validation`), each a repeat of what a default test
+# covers: a planted effect named first and recovered (the vertical wind of
+# test_discrepancy.py; the delay and the az bias there too, added one after the
+# other, and the az bias on the independent HFB-320 below); where a step falls
+# between samples by test_block_means_keep_a_step_on_time. Pitch damping at 1 kHz
+# is a known failure, and the moment offset at 200 Hz is at the rule's detection
+# limit, so it asserts nothing.
 PLANTED = [
     pytest.param("actuator_delay", 0.04, 1000.0, 0, marks=pytest.mark.validation),
-    pytest.param("actuator_delay", 0.04, 50.0, 2, marks=pytest.mark.slow),
+    pytest.param("actuator_delay", 0.04, 50.0, 2, marks=pytest.mark.validation),
     pytest.param("sensor_bias:az", 0.3, 200.0, 3, marks=pytest.mark.validation),
     pytest.param("pitch_damping", -3.0, 1000.0, 0, marks=pytest.mark.validation),
-    pytest.param("thrust_misalignment", 0.03, 1000.0, 0, marks=pytest.mark.slow),
+    pytest.param("thrust_misalignment", 0.03, 1000.0, 0, marks=pytest.mark.validation),
     # at the rule's detection limit on this generator: a planted CM0 of 0.01 gives
     # a score statistic of 29-40 (measured, seeds 3 and 2), about the threshold
     # this generator's logs give at 200 Hz (29-42); a CM0 of 0.006 was found on
