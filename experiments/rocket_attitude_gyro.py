@@ -51,6 +51,7 @@ def one(folder, gyro):
     seconds = time.perf_counter() - t0
     out = {"outputs": list(problem.outputs), "seconds": seconds}
     out["converged"] = bool(r.fit.converged)
+    out["iterations"] = int(r.fit.iterations)
     out["tries"] = {k: list(v) for k, v in r.tries.items()}
     for name in GYRO_FREE + ("wind_along", "thrust_scale"):
         v, s = r.estimate(name)

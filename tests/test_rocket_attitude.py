@@ -154,3 +154,38 @@ def test_weathercocking_flies_rocketpys_windy_flight():
     flown = dr.simulate_flight(problem, start)
     gap = float(flown.states[:, 2].max()) - truth["apogee_geometric_agl_m"]
     assert abs(gap) < 1.5
+
+
+def test_geodesic_acceleration_reaches_the_closed_form_optimum_in_fewer_steps():
+    """The engine's geodesic acceleration (the option the attitude's fit sets) on a
+    bent valley with a closed-form optimum: outputs `a sin t` (noise 1) and
+    `30 (b - a^2) cos t` (noise 0.1), so det(R) is least at each channel's own
+    least-squares fit, `a = sum y1 sin / sum sin^2`, `b = a^2 + sum y2 cos / (30 sum
+    cos^2)`; from `a = b = 0` the valley `b = a^2 + const` bends. Both steps reach
+    that optimum (to 2e-6, measured 1e-8 accelerated, 4e-7 plain on 400 samples,
+    stopping at the engine's det(R) tolerance); the accelerated one in under 60%
+    of the plain one's steps (measured 103 against 224)."""
+    import diffpegasus as dp
+    from diffpegasus._estimate._fit import fit
+
+    def rates(t, x, u, p):
+        return jnp.zeros(1)
+
+    def outputs(t, x, u, p):
+        return jnp.stack(
+            [p["a"] * jnp.sin(t), 30.0 * (p["b"] - p["a"] ** 2) * jnp.cos(t)]
+        )
+
+    rng = np.random.default_rng(1)
+    t = np.arange(0, 20, 0.05)
+    y = np.column_stack([2.0 * np.sin(t), 30 * 0.5 * np.cos(t)])
+    y = y + rng.normal(0, [1.0, 0.1], (len(t), 2))
+    a = np.sum(y[:, 0] * np.sin(t)) / np.sum(np.sin(t) ** 2)
+    b = a**2 + np.sum(y[:, 1] * np.cos(t)) / (30 * np.sum(np.cos(t) ** 2))
+    record = dp.Record(t, np.zeros((len(t), 1)), y, x0=np.zeros(1))
+    model = dp.Model(("x",), ("u",), ("y1", "y2"), {"a": 0.0, "b": 0.0}, rates, outputs)
+    plain = fit(model, record)
+    fast = fit(model, record, acceleration=True)
+    for f in (plain, fast):
+        np.testing.assert_allclose(f.params, [a, b], atol=2e-6)
+    assert fast.iterations < 0.6 * plain.iterations

@@ -392,14 +392,16 @@ def lm_step(h, g, free, damping):
     return step / scale * m
 
 
-def damped_step(h, g, free, z, damping, j0, cost_at, guess, active=None):
+def damped_step(h, g, free, z, damping, j0, cost_at, guess, active=None, correct=None):
     """The Levenberg-Marquardt damping search from `z`: an [`lm_step`][] at
     `damping`, then the damping raised tenfold (from at least 1e-8) until the cost
     falls below `j0` or the damping reaches 1e8; `active` (traced bool, optional)
     False evaluates nothing.
 
     **Arguments:** `cost_at(new) -> (cost, *extras)` the trial's cost and what the
-    caller keeps of it; `guess` the extras' values (shapes) before any trial.
+    caller keeps of it; `guess` the extras' values (shapes) before any trial;
+    `correct(step, damping) -> (step, ok)` (optional) what the trial takes instead
+    of the step, a trial not `ok` rejected as one whose cost did not fall.
 
     **Returns:** `(damping, new, cost, extras, accepted)`: `new` is `z` where no
     trial lowered the cost, `cost` and `extras` those of the last trial.
@@ -407,8 +409,13 @@ def damped_step(h, g, free, z, damping, j0, cost_at, guess, active=None):
 
     def trial(c):
         lam = jnp.where(c[1], jnp.maximum(10.0 * c[0], 1e-8), c[0])
-        new = z + lm_step(h, g, free, lam)
-        return (lam, jnp.array(True), new, *cost_at(new))
+        if correct is None:
+            new = z + lm_step(h, g, free, lam)
+            return (lam, jnp.array(True), new, *cost_at(new))
+        step, ok = correct(lm_step(h, g, free, lam), lam)
+        new = z + step
+        cost, *extras = cost_at(new)
+        return (lam, jnp.array(True), new, jnp.where(ok, cost, jnp.inf), *extras)
 
     def again(c):
         lam, tried, _, j1 = c[:4]
@@ -528,8 +535,56 @@ def _print_progress(it, cost, change, damping, defect):
     )
 
 
+# geodesic acceleration: the finite-difference step (a share of the step) for the
+# residuals' second directional derivative, and the largest 2 |a| / |v| accepted
+# (Transtrum and Sethna's values)
+ACCELERATION_STEP = 0.1
+ACCELERATION_RATIO = 0.75
+
+
+def accelerated(model, layout, ev, z, h, free, r, nx, p):
+    """`correct(v, damping) -> (v + a/2, ok)` for [`damped_step`][]: Levenberg-
+    Marquardt with geodesic acceleration (Transtrum and Sethna 2012). At a trial
+    step `v` the residuals' (outputs' and defects') second directional derivative
+    `r_vv` comes from one more evaluation at `z + h v` (`h` =
+    `ACCELERATION_STEP`), `(2/h) ((r(z + h v) - r(z)) / h - J v)`; the acceleration
+    `a` solves the step's damped normal equations with `J' W r_vv` for the
+    gradient. The trial is `z + v + a/2`, `ok` where `2 |a| / |v|` (scaled as the
+    step) is at most `ACCELERATION_RATIO`. It follows a valley that bends (a
+    parameter combination the data pin down moving with one they barely do) in
+    steps the straight one could not take: there the straight step's cost rises
+    and the damping cuts it to a sliver of the way."""
+    n = z.shape[0]
+    local = layout.local_columns(nx, p)
+    nodes = layout.node_columns(nx, p)
+    m = free.astype(h.dtype)
+    scale = jnp.sqrt(jnp.clip(jnp.diag(h * m[:, None] * m[None, :]) + 1.0 - m, 1e-300))
+    step = ACCELERATION_STEP
+
+    def correct(v, damping):
+        e_h, d_h, _ = residuals_at(model, layout, z + step * v, nx, p)
+        vl = v[local]  # (S, local)
+        # e = measured - model: its derivative along v is minus the model's
+        jv = -jnp.einsum("slok,sk->slo", ev.jy, vl)
+        rvv = 2.0 / step * ((e_h - ev.e) / step - jv)
+        rvv = jnp.where(layout.valid[..., None], rvv, 0.0)
+        jd = (jnp.einsum("sik,sk->si", ev.jx[:-1], vl[:-1]) - v[nodes[1:]]) / (
+            layout.scale[None, :]
+        )
+        dvv = 2.0 / step * ((d_h - ev.d) / step - jd)
+        dvv = jnp.where(layout.link[:, None], dvv, 0.0)
+        curved = dataclasses.replace(ev, e=rvv, d=dvv)
+        _, gvv, _, _ = assemble(layout, curved, n, nx, p, r)
+        a = lm_step(h, gvv, free, damping)
+        ratio = 2.0 * jnp.linalg.norm(a * scale) / jnp.linalg.norm(v * scale)
+        return v + 0.5 * a, ratio <= ACCELERATION_RATIO
+
+    return correct
+
+
 @functools.partial(
-    jax.jit, static_argnames=("model", "nx", "p", "coloured", "progress")
+    jax.jit,
+    static_argnames=("model", "nx", "p", "coloured", "progress", "acceleration"),
 )
 def solve(
     model,
@@ -543,6 +598,7 @@ def solve(
     max_iter,
     coloured=True,
     progress=False,
+    acceleration=False,
 ) -> Solution:
     """Minimise det(R) over the free unknowns from `z0`. Pure and jitted; vmap
     batches it over layouts of one shape. `coloured=False` skips the coloured-
@@ -562,7 +618,11 @@ def solve(
     `progress` prints one line per iteration to standard error (a host callback:
     that program does not enter JAX's persistent cache, so it is off by default);
     `Solution.change` is the last iteration's relative change of det(R), which says
-    whether a fit that ran out of iterations was still making progress."""
+    whether a fit that ran out of iterations was still making progress.
+
+    `acceleration` takes each step with geodesic acceleration ([`accelerated`][]):
+    the same optimum where a valley bends, in a fraction of the steps. Off, the
+    program is the plain Levenberg-Marquardt's, unchanged."""
     free = layout.free_columns(free_params, nx, p)
     n, n_out = z0.shape[0], layout.measured.shape[-1]
 
@@ -588,6 +648,11 @@ def solve(
             lambda new: weighted_cost(model, layout, new, nx, p, r),
             (ev.e, ev.d, ev.ys),
             active,
+            **(
+                {"correct": accelerated(model, layout, ev, z, h, free, r, nx, p)}
+                if acceleration
+                else {}
+            ),
         )
         r_new = jnp.where(accepted, channel_variance(layout, e1), r)
         cost = jnp.prod(r_new)
