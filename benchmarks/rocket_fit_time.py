@@ -3,10 +3,13 @@ same fit again in the same process: what a second command costs once the
 persistent compilation cache holds the program; the continuation's two or three
 fits included), with the machine's load average. With `--attitude` each flight is
 fitted twice in the same run, as the point mass and with the attitude (its gyro
-column, where the log has one, fitted too), and the warm ratio written. Writes
+column, where the log has one, fitted too), and the warm ratio written. The fit
+alone is timed (`spread=False`); `--spread` times the command's default instead,
+with each sensor's own fit for the drag band (two-sensor logs). Writes
 benchmarks/results/rocket_fit_time.json (`--out` another name).
 
-Run: `python benchmarks/rocket_fit_time.py [--attitude] [--out NAME] FOLDER ...`;
+Run: `python benchmarks/rocket_fit_time.py [--attitude] [--spread] [--out NAME]
+FOLDER ...`;
 a FOLDER holds a `rocket.toml` with its `[log]` or a simulated flight's `log.csv`
 (scripts/make_rocket_fixtures.py).
 """
@@ -40,7 +43,7 @@ def sim_log(folder):
     )
 
 
-def timed(folder, attitude):
+def timed(folder, attitude, spread=False):
     from diffpegasus._log._rocketlogs import read_rocket_log
     from diffpegasus.rocket import fit_rocket, prepare, read_rocket
 
@@ -55,8 +58,8 @@ def timed(folder, attitude):
         problem = prepare(rocket, log) if not times else problem  # noqa: F821
         # the default effects (default_free: with the wind where an
         # accelerometer spans the ascent), as the command fits them; the fit
-        # alone, without each sensor's own fit for the band (spread)
-        result = fit_rocket(problem, throw=False, spread=False)
+        # alone unless `spread` (each sensor's own fit for the band)
+        result = fit_rocket(problem, throw=False, spread=spread)
         times.append(time.perf_counter() - t0)
     return {
         "cold_s": times[0],
@@ -72,6 +75,7 @@ def timed(folder, attitude):
             )
             if f
         ],
+        "spread": spread,
         "load_average_after": os.getloadavg()[0],
     }
 
@@ -79,7 +83,8 @@ def timed(folder, attitude):
 def main():
     args = sys.argv[1:]
     attitude = "--attitude" in args
-    args = [a for a in args if a != "--attitude"]
+    spread = "--spread" in args
+    args = [a for a in args if a not in ("--attitude", "--spread")]
     name = "rocket_fit_time.json"
     if "--out" in args:
         i = args.index("--out")
@@ -87,9 +92,9 @@ def main():
         del args[i : i + 2]
     out = {"load_average": os.getloadavg()[0]}
     for folder in map(pathlib.Path, args):
-        row = timed(folder, False)
+        row = timed(folder, False, spread)
         if attitude:
-            row = {"point_mass": row, "attitude": timed(folder, True)}
+            row = {"point_mass": row, "attitude": timed(folder, True, spread)}
             row["warm_ratio"] = row["attitude"]["warm_s"] / row["point_mass"]["warm_s"]
             row["cold_ratio"] = row["attitude"]["cold_s"] / row["point_mass"]["cold_s"]
         out[folder.name] = row
