@@ -109,6 +109,8 @@ FIT_TIME = (
     "cold 43.6 s, on the 2 cores at load 0.7 to 1.2 (before the single-shooting "
     "try: 3.4 s warm, 35 s cold, at load 3 to 8)"
 )
+# the same with `--spread` (benchmarks/results/rocket_fit_time_spread.json)
+FIT_TIME_SPREAD = "9.7 s warm, 56.6 s cold, at load 1.1"
 
 
 # the drag bands' paragraph, measured by the runs that wrote the pages (their
@@ -214,7 +216,9 @@ def main():
         "were 66 to 114 s at load 3 to 8). Warm (the programs compiled), "
         f"Prometheus's fit with the command's default effects (without each sensor's "
         f"own fit for the band) {FIT_TIME} "
-        "(`python benchmarks/rocket_fit_time.py FOLDER`).",
+        "(`python benchmarks/rocket_fit_time.py FOLDER`); with each sensor's own "
+        f"fit for the band, as the command runs by default, {FIT_TIME_SPREAD} "
+        "(`python benchmarks/rocket_fit_time.py --spread FOLDER`).",
         "",
         "The fit is multiple shooting (a node every 2 s) from the start, then "
         "single shooting (one segment from the pad) from its best try: "
