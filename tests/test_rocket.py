@@ -263,6 +263,19 @@ def test_cli_refuses_a_bad_rocket_file_in_one_line(tmp_path):
     assert len(res.output.strip().splitlines()) == 1
 
 
+def _clean_flight_folder(tmp_path):
+    """The committed clean RocketPy flight copied to `tmp_path`, its `rocket.toml`
+    pointing at its `log.csv`, as a user's folder for `rocket fit`."""
+    folder = tmp_path / "clean"
+    folder.mkdir()
+    for f in (SIM / "clean").iterdir():
+        (folder / f.name).write_bytes(f.read_bytes())
+    (folder / "rocket.toml").write_text(
+        (SIM / "clean" / "rocket.toml").read_text() + '\n[log]\nfile = "log.csv"\n'
+    )
+    return folder
+
+
 @pytest.mark.validation
 def test_cli_fit_with_the_sensors_spread_reports_both_bands(tmp_path):
     """`rocket fit --json` (the default: the sensors' spread in the band) on the
@@ -276,13 +289,7 @@ def test_cli_fit_with_the_sensors_spread_reports_both_bands(tmp_path):
 
     from diffpegasus._cli import app
 
-    folder = tmp_path / "clean"
-    folder.mkdir()
-    for f in (SIM / "clean").iterdir():
-        (folder / f.name).write_bytes(f.read_bytes())
-    (folder / "rocket.toml").write_text(
-        (SIM / "clean" / "rocket.toml").read_text() + '\n[log]\nfile = "log.csv"\n'
-    )
+    folder = _clean_flight_folder(tmp_path)
     runner = CliRunner()
     res = runner.invoke(app, ["rocket", "fit", str(folder / "rocket.toml"), "--json"])
     assert res.exit_code == 0, res.output
@@ -307,13 +314,7 @@ def test_cli_fit_carries_the_sensors_spread_by_default(tmp_path, monkeypatch):
     from diffpegasus._cli import app
     from diffpegasus._rocket import _pipeline
 
-    folder = tmp_path / "clean"
-    folder.mkdir()
-    for f in (SIM / "clean").iterdir():
-        (folder / f.name).write_bytes(f.read_bytes())
-    (folder / "rocket.toml").write_text(
-        (SIM / "clean" / "rocket.toml").read_text() + '\n[log]\nfile = "log.csv"\n'
-    )
+    folder = _clean_flight_folder(tmp_path)
     asked = []
     note = "the joint fit did not converge: the sensors' term not computed"
 
