@@ -166,7 +166,6 @@ def test_geodesic_acceleration_reaches_the_closed_form_optimum_in_fewer_steps():
     stopping at the engine's det(R) tolerance); the accelerated one in under 60%
     of the plain one's steps (measured 103 against 224)."""
     import diffpegasus as dp
-    from diffpegasus._estimate._fit import fit
 
     def rates(t, x, u, p):
         return jnp.zeros(1)
@@ -184,8 +183,8 @@ def test_geodesic_acceleration_reaches_the_closed_form_optimum_in_fewer_steps():
     b = a**2 + np.sum(y[:, 1] * np.cos(t)) / (30 * np.sum(np.cos(t) ** 2))
     record = dp.Record(t, np.zeros((len(t), 1)), y, x0=np.zeros(1))
     model = dp.Model(("x",), ("u",), ("y1", "y2"), {"a": 0.0, "b": 0.0}, rates, outputs)
-    plain = fit(model, record)
-    fast = fit(model, record, acceleration=True)
+    plain = dp.fit(model, record)
+    fast = dp.fit(model, record, acceleration=True)
     for f in (plain, fast):
         np.testing.assert_allclose(f.params, [a, b], atol=2e-6)
     assert fast.iterations < 0.6 * plain.iterations
