@@ -28,6 +28,9 @@ WIND_FREE = ("wind_along",)
 ACCEL_FREE = ("temperature", "lapse_rate")
 # with gyros and the attitude: the weathercocking's stiffness and damping
 GYRO_FREE = ("cn_alpha_scale", "pitch_damping_scale")
+# the CD the air brakes add fully out, where the rocket flew them: held at zero the
+# drag knots take it up as a function of Mach, which the brakes' schedule is not
+AIRBRAKE_FREE = ("airbrake_cd",)
 STANDARD_LAPSE = -6.5  # K/km
 # Mach between drag knots: an accelerometer reads drag directly, as finely as a
 # team's tables; an altitude alone carries it twice integrated, so half as finely
@@ -276,7 +279,8 @@ def default_free(problem) -> tuple[str, ...]:
     from .._vehicle._rocket._sensors import TRANSONIC_WIDTH
 
     if "accel" not in problem.outputs:
-        return ("static_error",)
+        brakes = AIRBRAKE_FREE if np.any(problem.record.inputs[:, 0] > 0) else ()
+        return ("static_error",) + brakes
     free = SENSOR_FREE
     if problem.flight.knots.mach[-1] > 1.0 - TRANSONIC_WIDTH:
         free += ("transonic_error",)
@@ -284,6 +288,8 @@ def default_free(problem) -> tuple[str, ...]:
         free += WIND_FREE
     if "gyro" in problem.outputs:
         free += GYRO_FREE
+    if np.any(problem.record.inputs[:, 0] > 0):
+        free += AIRBRAKE_FREE
     return free
 
 
@@ -298,6 +304,28 @@ class Problem:
     record: object
     outputs: tuple
     start: dict
+
+
+def held(t, times, values):
+    """`values` at `t` `(samples,)` held from each row's time to the next (a
+    command log: a row `(0, 0)` before `(3.8, 1)` means closed until 3.8 s, not
+    opening over the boost), 0 before the first row and after the last."""
+    i = np.searchsorted(times, t, side="right") - 1
+    out = np.asarray(values)[np.clip(i, 0, len(values) - 1)]
+    return np.where((i >= 0) & (t <= times[-1]), out, 0.0)
+
+
+def airbrake_input(rocket: Rocket, deployment):
+    """The air brakes' input `(samples,)`, 0-1: the deployment, shaped by the
+    team's table where the file gives one (the CD the brakes add at that
+    deployment over the CD they add fully out, averaged over Mach), so that the
+    model's `airbrake_cd` times it is the team's increment up to one scale."""
+    if rocket.airbrake_table is None:
+        return deployment
+    levels, inc = rocket.airbrake_table
+    if inc[-1] <= 0:
+        return deployment
+    return np.interp(deployment, levels, inc) / inc[-1]
 
 
 def prepare(rocket: Rocket, log, *, knots: DragKnots | None = None) -> Problem:
@@ -315,7 +343,7 @@ def prepare(rocket: Rocket, log, *, knots: DragKnots | None = None) -> Problem:
     if rocket.airbrakes is not None:
         tb, db = rocket.airbrakes
         inputs = record.inputs.copy()
-        inputs[:, 0] = np.interp(record.t, tb, db, left=0.0, right=0.0)
+        inputs[:, 0] = airbrake_input(rocket, held(record.t, tb, db))
         record = type(record)(
             record.t, inputs, record.measured, x0=record.x0, name=record.name
         )
@@ -330,6 +358,8 @@ def prepare(rocket: Rocket, log, *, knots: DragKnots | None = None) -> Problem:
         name=record.name,
     )
     start = default_start(rocket, knots, temperature)
+    if rocket.airbrake_table is not None:
+        start["airbrake_cd"] = float(rocket.airbrake_table[1][-1])
     accel = log.channels.get("accel_axial")
     start["motor_time"] = measured_motor_time(
         record,

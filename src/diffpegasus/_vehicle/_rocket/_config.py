@@ -12,7 +12,9 @@ read, every other key is kept for people:
               [rocket] I11_kgm2, center_of_mass_without_motor_m and the top-level
               coordinate_system: the attitude (see `_barrowman`); optional
     [aero]    power_off_drag_file, power_on_drag_file (optional; the team's curves),
-              air_brakes_actuation_file (optional, time s / deployment 0-1)
+              air_brakes_actuation_file (optional, time s / deployment 0-1),
+              air_brakes_table (optional, deployment 0-1 / Mach / CD rows: the
+              team's drag with the brakes out)
     [launch]  elevation_m, rail_length_m, inclination_deg (from horizontal),
               heading_deg (from north), latitude_deg (optional: gravity)
     [atmosphere] surface_temperature_K (or a notebook_surface_conditions text
@@ -55,6 +57,9 @@ class Rocket(eqx.Module):
       at the pad's pressure).
     - `team_drag_off`, `team_drag_on`: the team's `(mach, cd)` tables or `None`.
     - `airbrakes`: `(time s, deployment 0-1)` schedule or `None`.
+    - `airbrake_table`: the team's air-brake drag, `(deployment (d,), increment
+      (d,))`: the CD the brakes add at each deployment, averaged over the table's
+      Mach numbers (`CD(d, Mach) - CD(0, Mach)`), or `None`.
     - `recorded_apogee`, `preflight_apogee`: m AGL from the team, or `None`.
     - `folder`: where the file was.
     - `airframe`: the [`Airframe`][] (surfaces and mass distribution) when the
@@ -81,6 +86,7 @@ class Rocket(eqx.Module):
     folder: str = eqx.field(static=True, default=".")
     latitude: float | None = eqx.field(static=True, default=None)
     airframe: Airframe | None = None
+    airbrake_table: tuple | None = None
 
     @property
     def loaded_mass(self) -> float:
@@ -140,6 +146,32 @@ def _button_offset(rk, geometry, path) -> float:
     return far
 
 
+def _airbrake_table(folder, ae, path) -> tuple | None:
+    """The team's air-brake table (rows deployment 0-1, Mach, CD; a header row
+    allowed) as `(deployment, increment)`: the CD the brakes add at each
+    deployment over the closed brakes' at the same Mach, averaged over Mach."""
+    if "air_brakes_table" not in ae:
+        return None
+    file = folder / ae["air_brakes_table"]
+    try:
+        a = np.genfromtxt(file, delimiter=",", ndmin=2)
+    except OSError:
+        raise LogError(f"{path}: [aero] air_brakes_table: cannot read {file}") from None
+    a = a[np.all(np.isfinite(a), axis=1)]
+    if a.ndim != 2 or a.shape[1] < 3 or not np.any(a[:, 0] == 0):
+        raise LogError(
+            f"{file}: needs rows (deployment 0-1, Mach, CD) with deployment 0 rows"
+        )
+    levels = np.unique(a[:, 0])
+    inc = []
+    for d in levels:
+        rows = a[a[:, 0] == d]
+        closed = a[a[:, 0] == 0]
+        base = np.interp(rows[:, 1], *closed[np.argsort(closed[:, 1]), 1:3].T)
+        inc.append(float(np.mean(rows[:, 2] - base)))
+    return levels, np.asarray(inc)
+
+
 def read_rocket(path, *, attitude: bool = False) -> Rocket:
     """Read a `rocket.toml` (see the module docstring for its keys).
 
@@ -194,7 +226,16 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
 
     brakes = None
     if "air_brakes_actuation_file" in ae:
-        a = np.loadtxt(folder / ae["air_brakes_actuation_file"], delimiter=",", ndmin=2)
+        file = folder / ae["air_brakes_actuation_file"]
+        try:
+            a = np.genfromtxt(file, delimiter=",", ndmin=2)  # a header row allowed
+        except OSError:
+            raise LogError(
+                f"{path}: [aero] air_brakes_actuation_file: cannot read {file}"
+            ) from None
+        a = a[np.all(np.isfinite(a[:, :2]), axis=1)] if a.shape[1] >= 2 else a[:0]
+        if len(a) == 0 or np.any(np.diff(a[:, 0]) < 0):
+            raise LogError(f"{file}: needs rows (time s, deployment 0-1) in time order")
         brakes = (a[:, 0], np.clip(a[:, 1], 0, 1))
     return Rocket(
         name=str(doc.get("name", path.parent.name)),
@@ -222,4 +263,5 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
         airframe=read_airframe(doc, path, _number(rk, "radius_m", path, "rocket"))
         if attitude
         else None,
+        airbrake_table=_airbrake_table(folder, ae, path),
     )
