@@ -7,11 +7,17 @@ knots every `burnout height` m to above apogee) estimated in the base fit.
 Why the burnout height: on an ascent the climb rate is a function of height, so a
 lag (`tau` times the climb rate) is one; what no function of height smoother than
 the boost can take is the lag's rise from zero over the boost's height span. A
-knot spacing of the burnout height leaves that rise to the lag.
+knot spacing of the burnout height leaves that rise to the lag. Measured, it does
+not separate them on RocketPy's flights: the table's error varies on the boost's
+height scale too, and the lag scores higher with the nuisance (see
+docs/rockets/simulated.md, Diagnose).
 
 `python experiments/rocket_baro_nuisance.py FOLDER [FOLDER ...]`: each FOLDER one
 flight as `scripts/make_rocket_fixtures.py` writes it (or a real flight's folder
-with its rocket.toml). Writes experiments/results/rocket_baro_nuisance.json.
+with its rocket.toml); `--spacing F` knots every F burnout heights (1);
+`--hold-atmosphere` the pad temperature and lapse rate held at the base fit's in the
+nuisance fit. Writes experiments/results/rocket_baro_nuisance.json, keyed
+`PARENT/FOLDER xF[-held]`.
 """
 
 import json
