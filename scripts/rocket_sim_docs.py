@@ -275,7 +275,7 @@ DIAGNOSE_MEASURED = [
     "alarm: the model's own flight of this rocket (its drag curve, catalogue "
     "thrust, 20 Hz, the same noise levels, no lag) with the table's error "
     "added to its barometer names a lag, 12.0 against 8.8; the committed "
-    "`clean` rocket's at 50 Hz names nothing (5.9 against 18.0; "
+    "`clean` rocket's at 50 Hz names nothing (5.7 against 12.1; "
     "`tests/test_rocket_baro.py`, validation tests). The descent would separate them, and "
     "real logs carry it: the drogue descent is 129 s of the log on Prometheus, "
     "46 s on NDRT 2020, 114 s on Camoes and 210 s on Hedy (Andromeda's and "

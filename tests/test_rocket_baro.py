@@ -53,7 +53,7 @@ def test_height_dependent_barometer_error_is_not_named_a_lag(tmp_path):
     2 km. Noise: 1 m on the barometer, 0.5 m/s^2 on the accelerometer (the
     simulated flights'), a fixed seed. Fails today: the lag takes the error up,
     12.0 against 8.8 (see KNOWN_FAILING); the committed `clean` rocket's own flight
-    at 50 Hz with the same error names nothing (the lag 5.9 against 18.0)."""
+    at 50 Hz with the same error names nothing (the lag 5.7 against 12.1)."""
     problem = dr.prepare(
         dr.read_rocket(TABLE_FLIGHT / "rocket.toml"), rocket_sim_log(TABLE_FLIGHT)
     )
