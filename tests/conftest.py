@@ -96,6 +96,23 @@ KNOWN_FAILING: dict[str, str] = {
         "calm launch-vehicle flight of the independent generator name "
         "thrust_misalignment: 27.6 against its threshold 13.0)"
     ),
+    "tests/test_rocket_baro.py::test_clean_rocketpy_flight_through_its_"
+    "atmosphere_table_names_nothing": (
+        "RocketPy's clean flight curve-c-s5-20hz names a barometer lag (32.8 "
+        "against 9.5, estimated 0.011 s): on an ascent a lag and a barometer error "
+        "that depends on height are one signature, and RocketPy's atmosphere table "
+        "puts up to 3.3 m of it into the barometer; a piecewise-linear height error "
+        "in the null does not separate them (the lag 61.6 against 9.2: the table's "
+        "error varies on the boost's height scale), the drogue descent would, and "
+        "the model flies the ascent only (docs/rockets/simulated.md, Diagnose)"
+    ),
+    "tests/test_rocket_baro.py::test_height_dependent_barometer_error_is_not_"
+    "named_a_lag": (
+        "the model's own 20 Hz flight of curve-c-s5-20hz's rocket with RocketPy's "
+        "atmosphere-table error (up to 3.3 m, a function of height) added to its "
+        "barometer and no lag names a barometer lag, 12.0 against 8.8: on an "
+        "ascent the two are one signature (as the RocketPy flight above)"
+    ),
     "tests/test_fem_pegasus.py::test_diagnose_names_turbulence_on_a_turbulent_"
     "launch_vehicle_flight": (
         "the filter does not explain this record: with the coloured gust state "
