@@ -12,7 +12,11 @@ motor (`I11_kgm2`) and its centre of mass are the file's.
 
 Run: `nice python experiments/rocket_attitude_hedy.py FOLDER OUT.json`
 (FOLDER the flight's folder with rocket.toml, motor/, drag/, logs/). Minutes to an
-hour: the attitude's fit with a 25 s ascent at 100 Hz.
+hour: the attitude's fit with a 34 s ascent at 100 Hz (1328 s at a load of 12 to
+16 on 2 cores). `... FOLDER --gyros` prints instead what the raw gyros hold besides
+the weathercocking: each lateral gyro's sample-to-sample noise and its
+least-squares slope on the roll rate (a roll axis misaligned with the gyros'),
+no fit.
 """
 
 import json
@@ -63,7 +67,33 @@ def flight_copy(folder, tmp):
     }
 
 
+def gyros(folder):
+    """Hedy's raw gyros (imu.csv, deg/s; Y the roll axis): per phase, each lateral
+    gyro's noise (`std(diff) / sqrt 2`, rad/s) and its slope on the roll rate."""
+    a = np.genfromtxt(
+        folder / "logs" / "imu.csv",
+        delimiter=",",
+        names=True,
+        dtype=None,
+        encoding=None,
+    )
+    t = a["ts"]
+    g = {k: np.radians(a[k]) for k in ("Gx", "Gy", "Gz")}
+    out = {}
+    for lo, hi in ((-0.7, -0.1), (0.5, 8.0), (8.0, 20.0), (20.0, 33.0), (0.0, 33.0)):
+        m = (t >= lo) & (t < hi)
+        row = {"roll_mean_abs_rad_s": float(np.mean(np.abs(g["Gy"][m])))}
+        for k in ("Gx", "Gz"):
+            row[f"{k}_noise_rad_s"] = float(np.std(np.diff(g[k][m])) / np.sqrt(2))
+            row[f"{k}_per_roll"] = float(np.polyfit(g["Gy"][m], g[k][m], 1)[0])
+        row["lateral_mean_rad_s"] = float(np.mean(np.hypot(g["Gx"][m], g["Gz"][m])))
+        out[f"{lo:g} to {hi:g} s"] = row
+    print(json.dumps(out, indent=1))
+
+
 def main():
+    if sys.argv[2:] == ["--gyros"]:
+        return gyros(pathlib.Path(sys.argv[1]))
     import diffpegasus.rocket as dr
     from diffpegasus._log._rocketlogs import read_rocket_log
     from diffpegasus._rocket._identify import default_free

@@ -131,7 +131,8 @@ def attitude(a):
     lines += [
         f"Channels fitted: {', '.join(a['outputs'])}. Fit "
         f"{'converged' if a['converged'] else 'did NOT converge'} in "
-        f"{a['seconds']:.0f} s ({a['iterations']} iterations).",
+        f"{a['seconds']:.0f} s ({a['iterations']} iterations; cold, 2 cores "
+        "shared with other jobs).",
         "",
         "| quantity | value (± 1.96 standard errors) |",
         "|---|---|",
@@ -144,9 +145,12 @@ def attitude(a):
             f"| gyro residual RMS (rad/s) | {a['gyro_rms_rad_s']:.4f} (mean "
             f"lateral rate {a['gyro_mean_abs_rad_s']:.4f}) |"
         )
-    lines.append("")
-    if a.get("note"):
-        lines += [a["note"], ""]
+    lines += [
+        "",
+        "What these bands mean, and what the gyros hold besides the weathercocking: "
+        "[Rocket flights](index.md#what-it-does-not-do-yet).",
+        "",
+    ]
     return lines
 
 
