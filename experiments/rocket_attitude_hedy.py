@@ -16,7 +16,9 @@ hour: the attitude's fit with a 34 s ascent at 100 Hz (1328 s at a load of 12 to
 16 on 2 cores). `... FOLDER --gyros` prints instead what the raw gyros hold besides
 the weathercocking: each lateral gyro's sample-to-sample noise and its
 least-squares slope on the roll rate (a roll axis misaligned with the gyros'),
-no fit.
+no fit. `... FOLDER OUT.json --derolled` fits with the lateral rate from the two
+lateral gyros less their least-squares part proportional to the roll rate (slopes
+from the log's own ascent, liftoff to apogee): what the misalignment alone costs.
 """
 
 import json
@@ -91,6 +93,24 @@ def gyros(folder):
     print(json.dumps(out, indent=1))
 
 
+def derolled(log):
+    """`log` with a `gyro_lateral` channel (which the fit reads first): the lateral
+    gyros less their slope on the roll (y) gyro over the ascent, in quadrature."""
+    import dataclasses
+
+    ch = log.channels
+    gx, gy, gz = (ch[f"gyro_{a}"] for a in "xyz")
+    m = (gx.t >= 0) & (gx.t <= log.events["apogee"].t)
+    kx = np.polyfit(gy.values[m], gx.values[m], 1)[0]
+    kz = np.polyfit(gy.values[m], gz.values[m], 1)[0]
+    lateral = np.hypot(gx.values - kx * gy.values, gz.values - kz * gy.values)
+    new = dict(ch)
+    new["gyro_lateral"] = dataclasses.replace(
+        gx, values=lateral, source=f"gyro_x, gyro_z less {kx:.4f}, {kz:.4f} x gyro_y"
+    )
+    return dataclasses.replace(log, channels=new), (float(kx), float(kz))
+
+
 def main():
     if sys.argv[2:] == ["--gyros"]:
         return gyros(pathlib.Path(sys.argv[1]))
@@ -109,7 +129,10 @@ def main():
         result["cp_barrowman_m"] = {
             str(m): frame.center_of_pressure(m) for m in (0.0, 0.6, 0.8)
         }
-        problem = dr.prepare(rocket, read_rocket_log(toml))
+        log = read_rocket_log(toml)
+        if "--derolled" in sys.argv[3:]:
+            log, result["gyro_per_roll_removed"] = derolled(log)
+        problem = dr.prepare(rocket, log)
         result["outputs"] = list(problem.outputs)
         free = default_free(problem)
         result["free"] = list(free)
