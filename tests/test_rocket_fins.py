@@ -153,7 +153,7 @@ def test_free_form_against_rocketpy(case):
     (measured 0.00, 0.037%). Hedy's outline dips 12 mm below the root line (the
     root follows the boat tail) and RocketPy's rows start at y = 0, skipping that
     sliver whose mid-chord runs almost along the axis: its mean `cos G` is 0.743,
-    ours 0.678, and its slope 3.1% above ours at Mach 0 (2.4%, 1.6% at 0.6, 0.8)."""
+    ours 0.678, and our slope 3.1% below its at Mach 0 (2.4%, 1.6% at 0.6, 0.8)."""
     v = REF[case]
     p = np.asarray(v["points"], float)
     row = (p[:, 1].max() - p[:, 1].min()) / 39
