@@ -3,7 +3,8 @@
 summary.json), then docs/rockets/<name>.md and the table docs/rockets/validation.md.
 
 Run: `python scripts/rocket_docs.py FOLDER [FOLDER ...]` (each FOLDER holding a
-rocket.toml and its logs).
+rocket.toml and its logs). `--page NAME` rewrites docs/rockets/NAME.md alone from
+its summary.json (and attitude.json, where the attitude's fit wrote one), no fit.
 """
 
 import json
@@ -90,7 +91,67 @@ def page(name, row):
         f"![apogee]({name}/apogee.png)",
         "",
     ]
+    extra = DOCS / name / "attitude.json"
+    if extra.exists():
+        lines += attitude(json.loads(extra.read_text()))
     return "\n".join(lines)
+
+
+def attitude(a):
+    """The section of a flight's attitude fit with its gyros (the JSON that
+    experiments/rocket_attitude_hedy.py writes)."""
+    cna, cp = a["cn_alpha_barrowman"], a["cp_barrowman_m"]
+    lines = [
+        "## The attitude, with the gyros",
+        "",
+        "Reproduce (minutes to hours; writes the JSON this section is made from):",
+        "",
+        '```bash title="Not run here: needs the flight\'s folder"',
+        "nice python experiments/rocket_attitude_hedy.py hedy "
+        "docs/rockets/hedy/attitude.json",
+        "```",
+        "",
+        "The rocket file gives no `motor_center_of_mass_m`; the script takes it, and "
+        "the motor's lateral inertia, from the file's own liquid-motor description "
+        "(tank positions, mass flows times burn time, as point masses): "
+        f"{a['motor_cg_m']:.3f} m from the tail, {a['motor_inertia_kgm2']:.2f} "
+        "kg m^2. Barrowman's normal-force slope from the file's geometry (nose, "
+        "free-form fins, boat tail) is "
+        + ", ".join(f"{cna[m]:.2f}" for m in cna)
+        + " per rad at Mach "
+        + ", ".join(m for m in cna)
+        + ", its centre of pressure "
+        + ", ".join(f"{cp[m]:.3f}" for m in cp)
+        + " m from the tail.",
+        "",
+    ]
+    if "cn_alpha_scale" not in a:
+        lines += [f"The fit did not finish: {a.get('note', 'no result')}.", ""]
+        return lines
+    lines += [
+        f"Channels fitted: {', '.join(a['outputs'])}. Fit "
+        f"{'converged' if a['converged'] else 'did NOT converge'} in "
+        f"{a['seconds']:.0f} s ({a['iterations']} iterations; cold, 2 cores "
+        "shared with other jobs).",
+        "",
+        "| quantity | value (± 1.96 standard errors) |",
+        "|---|---|",
+    ]
+    for k in a["free"]:
+        v, b = a[k]
+        lines.append(f"| {k.replace('_', ' ')} | {v:.4g} ± {b:.2g} |")
+    if "gyro_rms_rad_s" in a:
+        lines.append(
+            f"| gyro residual RMS (rad/s) | {a['gyro_rms_rad_s']:.4f} (mean "
+            f"lateral rate {a['gyro_mean_abs_rad_s']:.4f}) |"
+        )
+    lines += [
+        "",
+        "What these bands mean, and what the gyros hold besides the weathercocking: "
+        "[Rocket flights](index.md#what-it-does-not-do-yet).",
+        "",
+    ]
+    return lines
 
 
 # the multiple-shooting fit alone (the table before the single-shooting try):
@@ -211,6 +272,11 @@ def moved(rows):
 
 def main():
     rows = {}
+    if sys.argv[1:2] == ["--page"]:
+        for name in sys.argv[2:]:
+            row = json.loads((DOCS / name / "summary.json").read_text())
+            (DOCS / f"{name}.md").write_text(page(name, row))
+        return
     if sys.argv[1:] == ["--table"]:  # the table from the pages already written
         for summary in sorted(DOCS.glob("*/summary.json")):
             rows[summary.parent.name] = json.loads(summary.read_text())

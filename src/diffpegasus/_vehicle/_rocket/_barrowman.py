@@ -10,13 +10,13 @@ numbers.
 - Nose: `CN_alpha = 2` at `k length` behind the tip, `k` by kind (Barrowman's and
   the usual values: conical 2/3, ogive and tangent 0.466, von Karman, parabolic and
   power 1/2 0.5, LV-Haack 0.437, elliptical 1/3).
-- Trapezoidal fins (Barrowman with Diederich's planform correlation, compressibility
-  by `beta`): per pair `2 pi AR (Af/Aref) / (2 + sqrt(4 + (beta AR / cos G)^2))`,
-  `AR = 2 span^2 / Af`, `Af = span (root + tip) / 2`, `G` the mid-chord sweep; `n/2`
-  pairs; the body interference `1 + R / (span + R)`; centre of pressure
-  `xr (cr + 2 ct) / (3 (cr + ct)) + (cr + ct - cr ct / (cr + ct)) / 6` behind the
-  root's leading edge (`xr` the leading edge's sweep length). `beta` is
-  `sqrt(1 - M^2)` below Mach 0.8, its Mach 0.8 value to 1.1, `sqrt(M^2 - 1)` above.
+- Fins (trapezoidal, elliptical or free-form: see `_fins`, one strip integration
+  that is Barrowman's closed form for a trapezoid): per pair `2 pi AR (Af/Aref) /
+  (2 + sqrt(4 + (beta AR / cos G)^2))` (Diederich's planform correlation), `AR =
+  2 span^2 / Af`, `G` the mid-chord sweep; `n/2` pairs (fewer for 5 to 8 fins);
+  the body interference `1 + R / (span + R)`; centre of pressure at the mean
+  aerodynamic chord's quarter chord. `beta` is `sqrt(1 - M^2)` below Mach 0.8, its
+  Mach 0.8 value to 1.1, `sqrt(M^2 - 1)` above.
 - Tail or transition from diameter `d1` (forward) to `d2`: `CN_alpha = 2 ((d2/d)^2
   - (d1/d)^2)` at `L/3 (1 + (1 - r) / (1 - r^2))` behind its forward end, `r = d1/d2`.
 
@@ -30,6 +30,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..._errors import LogError
+from ._fins import (
+    ellipse_strips,
+    fin_constants,
+    polygon_strips,
+    trapezoid_strips,
+)
 
 
 NOSE_K = {
@@ -51,23 +57,6 @@ def nose_cp(kind: str, length: float) -> float:
     if key not in NOSE_K:
         raise ValueError(f"nose kind {kind!r}: not one of {sorted(NOSE_K)}")
     return NOSE_K[key] * length
-
-
-def fin_constants(n, span, root, tip, sweep, body_radius, ref_radius):
-    """`(a, b, cp)` of trapezoidal fins: `CN_alpha(beta) = a / (2 + sqrt(4 + (beta
-    b)^2))` (n fins with body interference) and `cp` m behind the root's leading
-    edge. `sweep` m is the leading edge's run from root to tip."""
-    area = span * (root + tip) / 2
-    aspect = 2 * span**2 / area
-    mid = np.hypot(span, sweep + tip / 2 - root / 2)  # mid-chord line length
-    cos_g = span / mid
-    interference = 1 + body_radius / (span + body_radius)
-    a = 2 * np.pi * aspect * area / (np.pi * ref_radius**2) * n / 2 * interference
-    cp = (
-        sweep * (root + 2 * tip) / (3 * (root + tip))
-        + (root + tip - root * tip / (root + tip)) / 6
-    )
-    return a, aspect / cos_g, cp
 
 
 def beta(mach):
@@ -114,6 +103,46 @@ class Airframe(eqx.Module):
         return float(jnp.sum(c * jnp.asarray(self.stations)) / jnp.sum(c))
 
 
+def fin_strips(fins: dict, num):
+    """The strips (see `_fins`) of a `[geometry] fins` table: `shape_points_m` (a
+    free-form outline), `kind` naming an ellipse (`root_chord_m`, `span_m`), else a
+    trapezoid (`root_chord_m`, `tip_chord_m`, `span_m`, optional `sweep_length_m`
+    or `sweep_angle_deg`; default the trailing edge square to the body). `num(key)`
+    reads one number. A planform that cannot be built raises `ValueError`."""
+    kind = "".join(c for c in str(fins.get("kind", "")).lower() if c.isalpha())
+    if "shape_points_m" in fins:
+        try:
+            points = np.asarray(fins["shape_points_m"], dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"shape_points_m = {fins['shape_points_m']!r} is not a list of "
+                "[x, y] pairs of numbers"
+            ) from None
+        try:
+            return polygon_strips(points)
+        except ValueError as e:
+            raise ValueError(f"shape_points_m: {e}") from None
+    if kind.startswith("freeform"):
+        raise ValueError(f"kind = {fins['kind']!r} needs shape_points_m")
+    root, span = num("root_chord_m"), num("span_m")
+    if root <= 0 or span <= 0:
+        raise ValueError("root_chord_m and span_m must be positive")
+    if kind.startswith("ellip"):
+        return ellipse_strips(root, span)
+    if kind and not kind.startswith("trapez"):
+        raise ValueError(
+            f"kind = {fins['kind']!r} is not trapezoidal, elliptical or free-form"
+        )
+    tipc = num("tip_chord_m")
+    if "sweep_length_m" in fins:
+        sweep = num("sweep_length_m")
+    elif "sweep_angle_deg" in fins:
+        sweep = span * np.tan(np.radians(num("sweep_angle_deg")))
+    else:
+        sweep = root - tipc  # trailing edge square to the body
+    return trapezoid_strips(root, tipc, span, sweep)
+
+
 def read_airframe(doc: dict, path, radius: float) -> Airframe | None:
     """The [`Airframe`][] of a parsed `rocket.toml` `doc`, or `None` when it lacks
     the keys the attitude needs ([geometry] nose and fins, [rocket] `I11_kgm2` and
@@ -139,8 +168,6 @@ def read_airframe(doc: dict, path, radius: float) -> Airframe | None:
         return float(v)
 
     nose, fins = geo["nose"], geo["fins"]
-    if "root_chord_m" not in fins:  # free-form fins: not modelled
-        return None
     stations, const, fa, fb = [], [], [], []
     tip = s * num(nose, "position_m", "geometry.nose")
     try:
@@ -153,24 +180,20 @@ def read_airframe(doc: dict, path, radius: float) -> Airframe | None:
     const.append(2.0)
     fa.append(0.0)
     fb.append(0.0)
-    root = num(fins, "root_chord_m", "geometry.fins")
-    tipc = num(fins, "tip_chord_m", "geometry.fins")
-    span = num(fins, "span_m", "geometry.fins")
-    if "sweep_length_m" in fins:
-        sweep = num(fins, "sweep_length_m", "geometry.fins")
-    elif "sweep_angle_deg" in fins:
-        sweep = span * np.tan(np.radians(num(fins, "sweep_angle_deg", "geometry.fins")))
-    else:
-        sweep = root - tipc  # trailing edge square to the body
-    a, b, cp = fin_constants(
-        num(fins, "n", "geometry.fins"),
-        span,
-        root,
-        tipc,
-        sweep,
-        float(fins.get("radius_m", radius)),
-        radius,
-    )
+    n = num(fins, "n", "geometry.fins")
+    if n < 1 or n != int(n):
+        raise LogError(f"{path}: [geometry.fins] n = {fins['n']!r} is not a count")
+    try:
+        a, b, cp = fin_constants(
+            fin_strips(fins, lambda k: num(fins, k, "geometry.fins")),
+            n,
+            float(fins.get("radius_m", radius)),
+            radius,
+        )
+    except LogError:
+        raise
+    except ValueError as e:
+        raise LogError(f"{path}: [geometry.fins] {e}") from None
     stations.append(s * num(fins, "position_m", "geometry.fins") - cp)
     const.append(0.0)
     fa.append(float(a))

@@ -7,7 +7,8 @@ read, every other key is kept for people:
     [motor]   thrust_file, propellant_initial_mass_kg, dry_mass_kg (default 0),
               holddown_time_s (default 0: the motor lifts off as soon as thrust
               exceeds weight)
-    [geometry] nose, fins, tail or transition, motor_center_of_mass_m (m, the
+    [geometry] nose, fins (trapezoidal, elliptical or free-form: see `_barrowman`
+              and `_fins`), tail or transition, motor_center_of_mass_m (m, the
               loaded motor's centre of mass), motor_inertia_kgm2 (optional), with
               [rocket] I11_kgm2, center_of_mass_without_motor_m and the top-level
               coordinate_system: the attitude (see `_barrowman`); optional
