@@ -78,8 +78,10 @@ def main(folders):
             "predict_seconds": t1 - t0,
             "band_seconds": t2 - t1,
         }
-        out[folder.name] = row
-        print(folder.name, row, flush=True)
+        # simulated flights of one name come from several folders
+        key = f"{folder.parent.name}/{folder.name}" if simulated else folder.name
+        out[key] = row
+        print(key, row, flush=True)
         path.parent.mkdir(exist_ok=True)
         path.write_text(json.dumps(out, indent=1))
 

@@ -137,13 +137,13 @@ def apogee_band(result, held: dict | None = None) -> ApogeeBand:
     """The 95% band's ingredients of `result`'s apogee: the gradient of
     [`apogee_function`][] (forward-mode JAX) with respect to the estimated
     parameters and the held ones in `held` (name -> standard uncertainty in the
-    parameter's units; by default [`held_sigmas`][]), the estimates' covariance
+    parameter's units; by default `held_sigmas`), the estimates' covariance
     (`stderr_corrected` and `correlation`, coloured residuals allowed for) carried
     through it, and each held parameter's total derivative times its uncertainty
     added in quadrature (independent of the estimates). Linearised, the fit's own
     optimum moving with a held parameter is followed: off by `dc`, it moves the
     estimates by `S dc`, `S = -(J^T W J)^-1 J^T W J_c` from the Jacobians `J`, `J_c`
-    of the single-shooting outputs ([`outputs_function`][]) over the log the fit
+    of the single-shooting outputs (`outputs_function`) over the log the fit
     read, weighted by its residual variances `W = R^-1` (a consider parameter's
     term, `|dA/dc + dA/dtheta S| sigma_c`). NaN standard errors for a fit whose
     covariance is not finite."""
