@@ -66,6 +66,7 @@ def main(folders):
             "stderr_fit_m": band.stderr_fit,
             "half_width_pct": 100 * band.half_width / pred.apogee,
             "held": band.held,
+            "held_gradient": band.held_gradient,
             "gradient": band.gradient,
             "inside_95": bool(abs(pred.apogee - logged) <= band.half_width),
             "z": (logged - pred.apogee) / band.stderr,

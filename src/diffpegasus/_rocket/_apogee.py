@@ -32,7 +32,8 @@ class ApogeeBand:
     `stderr` m (all terms), `stderr_fit` m (the estimated parameters' covariance
     alone), `gradient` (name -> m per unit of the parameter, estimated and held,
     the estimates fixed), `held` (name -> `(sigma, contribution m)`, the held
-    parameters' terms, the estimates following them).
+    parameters' terms, the estimates following them), `held_gradient` (name -> m
+    per unit of the held parameter, the estimates following it).
     """
 
     apogee: float
@@ -40,6 +41,7 @@ class ApogeeBand:
     stderr_fit: float
     gradient: dict
     held: dict
+    held_gradient: dict = dataclasses.field(default_factory=dict)
 
     @property
     def half_width(self) -> float:
@@ -193,4 +195,5 @@ def apogee_band(result, held: dict | None = None) -> ApogeeBand:
         else float("nan"),
         gradient={names[i]: float(g) for i, g in zip(idx, grad, strict=True)},
         held=terms,
+        held_gradient={k: float(g) for k, g in zip(held, total, strict=True)},
     )
