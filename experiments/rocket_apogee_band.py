@@ -5,7 +5,7 @@ the real flights: is the logged apogee inside? Burnout as the pipeline takes it
 (the log's event, else the motor end of the full fit in the page's summary.json);
 on a simulated flight (a folder with log.csv, scripts/make_rocket_fixtures.py) the
 motor's end from the accelerometer's start value (no full fit run).
-Writes experiments/results/rocket_apogee_band_<first folder>.json after every
+Writes experiments/results/rocket_apogee_band_<parent>_<first folder>.json (committed as rocket_apogee_band_real.json and _simulated.json) after every
 flight. Run:
 PYTHONPATH=src python experiments/rocket_apogee_band.py FOLDER [FOLDER ...]"""
 

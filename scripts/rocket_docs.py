@@ -170,16 +170,16 @@ BAND_WIDTHS = (
 )
 SIMULATED = (
     "where the rocket file states RocketPy's own temperature and lapse, the "
-    "logged apogee lies inside the band on 6 of 11 flights (half-widths 2.1 to "
-    "2.5%, mostly the temperature's term); the five outside are the flights "
-    "planted with a barometer lag of 0.15 s (four, -3.1 to -4.7%, the prediction's "
-    "drag scale 3 to 9% high) or a wind (one, +3.2%), which the prediction holds at "
-    "zero and the band does not carry (z 2.7 to 3.8). The estimates' term alone "
-    "contains 3 of the 11. Linearised with the fit following, Prometheus's "
-    "prediction moves by 25 m per K of pad temperature and 5.4 m per K/km of lapse: "
-    "the day's -8.7 K/km instead of the -6.5 held would lower it by 12 m, so the "
-    "lapse does not explain its -4.0%, and the temperature held (300 K) is the "
-    "notebook's for another date."
+    "logged apogee lies inside the band on 9 of 15 flights (half-widths 2.1 to "
+    "2.5%, mostly the temperature's term; the estimates' term alone contains 4); "
+    "the six outside are the flights planted with a barometer lag of 0.15 s (five, "
+    "-3.1 to -4.7%, the prediction's drag scale 3 to 9% high) or a 7 m/s wind "
+    "(one, +3.2%), which the prediction holds at zero and the band does not "
+    "carry (2.7 to 3.8 standard errors off). Linearised with the fit following, "
+    "Prometheus's prediction moves by 25 m per K of pad temperature and 5.4 m per "
+    "K/km of lapse: the day's -8.7 K/km instead of the -6.5 held would lower it by "
+    "12 m, so the lapse does not explain its -4.0%, and the temperature held (300 "
+    "K) is the notebook's for another date."
 )
 
 # the predicted apogee's band, measured by experiments/rocket_apogee_band.py on the
