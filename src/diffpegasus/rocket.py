@@ -10,6 +10,11 @@ cd, stderr = result.cd([0.3, 0.6, 0.9])    # band: noise and sensors' disagreeme
 named, tests, _ = dr.diagnose(problem)     # missing effects
 """
 
+from ._rocket._apogee import (
+    apogee_band as apogee_band,
+    apogee_function as apogee_function,
+    ApogeeBand as ApogeeBand,
+)
 from ._rocket._checks import (
     equation_error_drag as equation_error_drag,
     resimulate as resimulate,
@@ -22,7 +27,7 @@ from ._rocket._identify import (
     RocketFit as RocketFit,
     simulate_flight as simulate_flight,
 )
-from ._rocket._pipeline import run_flight as run_flight
+from ._rocket._pipeline import predict as predict, run_flight as run_flight
 from ._rocket._spread import (
     between_variance as between_variance,
     determined as determined,

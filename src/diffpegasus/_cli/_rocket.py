@@ -81,6 +81,13 @@ def _m(v):
     return "-" if v is None else f"{v:.0f} m"
 
 
+def _band(half_width):
+    """The predicted apogee's 95% band as the terminal shows it ("" without one)."""
+    if half_width is None or not math.isfinite(half_width):
+        return ""
+    return f"+/- {half_width:.0f} m (95%) "
+
+
 @rocket_app.command("fit")
 def fit_command(
     toml: TomlArgument,
@@ -113,6 +120,7 @@ def fit_command(
     )
     typer.echo(
         f"  apogee predicted       {_m(row['apogee_predicted_m'])} "
+        f"{_band(row.get('apogee_predicted_half_width_m'))}"
         f"({_pct(row['predicted_error_pct'])}, log to "
         f"{row['prediction_uses_log_to_s']:.1f} s)"
     )

@@ -726,6 +726,13 @@ def _flown(model, params, record, extra=30.0):
     """`(t, states, inputs)` of `model` flown with `params` from the record's start
     over the record and `extra` s beyond it (every channel flagged), RK4 at the
     record's step."""
+    t, inputs, long = _long_record(record, extra)
+    return t, simulate(model, long, params), inputs
+
+
+def _long_record(record, extra):
+    """`(t, inputs, record)`: `record` over its span and `extra` s beyond it at its
+    step, every channel flagged, no readings (what the flight is flown over)."""
     from .._model import Record
 
     dt = record.dt
@@ -735,7 +742,7 @@ def _flown(model, params, record, extra=30.0):
     inputs[:, 0] = np.interp(t, record.t, record.inputs[:, 0], right=0.0)
     inputs[:, 1:] = 1.0
     long = Record(t, inputs, np.zeros((n, inputs.shape[1] - 1)), x0=record.x0)
-    return t, simulate(model, long, params), inputs
+    return t, inputs, long
 
 
 _OBSERVED: dict = {}

@@ -6,6 +6,7 @@ import time
 
 import numpy as np
 
+from ._apogee import apogee_band
 from ._checks import equation_error_drag, resimulate
 from ._data import baro_channel
 from ._identify import accel_covers_ascent, altitude_only, fit_rocket, prepare
@@ -56,7 +57,7 @@ def predict(problem, until: float):
 
 def run_flight(rocket, log, out=None, *, free=None, spread=True) -> dict:
     """Fit the ascent, predict the apogee from the log up to two seconds after
-    burnout, re-simulate with the team's drag curve, and (with `out`) write the
+    burnout with its band ([`apogee_band`][]), re-simulate with the team's drag curve, and (with `out`) write the
     figures and `summary.json` there. `spread`: carry the disagreement between
     the log's sensors in CD's band (see [`fit_rocket`][]; `False`: the noise's
     band alone).
@@ -78,10 +79,11 @@ def run_flight(rocket, log, out=None, *, free=None, spread=True) -> dict:
     seconds = time.perf_counter() - t0
     cut = burnout_time(log, problem, result) + PREDICTION_HORIZON
     prediction = predict(problem, cut)
+    band = apogee_band(prediction)
     team = resimulate(problem, result) if rocket.team_drag_off is not None else result
     t, h = baro_channel(log)
     log_apogee = float(np.max(h[t > 0]))
-    row = summary(problem, result, prediction, team, log_apogee, seconds)
+    row = summary(problem, result, prediction, team, log_apogee, seconds, band)
     mach = np.array(problem.flight.knots.mach)
     cd, sd = result.cd(mach)
     _, noise = result.cd(mach, structural=False)

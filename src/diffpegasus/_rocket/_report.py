@@ -5,9 +5,11 @@ import pathlib
 import numpy as np
 
 
-def summary(problem, result, prediction, team, log_apogee, seconds) -> dict:
-    """The flight's numbers: apogees (m AGL, barometric), errors (%), altitude RMS
-    (m and % of apogee), thrust scale, fit time (s)."""
+def summary(problem, result, prediction, team, log_apogee, seconds, band=None) -> dict:
+    """The flight's numbers: apogees (m AGL, barometric), errors (%), the predicted
+    apogee's standard error and 95% half-width (m; with `band`, an
+    [`ApogeeBand`][]: total, of the fit's estimates alone, each held parameter's
+    term), altitude RMS (m and % of apogee), thrust scale, fit time (s)."""
     rocket = problem.rocket
 
     def pct(v):
@@ -27,6 +29,15 @@ def summary(problem, result, prediction, team, log_apogee, seconds) -> dict:
         "prediction_uses_log_to_s": float(
             prediction.record.t[np.flatnonzero(prediction.record.inputs[:, 1])[-1]]
         ),
+        "apogee_predicted_stderr_m": None if band is None else band.stderr,
+        "apogee_predicted_half_width_m": None if band is None else band.half_width,
+        "apogee_predicted_stderr_fit_m": None if band is None else band.stderr_fit,
+        "apogee_predicted_held": None
+        if band is None
+        else {k: {"sigma": s, "stderr_m": c} for k, (s, c) in band.held.items()},
+        "logged_inside_predicted_95": None
+        if band is None or not np.isfinite(band.stderr)
+        else bool(abs(prediction.apogee - log_apogee) <= band.half_width),
         "apogee_team_preflight_m": rocket.preflight_apogee,
         "team_preflight_error_pct": pct(rocket.preflight_apogee),
         "apogee_resimulated_team_cd_m": team.apogee,
