@@ -255,6 +255,7 @@ BRAKES = (
     "log do not determine the drag's scale (0.92 ± 0.53) and put the thrust scale "
     "at 0.91; the same fit without the brakes' drag (2994 m) had the missing "
     "brakes make up for the low thrust."
+)
 CD_SCALE_SD = (
     "0.09 on NDRT 2020, 0.14 on Prometheus, 0.26 on Cavour, 0.46 on Hedy, 0.52 on "
     "Camoes and 0.66 on Andromeda (on Hedy and Cavour the scale stays at its start, "
