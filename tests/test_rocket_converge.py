@@ -6,7 +6,9 @@ fit's default set, which decide what the fit can reach)."""
 import pathlib
 
 import numpy as np
+import pytest
 
+import diffpegasus as dp
 from diffpegasus import rocket as dr
 
 from .helpers import rocket_sim_log
@@ -68,3 +70,29 @@ def test_air_brakes_held_between_rows_shaped_by_the_table_and_estimated(tmp_path
     np.testing.assert_allclose(plain.record.inputs[:, 0], expected, atol=1e-12)
     assert plain.start["airbrake_cd"] == 0.0
     assert "airbrake_cd" in default_free(plain)
+
+
+@pytest.mark.parametrize(
+    ("schedule", "table", "message"),
+    [
+        ("0,0\n3,8,1\n", None, "brakes.csv: row 2: deployment 8 is not within 0-1"),
+        ("0,0\n5,100\n", None, "brakes.csv: row 2: deployment 100 is not within 0-1"),
+        ("0,0\n5,1\n4,0\n", None, "brakes.csv: row 3: time 4 s is before"),
+        ("5,1\n", None, "brakes.csv: one row"),
+        ("t,d\n0,0\n5,x\n", None, "brakes.csv: row 3: '5,x' is not 'time s deploy"),
+        ("0,0\n5,1\n", "0,0.5,0.6\n0.5,0.5,0.7\n", "no rows at deployment 1"),
+        ("0,0\n5,1\n", "0,0.5,0.6\n1,0.5,0.5\n", "add CD -0.1 over the closed"),
+    ],
+)
+def test_air_brake_files_refused_in_one_line(tmp_path, schedule, table, message):
+    """A schedule or table a user could write wrongly (a decimal comma, a
+    deployment in percent, time going back, one row, a stray word, no fully
+    deployed rows, brakes that lower the drag): one line naming the file, the row
+    and the value, before any fit."""
+    folder = _braked_flight(tmp_path, table=table is not None)
+    (folder / "brakes.csv").write_text(schedule)
+    if table is not None:
+        (folder / "brakes_table.csv").write_text(table)
+    with pytest.raises(dp.LogError) as e:
+        dr.read_rocket(folder / "rocket.toml")
+    assert message in str(e.value) and "\n" not in str(e.value)

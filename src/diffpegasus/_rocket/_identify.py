@@ -307,9 +307,11 @@ class Problem:
 
 
 def held(t, times, values):
-    """`values` at `t` `(samples,)` held from each row's time to the next (a
-    command log: a row `(0, 0)` before `(3.8, 1)` means closed until 3.8 s, not
-    opening over the boost), 0 before the first row and after the last."""
+    """`values (rows,)` at `t (samples,)` (s), each row held from its time
+    `times (rows,)` to the next row's (a command log: a row `(0, 0)` before `(3.8,
+    1)` means closed until 3.8 s, not opening over the boost); 0 before the first
+    row and after the last, where the schedule ends (Camoes's team: closed after
+    its last row, at 0.38 out)."""
     i = np.searchsorted(times, t, side="right") - 1
     out = np.asarray(values)[np.clip(i, 0, len(values) - 1)]
     return np.where((i >= 0) & (t <= times[-1]), out, 0.0)
@@ -323,8 +325,6 @@ def airbrake_input(rocket: Rocket, deployment):
     if rocket.airbrake_table is None:
         return deployment
     levels, inc = rocket.airbrake_table
-    if inc[-1] <= 0:
-        return deployment
     return np.interp(deployment, levels, inc) / inc[-1]
 
 

@@ -36,6 +36,7 @@ from ..._errors import LogError
 from ._barrowman import Airframe, read_airframe
 from ._drag import read_drag_curve
 from ._motor import Motor, read_motor
+from ._rows import read_rows
 
 
 class Rocket(eqx.Module):
@@ -154,15 +155,16 @@ def _airbrake_table(folder, ae, path) -> tuple | None:
     if "air_brakes_table" not in ae:
         return None
     file = folder / ae["air_brakes_table"]
-    try:
-        a = np.genfromtxt(file, delimiter=",", ndmin=2)
-    except OSError:
-        raise LogError(f"{path}: [aero] air_brakes_table: cannot read {file}") from None
-    a = a[np.all(np.isfinite(a), axis=1)]
-    if a.ndim != 2 or a.shape[1] < 3 or not np.any(a[:, 0] == 0):
-        raise LogError(
-            f"{file}: needs rows (deployment 0-1, Mach, CD) with deployment 0 rows"
-        )
+    a, lines, _ = read_rows(
+        file, ("deployment 0-1", "Mach", "CD"), "the air-brake table"
+    )
+    _deployments_within_0_1(file, a[:, 0], lines)
+    for level in (0.0, 1.0):
+        if not np.any(a[:, 0] == level):
+            raise LogError(
+                f"{file}: no rows at deployment {level:g} (the closed brakes' CD and "
+                "the fully deployed brakes' are both needed)"
+            )
     levels = np.unique(a[:, 0])
     inc = []
     for d in levels:
@@ -170,7 +172,21 @@ def _airbrake_table(folder, ae, path) -> tuple | None:
         closed = a[a[:, 0] == 0]
         base = np.interp(rows[:, 1], *closed[np.argsort(closed[:, 1]), 1:3].T)
         inc.append(float(np.mean(rows[:, 2] - base)))
+    if inc[-1] <= 0:
+        raise LogError(
+            f"{file}: the fully deployed brakes add CD {inc[-1]:g} over the closed "
+            "ones (averaged over Mach): not a drag increase"
+        )
     return levels, np.asarray(inc)
+
+
+def _deployments_within_0_1(file, deployment, lines):
+    bad = np.flatnonzero((deployment < 0) | (deployment > 1))
+    if len(bad):
+        j = bad[0]
+        raise LogError(
+            f"{file}: row {lines[j]}: deployment {deployment[j]:g} is not within 0-1"
+        )
 
 
 def read_rocket(path, *, attitude: bool = False) -> Rocket:
@@ -228,16 +244,23 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
     brakes = None
     if "air_brakes_actuation_file" in ae:
         file = folder / ae["air_brakes_actuation_file"]
-        try:
-            a = np.genfromtxt(file, delimiter=",", ndmin=2)  # a header row allowed
-        except OSError:
+        a, lines, _ = read_rows(
+            file, ("time s", "deployment 0-1"), "the air-brake schedule"
+        )
+        if len(a) < 2:
             raise LogError(
-                f"{path}: [aero] air_brakes_actuation_file: cannot read {file}"
-            ) from None
-        a = a[np.all(np.isfinite(a[:, :2]), axis=1)] if a.shape[1] >= 2 else a[:0]
-        if len(a) == 0 or np.any(np.diff(a[:, 0]) < 0):
-            raise LogError(f"{file}: needs rows (time s, deployment 0-1) in time order")
-        brakes = (a[:, 0], np.clip(a[:, 1], 0, 1))
+                f"{file}: one row: a schedule needs rows from the brakes' first "
+                "command to their last (closed before the first and after the last)"
+            )
+        back = np.flatnonzero(np.diff(a[:, 0]) < 0)
+        if len(back):
+            j = back[0] + 1
+            raise LogError(
+                f"{file}: row {lines[j]}: time {a[j, 0]:g} s is before the row "
+                f"above's {a[j - 1, 0]:g} s"
+            )
+        _deployments_within_0_1(file, a[:, 1], lines)
+        brakes = (a[:, 0], a[:, 1])
     return Rocket(
         name=str(doc.get("name", path.parent.name)),
         dry_mass=rocket_mass + motor_dry,

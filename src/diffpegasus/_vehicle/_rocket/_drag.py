@@ -11,14 +11,13 @@ so the band of `CD(M)` follows from the knots' covariance exactly,
 `var CD(M) = w(M)' C w(M)`.
 """
 
-import pathlib
-
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import scipy.interpolate
 
 from ..._errors import LogError
+from ._rows import read_rows
 
 
 def _coefficients(x: np.ndarray) -> np.ndarray:
@@ -81,30 +80,13 @@ def read_drag_curve(path) -> tuple[np.ndarray, np.ndarray]:
     """A team's `CD(Mach)` table: two columns (Mach, CD), a header row allowed,
     in any order and with repeated Mach numbers (rows of a simulated trajectory are
     averaged per Mach number). Returns sorted `(mach, cd)`."""
-    path = pathlib.Path(path)
-    try:
-        lines = path.read_text(errors="replace").splitlines()
-    except OSError as e:
-        raise LogError(f"{path}: cannot read the drag curve ({e.strerror})") from None
-    rows = []
-    for i, line in enumerate(lines, 1):
-        parts = line.replace(",", " ").split()
-        if not parts:
-            continue
-        try:
-            m, c = float(parts[0]), float(parts[1])
-        except (ValueError, IndexError):
-            if not rows:
-                continue  # header
-            raise LogError(
-                f"{path}: row {i}: {line.strip()!r} is not 'Mach CD'"
-            ) from None
-        if not (np.isfinite(m) and np.isfinite(c)) or m < 0 or c < 0:
-            raise LogError(f"{path}: row {i}: Mach {m:g}, CD {c:g} is not plausible")
-        rows.append((m, c))
-    if not rows:
-        raise LogError(f"{path}: no (Mach, CD) rows")
-    a = np.asarray(rows)
+    a, lines, _ = read_rows(path, ("Mach", "CD"), "the drag curve")
+    bad = np.flatnonzero((a[:, 0] < 0) | (a[:, 1] < 0))
+    if len(bad):
+        j = bad[0]
+        raise LogError(
+            f"{path}: row {lines[j]}: Mach {a[j, 0]:g}, CD {a[j, 1]:g} is not plausible"
+        )
     mach, inverse = np.unique(np.round(a[:, 0], 6), return_inverse=True)
     cd = np.bincount(inverse, a[:, 1]) / np.bincount(inverse)
     return mach, cd

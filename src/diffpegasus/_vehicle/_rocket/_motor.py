@@ -13,6 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..._errors import LogError
+from ._rows import read_rows
 
 
 class Motor(eqx.Module):
@@ -89,32 +90,14 @@ def read_motor(path, *, propellant_mass=None, dry_mass=0.0) -> Motor:
     row and value.
     """
     path = pathlib.Path(path)
-    try:
-        text = path.read_text(errors="replace")
-    except OSError as e:
-        raise LogError(f"{path}: cannot read the thrust curve ({e.strerror})") from None
-    rows, header = [], None
-    for i, line in enumerate(text.splitlines(), 1):
-        s = line.strip()
-        if not s or s.startswith(";") or s.startswith("#"):
-            continue
-        parts = s.replace(",", " ").split()
-        if path.suffix.lower() == ".eng" and header is None:
-            header = parts
-            continue
-        try:
-            vals = [float(v) for v in parts[:2]]
-        except ValueError:
-            if not rows and header is None:  # a CSV header row
-                header = parts
-                continue
-            raise LogError(f"{path}: row {i}: {s!r} is not 'time thrust'") from None
-        if len(vals) < 2 or not all(np.isfinite(vals)):
-            raise LogError(f"{path}: row {i}: {s!r} is not 'time thrust'")
-        rows.append(vals)
-    if len(rows) < 2:
+    a, _, header = read_rows(
+        path,
+        ("time s", "thrust N"),
+        "the thrust curve",
+        header_first=path.suffix.lower() == ".eng",
+    )
+    if len(a) < 2:
         raise LogError(f"{path}: fewer than two thrust points")
-    a = np.asarray(rows)
     t, f = a[:, 0], a[:, 1]
     if np.any(np.diff(t) <= 0):
         i = int(np.argmax(np.diff(t) <= 0)) + 1

@@ -1,0 +1,60 @@
+"""Numeric tables as teams write them (thrust curves, drag curves, air-brake
+schedules and tables): comma- or space-separated rows, header lines allowed before the
+numbers, blank and comment lines (`#`, `;`) skipped, columns beyond those read
+ignored."""
+
+import pathlib
+
+import numpy as np
+
+from ..._errors import LogError
+
+
+def read_rows(
+    path, columns: tuple[str, ...], what: str, *, header_first: bool = False
+) -> tuple[np.ndarray, np.ndarray, list[str] | None]:
+    """Read the first `len(columns)` numbers of each row of `path`.
+
+    **Arguments:**
+
+    - `path`: the file.
+    - `columns`: the columns' names with units, for messages (`("time s",
+      "thrust N")`).
+    - `what`: the table, for messages (`"the thrust curve"`).
+    - `header_first`: the first row is a header whatever it holds (a RASP `.eng`
+      file's motor line).
+
+    **Returns:** `(values (rows, len(columns)), line (rows,), header)`: the numbers,
+    each row's line number in the file (1-based, for messages) and the header row's
+    fields (`None` without one). A row that is not `len(columns)` finite numbers
+    raises a `LogError` naming the file, the line and what it holds.
+    """
+    path = pathlib.Path(path)
+    try:
+        text = path.read_text(errors="replace")
+    except OSError as e:
+        raise LogError(f"{path}: cannot read {what} ({e.strerror})") from None
+    expected = " ".join(columns)
+    rows, lines, header = [], [], None
+    for i, line in enumerate(text.splitlines(), 1):
+        s = line.strip()
+        if not s or s.startswith(";") or s.startswith("#"):
+            continue
+        parts = s.replace(",", " ").split()
+        if header_first and header is None:
+            header = parts
+            continue
+        try:
+            values = [float(v) for v in parts[: len(columns)]]
+        except ValueError:
+            if not rows:  # header lines before the numbers
+                header = parts if header is None else header
+                continue
+            raise LogError(f"{path}: row {i}: {s!r} is not '{expected}'") from None
+        if len(values) < len(columns) or not all(np.isfinite(values)):
+            raise LogError(f"{path}: row {i}: {s!r} is not '{expected}'")
+        rows.append(values)
+        lines.append(i)
+    if not rows:
+        raise LogError(f"{path}: no ({', '.join(columns)}) rows in {what}")
+    return np.asarray(rows, float), np.asarray(lines), header
