@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from matplotlib.path import Path
 
-from diffpegasus._errors import LogError
+import diffpegasus as dp
 from diffpegasus._vehicle._rocket._barrowman import beta, read_airframe
 from diffpegasus._vehicle._rocket._fins import (
     ellipse_strips,
@@ -220,8 +220,22 @@ def test_fin_kinds_read_from_the_file_and_bad_ones_named():
         ({"n": 4, "shape_points_m": [[0, 0], [0.1, "a"], [0.2, 0]]}, "pairs"),
         ({"n": 4, "shape_points_m": [[0, 0], [0.1, 0], [0.2, 0]]}, "extent"),
         ({"n": 2.5, "root_chord_m": 0.1, "tip_chord_m": 0.1, "span_m": 0.1}, "count"),
+        (
+            {"n": float("inf"), "root_chord_m": 0.1, "tip_chord_m": 0.1, "span_m": 0.1},
+            "n = inf is not finite",
+        ),
+        ({"n": 4, "root_chord_m": 0.1, "tip_chord_m": -0.05, "span_m": 0.1}, "tip"),
+        (
+            {
+                "n": 4,
+                **{"root_chord_m": 0.1, "tip_chord_m": 0.05, "span_m": 0.1},
+                "sweep_angle_deg": 90,
+            },
+            "sweep_angle_deg = 90",
+        ),
+        ({"n": 4, "shape_points_m": [[0, 0], [0.1, 0.1], [0.2, 0.2]]}, "no area"),
     ):
-        with pytest.raises(LogError) as e:
+        with pytest.raises(dp.LogError) as e:
             read_airframe(hedy_doc({**fins, "position_m": 0.2}), "x.toml", 0.05)
         msg = str(e.value)
         assert msg.startswith("x.toml: [geometry.fins]") and words in msg, msg

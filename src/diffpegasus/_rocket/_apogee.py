@@ -97,7 +97,10 @@ def apogee_function(result, extra: float = 30.0):
         i = jnp.clip(i, 1, n - 2)
         y0, y1, y2 = baro[i - 1], baro[i], baro[i + 1]
         curve = y0 - 2.0 * y1 + y2
-        return jnp.where(curve < 0, y1 - (y2 - y0) ** 2 / (8.0 * curve), y1)
+        # the parabola's vertex; `safe` keeps the branch not taken finite, so that
+        # reverse mode does not carry its NaN into the gradient where curve is 0
+        safe = jnp.where(curve < 0, curve, -1.0)
+        return jnp.where(curve < 0, y1 - (y2 - y0) ** 2 / (8.0 * safe), y1)
 
     return jax.jit(apogee)
 
@@ -178,10 +181,16 @@ def apogee_band(result, held: dict | None = None) -> ApogeeBand:
 
         # (samples, outputs, estimated + held), whitened by the residual variances
         jac = np.asarray(jax.jacfwd(outputs_along)(params[jnp.asarray(idx)]))
-        w = 1.0 / np.sqrt(np.asarray(fit.R, float))
+        r = np.asarray(fit.R, float)
+        w = 1.0 / np.sqrt(np.where(r > 0, r, np.nan))
         a = (jac * w[None, :, None]).reshape(-1, len(idx))
-        moved = -np.linalg.lstsq(a[:, : len(free)], a[:, len(free) :], rcond=None)[0]
-        total = g_held + g_free @ moved
+        if np.all(np.isfinite(a)):
+            moved = -np.linalg.lstsq(a[:, : len(free)], a[:, len(free) :], rcond=None)[
+                0
+            ]
+            total = g_held + g_free @ moved
+        else:  # a flight the model cannot fly through, or no residual variance
+            total = np.full(len(held), np.nan)
     terms = {
         k: (float(held[k]), float(abs(g) * held[k]))
         for k, g in zip(held, total, strict=True)

@@ -125,8 +125,10 @@ def fin_strips(fins: dict, num):
     if kind.startswith("freeform"):
         raise ValueError(f"kind = {fins['kind']!r} needs shape_points_m")
     root, span = num("root_chord_m"), num("span_m")
-    if root <= 0 or span <= 0:
-        raise ValueError("root_chord_m and span_m must be positive")
+    if not (root > 0 and span > 0):
+        raise ValueError(
+            f"root_chord_m = {root:g} and span_m = {span:g}: both must be positive"
+        )
     if kind.startswith("ellip"):
         return ellipse_strips(root, span)
     if kind and not kind.startswith("trapez"):
@@ -134,10 +136,15 @@ def fin_strips(fins: dict, num):
             f"kind = {fins['kind']!r} is not trapezoidal, elliptical or free-form"
         )
     tipc = num("tip_chord_m")
+    if not tipc >= 0:
+        raise ValueError(f"tip_chord_m = {tipc:g} is negative")
     if "sweep_length_m" in fins:
         sweep = num("sweep_length_m")
     elif "sweep_angle_deg" in fins:
-        sweep = span * np.tan(np.radians(num("sweep_angle_deg")))
+        angle = num("sweep_angle_deg")
+        if not abs(angle) < 90:
+            raise ValueError(f"sweep_angle_deg = {angle:g} is not within -90..90")
+        sweep = span * np.tan(np.radians(angle))
     else:
         sweep = root - tipc  # trailing edge square to the body
     return trapezoid_strips(root, tipc, span, sweep)
@@ -163,8 +170,10 @@ def read_airframe(doc: dict, path, radius: float) -> Airframe | None:
 
     def num(table, key, where):
         v = table.get(key)
-        if isinstance(v, bool) or not isinstance(v, int | float):
+        if isinstance(v, bool) or not isinstance(v, int | float) or v != v:
             raise LogError(f"{path}: [{where}] {key} = {v!r} is not a number")
+        if abs(v) == float("inf"):
+            raise LogError(f"{path}: [{where}] {key} = {v!r} is not finite")
         return float(v)
 
     nose, fins = geo["nose"], geo["fins"]
@@ -181,7 +190,7 @@ def read_airframe(doc: dict, path, radius: float) -> Airframe | None:
     fa.append(0.0)
     fb.append(0.0)
     n = num(fins, "n", "geometry.fins")
-    if n < 1 or n != int(n):
+    if not (np.isfinite(n) and n >= 1 and n == int(n)):
         raise LogError(f"{path}: [geometry.fins] n = {fins['n']!r} is not a count")
     try:
         a, b, cp = fin_constants(

@@ -113,8 +113,10 @@ def fin_constants(strips, n, body_radius, ref_radius):
     included) and `cp` m behind the root's leading edge."""
     y, w, lead, chord, slope = strips
     area = float(np.sum(w * chord))
-    if not area > 0:
-        raise ValueError("the fin has no area")
+    # relative to the fin's bounding box: a flat outline leaves rounding's area
+    box = float(np.sum(w)) * float(np.max(lead + chord) - np.min(lead))
+    if not area > 1e-9 * box:
+        raise ValueError(f"the fin has no area ({area:g} m^2)")
     span = float(np.sum(w))
     aspect = 2 * span**2 / area
     cos_g = float(np.sum(w / np.hypot(1.0, slope))) / span
