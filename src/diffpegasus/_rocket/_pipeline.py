@@ -33,7 +33,8 @@ def predict(problem, until: float):
     # The static-pressure error follows the dynamic pressure from the first second
     # and is estimated (held at zero it went into the thrust and drag split: NDRT
     # 2020 -8.4% instead of -3.1%; the largest miss of the six real flights 8.4% ->
-    # 4.0%, the mean 2.5% -> 1.7%). An accelerometer that stops after the boost
+    # 4.0%, the mean 2.5% -> 1.7%, measured before Camoes's air brakes were
+    # modelled). An accelerometer that stops after the boost
     # is calibrated against the barometer over the whole ascent; a few seconds
     # cannot tell its scale from the drag, so the prediction reads the barometer
     # alone there
