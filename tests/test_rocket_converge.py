@@ -49,8 +49,6 @@ def test_air_brakes_held_between_rows_shaped_by_the_table_and_estimated(tmp_path
     is `d^2`, the brakes' CD starts at the table's 0.2, and it is estimated (held
     at zero, the drag knots took the brakes up as a function of Mach, which the
     schedule is not, and the fit of Camoes did not converge)."""
-    from diffpegasus._rocket._identify import default_free
-
     folder = _braked_flight(tmp_path)
     rocket = dr.read_rocket(folder / "rocket.toml")
     problem = dr.prepare(rocket, rocket_sim_log(SIM / "clean"))
@@ -59,7 +57,7 @@ def test_air_brakes_held_between_rows_shaped_by_the_table_and_estimated(tmp_path
     expected = np.select([t < 5, t < 10, t < 14], [0.0, 1.0, 0.25], 0.0)
     np.testing.assert_allclose(brake, expected, atol=1e-12)
     assert abs(problem.start["airbrake_cd"] - 0.2) < 1e-12
-    assert default_free(problem)[-1] == "airbrake_cd"
+    assert dr.default_free(problem)[-1] == "airbrake_cd"
 
     # without a table the deployment itself, the brakes' CD starting from zero
     folder2 = _braked_flight(tmp_path / "plain", table=False)
@@ -69,7 +67,7 @@ def test_air_brakes_held_between_rows_shaped_by_the_table_and_estimated(tmp_path
     expected = np.select([t < 5, t < 10, t < 14], [0.0, 1.0, 0.5], 0.0)
     np.testing.assert_allclose(plain.record.inputs[:, 0], expected, atol=1e-12)
     assert plain.start["airbrake_cd"] == 0.0
-    assert "airbrake_cd" in default_free(plain)
+    assert "airbrake_cd" in dr.default_free(plain)
 
 
 @pytest.mark.parametrize(

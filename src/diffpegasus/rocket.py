@@ -21,6 +21,7 @@ from ._rocket._checks import (
 )
 from ._rocket._diagnose import Candidate as Candidate, diagnose as diagnose
 from ._rocket._identify import (
+    default_free as default_free,
     fit_rocket as fit_rocket,
     prepare as prepare,
     Problem as Problem,

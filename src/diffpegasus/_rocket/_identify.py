@@ -275,7 +275,10 @@ def default_free(problem) -> tuple[str, ...]:
     pressure at once (a dip at burnout, no integration; Andromeda: 53 m RMS
     without, 22 m with). With gyros (the attitude asked for): the scales of the
     normal-force slope and of the pitch damping, which the weathercocking's
-    frequency and decay in the body rate carry."""
+    frequency and decay in the body rate carry. Where the record deploys air
+    brakes, with or without an accelerometer: the CD they add fully out
+    (`airbrake_cd`; held at zero, the knots took them up as a function of Mach,
+    which their schedule is not)."""
     from .._vehicle._rocket._sensors import TRANSONIC_WIDTH
 
     if "accel" not in problem.outputs:
