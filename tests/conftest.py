@@ -234,28 +234,13 @@ def pytest_sessionfinish(session, exitstatus):
     DURATIONS.write_text(json.dumps(dict(sorted(durations.items())), indent=0) + "\n")
 
 
-# A worker keeps its compiled programs from file to file (the launch vehicle's fit,
-# score test and bootstrap serve several files: measured on test_fem_pegasus.py,
-# test_trust.py and test_design.py in one process, 411 CPU-s dropping them after
-# each file, 360 keeping them, 2.7 and 3.5 GB at most) until it holds a sixth of
-# the machine's memory; then the programs are dropped (the persistent cache on disk
-# keeps them): a worker grown to 7 GB crashed near the end of one full run.
-_MEMORY_BOUND = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") / 6
-
-
-def _resident_bytes() -> int:
-    with open("/proc/self/statm") as f:
-        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
-
-
 def pytest_runtest_teardown(item, nextitem):
+    # A pytest-xdist worker lives through hundreds of tests: the compiled programs
+    # of a finished test file are dropped (the persistent cache on disk keeps them)
+    # so a worker's memory does not grow through the run (a worker grown to 7 GB
+    # crashed near the end of one full run).
     if nextitem is None or nextitem.path != item.path:
-        try:
-            full = _resident_bytes() > _MEMORY_BOUND
-        except OSError:  # no /proc: drop them as before
-            full = True
-        if full:
-            import gc
+        import gc
 
-            jax.clear_caches()
-            gc.collect()
+        jax.clear_caches()
+        gc.collect()
