@@ -12,20 +12,6 @@ if "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", "")
         os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=2"
     ).strip()
 
-# XLA's cheaper compilation (no LLVM optimisation passes): most of a test's CPU time
-# is compiling programs it runs for a fraction of a second (measured, one process,
-# CPU-s without -> with: test_filter_gain.py 60 -> 48, test_lse.py with
-# test_design.py 99 -> 84, test_trust.py with test_montecarlo.py 229 -> 212, the
-# same tests passing). A user's XLA_FLAGS that set either option are kept.
-for _flag in (
-    "--xla_backend_optimization_level=0",
-    "--xla_llvm_disable_expensive_passes=true",
-):
-    if _flag.split("=")[0] not in os.environ.get("XLA_FLAGS", ""):
-        os.environ["XLA_FLAGS"] = (
-            os.environ.get("XLA_FLAGS", "") + " " + _flag
-        ).strip()
-
 # One BLAS thread per process: the suite runs one pytest-xdist worker per core, so
 # OpenBLAS's second thread only spins against the other worker (measured on the
 # lateral reference fit: 11-12 CPU-s with the default, 7.5 with one thread, the same
