@@ -23,36 +23,45 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 
+def first_round(problem, **options):
+    """The diagnosis's first round on `problem`: the base fit (single shooting, the
+    thrust scale held at 1, nothing else freed; `options` passed to `fit_rocket`)
+    and the candidates it holds, `(base, held parameter names)`."""
+    import diffpegasus.rocket as dr
+    from diffpegasus._rocket import _diagnose
+
+    single = float(problem.record.t[-1] - problem.record.t[0]) + 1.0
+    base = dr.fit_rocket(
+        problem,
+        free=(),
+        hold=("thrust_scale",),
+        start={"thrust_scale": 1.0},
+        shooting_interval=single,
+        throw=False,
+        **options,
+    )
+    pool = [_diagnose.THRUST] + _diagnose.candidates(problem, float(np.max(base.mach)))
+    model = base.fit.model
+    held = [
+        c.parameters[0]
+        for c in pool
+        if not model.free[model.parameters.index(c.parameters[0])]
+    ]
+    return base, held
+
+
 def main():
     from rocket_validation import sim_log
 
     import diffpegasus.rocket as dr
     from diffpegasus._diagnose._candidates import score_candidates
-    from diffpegasus._rocket import _diagnose
 
     path = ROOT / "experiments" / "results" / "rocket_baro_lag_alarm.json"
     results = json.loads(path.read_text()) if path.exists() else {}
     for folder in map(pathlib.Path, sys.argv[1:]):
         t0 = time.perf_counter()
         problem = dr.prepare(dr.read_rocket(folder / "rocket.toml"), sim_log(folder))
-        single = float(problem.record.t[-1] - problem.record.t[0]) + 1.0
-        base = dr.fit_rocket(
-            problem,
-            free=(),
-            hold=("thrust_scale",),
-            start={"thrust_scale": 1.0},
-            shooting_interval=single,
-            throw=False,
-        )
-        pool = [_diagnose.THRUST] + _diagnose.candidates(
-            problem, float(np.max(base.mach))
-        )
-        model = base.fit.model
-        held = [
-            c.parameters[0]
-            for c in pool
-            if not model.free[model.parameters.index(c.parameters[0])]
-        ]
+        base, held = first_round(problem)
         ranking = score_candidates(base.fit, held, 0.01)
         rows = {
             r["parameter"]: {

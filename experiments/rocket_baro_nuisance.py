@@ -45,12 +45,12 @@ def rows_of(ranking):
 
 def main():
     import jax.numpy as jnp
+    from rocket_baro_lag_alarm import first_round
 
     import diffpegasus.rocket as dr
     from diffpegasus._diagnose._candidates import score_candidates
     from diffpegasus._estimate._fit import fit, SingleShooting
     from diffpegasus._model import Model
-    from diffpegasus._rocket import _diagnose
 
     path = ROOT / "experiments" / "results" / "rocket_baro_nuisance.json"
     results = json.loads(path.read_text()) if path.exists() else {}
@@ -76,25 +76,8 @@ def main():
 
         log = folder / "log.csv" if (folder / "log.csv").exists() else toml
         problem = dr.prepare(rocket, read_rocket_log(log))
-        single = float(problem.record.t[-1] - problem.record.t[0]) + 1.0
-        base = dr.fit_rocket(
-            problem,
-            free=(),
-            hold=("thrust_scale",),
-            start={"thrust_scale": 1.0},
-            shooting_interval=single,
-            throw=False,
-            spread=False,
-        )
-        pool = [_diagnose.THRUST] + _diagnose.candidates(
-            problem, float(np.max(base.mach))
-        )
+        base, held = first_round(problem, spread=False)
         model = base.fit.model
-        held = [
-            c.parameters[0]
-            for c in pool
-            if not model.free[model.parameters.index(c.parameters[0])]
-        ]
         plain = rows_of(score_candidates(base.fit, held, 0.01))
 
         speed = np.linalg.norm(base.states[:, 3:6], axis=1)
