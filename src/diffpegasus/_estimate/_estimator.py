@@ -16,6 +16,7 @@ Adding an estimator is one file and one registry line:
 """
 
 import abc
+from collections.abc import Sequence
 
 import equinox as eqx
 import numpy as np
@@ -93,6 +94,27 @@ class AbstractFit(eqx.Module):
             )
             if f
         }
+
+    def covariance_of(
+        self, names: Sequence[str] | None = None, corrected: bool = True
+    ) -> np.ndarray:
+        """`(k, k)` covariance of the estimates of `names` (default: every
+        estimated parameter, in the model's order), in their units squared: the
+        standard errors (corrected for coloured residuals, or with `corrected=False`
+        the Cramér-Rao ones) times the correlation, `sd_i corr_ij sd_j`."""
+        params = list(self.model.parameters)
+        if names is None:
+            idx = [i for i, f in enumerate(np.asarray(self.free)) if f]
+        else:
+            unknown = [n for n in names if n not in params]
+            if unknown:
+                raise ValueError(
+                    f"no parameter {unknown[0]!r} in the model (parameters: "
+                    f"{', '.join(params)})"
+                )
+            idx = [params.index(n) for n in names]
+        sd = np.asarray(self.stderr_corrected if corrected else self.stderr)[idx]
+        return np.asarray(self.correlation)[np.ix_(idx, idx)] * np.outer(sd, sd)
 
     def high_correlations(self, limit: float = 0.9) -> list[tuple[str, str, float]]:
         """Pairs of estimated parameters correlated above `limit` in magnitude."""
