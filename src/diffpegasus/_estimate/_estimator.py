@@ -32,6 +32,13 @@ def is_successful(result) -> bool:
     return int(np.asarray(result._value)) == int(np.asarray(RESULTS.successful._value))
 
 
+def covariance(stderr, correlation):
+    """`(..., k, k)`: the covariance of estimates from their standard errors
+    `(..., k)` and correlation `(..., k, k)`, `sd_i corr_ij sd_j` (NumPy or JAX
+    arrays, any leading axes: a windowed fit's per window)."""
+    return correlation * (stderr[..., :, None] * stderr[..., None, :])
+
+
 class AbstractFit(eqx.Module):
     """The result of any estimator: what a report, a diagnosis or a user reads.
 
@@ -114,7 +121,7 @@ class AbstractFit(eqx.Module):
                 )
             idx = [params.index(n) for n in names]
         sd = np.asarray(self.stderr_corrected if corrected else self.stderr)[idx]
-        return np.asarray(self.correlation)[np.ix_(idx, idx)] * np.outer(sd, sd)
+        return covariance(sd, np.asarray(self.correlation)[np.ix_(idx, idx)])
 
     def high_correlations(self, limit: float = 0.9) -> list[tuple[str, str, float]]:
         """Pairs of estimated parameters correlated above `limit` in magnitude."""
