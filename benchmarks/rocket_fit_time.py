@@ -10,8 +10,8 @@ benchmarks/results/rocket_fit_time.json (`--out` another name).
 
 Run: `python benchmarks/rocket_fit_time.py [--attitude] [--spread] [--out NAME]
 FOLDER ...`;
-a FOLDER holds a `rocket.toml` with its `[log]` or a simulated flight's `log.csv`
-(scripts/make_rocket_fixtures.py).
+a FOLDER holds a `rocket.toml` with its `[log]` (a simulated flight's as
+scripts/make_rocket_fixtures.py writes it).
 """
 
 import json
@@ -19,28 +19,9 @@ import os
 import pathlib
 import sys
 import time
-import types
-
-import numpy as np
 
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-
-
-def sim_log(folder):
-    """A simulated flight's `log.csv` as a rocket log."""
-    a = np.loadtxt(folder / "log.csv", delimiter=",", skiprows=1)
-    names = ("altitude", "accel_axial", "gyro_lateral")[: a.shape[1] - 1]
-    channels = {
-        n: types.SimpleNamespace(t=a[:, 0], values=a[:, j + 1], filtered=False)
-        for j, n in enumerate(names)
-    }
-    apogee = types.SimpleNamespace(t=float(a[-1, 0]), how="", value=np.nan)
-    return types.SimpleNamespace(
-        channels=channels,
-        events={"liftoff": types.SimpleNamespace(t=0.0), "apogee": apogee},
-        pad={},
-    )
 
 
 def timed(folder, attitude, spread=False):
@@ -48,10 +29,7 @@ def timed(folder, attitude, spread=False):
     from diffpegasus.rocket import fit_rocket, prepare, read_rocket
 
     rocket = read_rocket(folder / "rocket.toml", attitude=attitude)
-    if (folder / "log.csv").exists():
-        log = sim_log(folder)
-    else:
-        log = read_rocket_log(folder / "rocket.toml")
+    log = read_rocket_log(folder / "rocket.toml")
     times = []
     for _ in range(2):
         t0 = time.perf_counter()

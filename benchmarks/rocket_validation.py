@@ -191,10 +191,8 @@ def knot_values(result):
 
 def knot_cov(result):
     names = list(result.fit.model.parameters)
-    idx = [names.index(k) for k in result.knots.names]
     scale = result.fit.params[names.index("cd_scale")]
-    sd = result.fit.stderr_corrected[idx] * scale
-    return result.fit.correlation[np.ix_(idx, idx)] * np.outer(sd, sd)
+    return result.fit.covariance_of(result.knots.names) * scale**2
 
 
 def write(out, name):

@@ -15,28 +15,23 @@ import json
 import pathlib
 import sys
 import time
-import types
 
 import numpy as np
 
 
 def sim_log(folder, gyro=True):
-    """A simulated flight's `log.csv` as a rocket log (altitude, axial specific
-    force and, where written and asked for, the lateral gyro rate)."""
-    a = np.loadtxt(folder / "log.csv", delimiter=",", skiprows=1)
+    """A simulated flight read through its `rocket.toml`'s `[log]` (as
+    scripts/make_rocket_fixtures.py writes it), its lateral gyro dropped unless
+    `gyro`."""
+    import dataclasses
 
-    def channel(j):
-        return types.SimpleNamespace(t=a[:, 0], values=a[:, j], filtered=False)
+    from diffpegasus import read_rocket_log
 
-    channels = {"altitude": channel(1), "accel_axial": channel(2)}
-    if gyro and a.shape[1] > 3:
-        channels["gyro_lateral"] = channel(3)
-    apogee = types.SimpleNamespace(t=float(a[-1, 0]), how="", value=np.nan)
-    return types.SimpleNamespace(
-        channels=channels,
-        events={"liftoff": types.SimpleNamespace(t=0.0), "apogee": apogee},
-        pad={},
-    )
+    log = read_rocket_log(folder / "rocket.toml")
+    if gyro:
+        return log
+    kept = {k: c for k, c in log.channels.items() if k != "gyro_lateral"}
+    return dataclasses.replace(log, channels=kept)
 
 
 def one(folder, gyro):

@@ -37,13 +37,7 @@ def main():
         names = [n for n, f in zip(fit.model.parameters, fit.free, strict=True) if f]
         x, c = sensor_estimates(fit, tuple(names))
         joint = np.array([fit.params[fit.model.parameters.index(n)] for n in names])
-        sd = np.array(
-            [fit.stderr_corrected[fit.model.parameters.index(n)] for n in names]
-        )
-        cj = fit.correlation[
-            np.ix_(*[[fit.model.parameters.index(n) for n in names]] * 2)
-        ]
-        cj = cj * np.outer(sd, sd)
+        cj = fit.covariance_of(names)
         k = [names.index(n) for n in res.knots.names]
         d = x[0] - x[1]
         v = c[0] + c[1]
@@ -65,7 +59,7 @@ def main():
             x[0],
             x[1],
             joint,
-            sd,
+            np.sqrt(np.diag(cj)),
             np.sqrt(np.diag(c[0])),
             np.sqrt(np.diag(c[1])),
             strict=True,

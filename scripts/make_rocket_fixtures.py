@@ -8,7 +8,8 @@ cubic spline, not straight lines between them, which runs up to 3.4% below the l
 between Mach 0.6 and 0.8 of the curves here; the file holds that spline every 0.01
 Mach, so that straight lines between its points are the flown curve within 1.2e-4) and `log.csv` (time s, barometric altitude m above the pad as a
 flight computer computes it from static pressure with the standard atmosphere,
-axial specific force m/s^2 with gravity included), sampled at 50 Hz (or the flight's `rate`) to apogee.
+axial specific force m/s^2 with gravity included), sampled at 50 Hz (or the flight's `rate`) to apogee; the `rocket.toml`'s `[log]` maps
+its columns and states its time zero and its apogee (the last row) for the library's reader.
 
 Planted effects per flight: a drag curve, a thrust scale (the motor file holds the
 catalogue curve, RocketPy flies the scaled one), constant wind, barometer lag
@@ -311,13 +312,19 @@ def flight(name, spec, out=OUT):
         w2 = w2 + rng.normal(0, spec["gyro"], len(t))
         columns.append(np.hypot(w1, w2))
         header += ",gyro_lateral_rad_s"
+    fmt = "%.5f" if spec.get("gyro") else "%.3f"
     np.savetxt(
         folder / "log.csv",
         np.column_stack(columns),
         delimiter=",",
-        fmt="%.5f" if spec.get("gyro") else "%.3f",
+        fmt=fmt,
         header=header,
         comments="",
+    )
+    gyro_map = (
+        'gyro_lateral = { column = "gyro_lateral_rad_s", unit = "rad/s" }\n'
+        if spec.get("gyro")
+        else ""
     )
     (folder / "rocket.toml").write_text(f"""\
 # A flight simulated by RocketPy {__import__("importlib.metadata").metadata.version("rocketpy")} (scripts/make_rocket_fixtures.py)
@@ -356,6 +363,20 @@ heading_deg = 133
 
 [atmosphere]
 surface_temperature_K = {float(env.temperature(150.0)):.3f}
+
+[log]
+# RocketPy's export: its time from its start (the motor's ignition, which the fit's
+# motor time places), sampled to its apogee (the last row)
+file = "log.csv"
+
+[log.column_map]
+time = {{ column = "time_s", unit = "s" }}
+altitude = {{ column = "altitude_m", unit = "m" }}
+accel_axial = {{ column = "accel_axial_m_s2", unit = "m/s^2", gravity = "included" }}
+{gyro_map}
+[log.stated_events]
+liftoff_s = 0.0
+apogee_s = {fmt % t[-1]}
 
 [results]
 recorded_apogee_agl_m = {float(fl.apogee) - 150.0:.2f}

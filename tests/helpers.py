@@ -32,24 +32,6 @@ def numpy_channels(flight: dp.Flight) -> dict[str, np.ndarray]:
     return out
 
 
-def rocket_sim_log(folder):
-    """A simulated rocket flight's `log.csv` (tests/data/rocket_sim) as a rocket log:
-    barometric altitude (m) and axial acceleration (m/s^2) on one clock."""
-    import types
-
-    a = np.loadtxt(folder / "log.csv", delimiter=",", skiprows=1)
-
-    def channel(j):
-        return types.SimpleNamespace(t=a[:, 0], values=a[:, j], filtered=False)
-
-    apogee = types.SimpleNamespace(t=float(a[-1, 0]), how="", value=np.nan)
-    return types.SimpleNamespace(
-        channels={"altitude": channel(1), "accel_axial": channel(2)},
-        events={"liftoff": types.SimpleNamespace(t=0.0), "apogee": apogee},
-        pad={},
-    )
-
-
 # a linear short-period model (alpha, q; elevator de; outputs alpha, q, az) in the
 # form `Model` takes, shared by the filter-error and input-timing tests
 SHORT_PERIOD_SPEED = 50.0  # m/s, so that az = V alpha_dot-ish is of order 1

@@ -8,9 +8,7 @@ import pathlib
 import numpy as np
 import pytest
 
-from diffpegasus import rocket as dr
-
-from .helpers import rocket_sim_log
+from diffpegasus import read_rocket_log, rocket as dr
 
 
 SIM = pathlib.Path(__file__).parent / "data" / "rocket_sim"
@@ -195,7 +193,7 @@ def test_rocket_toml_read_and_refused(tmp_path):
 
 
 def sim_log(name):
-    return rocket_sim_log(SIM / name)
+    return read_rocket_log(SIM / name / "rocket.toml")
 
 
 def test_dynamics_against_rocketpy():
@@ -264,15 +262,12 @@ def test_cli_refuses_a_bad_rocket_file_in_one_line(tmp_path):
 
 
 def _clean_flight_folder(tmp_path):
-    """The committed clean RocketPy flight copied to `tmp_path`, its `rocket.toml`
-    pointing at its `log.csv`, as a user's folder for `rocket fit`."""
+    """The committed clean RocketPy flight (its `rocket.toml` naming its `log.csv`)
+    copied to `tmp_path`, as a user's folder for `rocket fit`."""
     folder = tmp_path / "clean"
     folder.mkdir()
     for f in (SIM / "clean").iterdir():
         (folder / f.name).write_bytes(f.read_bytes())
-    (folder / "rocket.toml").write_text(
-        (SIM / "clean" / "rocket.toml").read_text() + '\n[log]\nfile = "log.csv"\n'
-    )
     return folder
 
 

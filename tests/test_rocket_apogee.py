@@ -7,9 +7,7 @@ import pathlib
 import numpy as np
 import pytest
 
-from diffpegasus import rocket as dr
-
-from .helpers import rocket_sim_log
+from diffpegasus import read_rocket_log, rocket as dr
 
 
 SIM = pathlib.Path(__file__).parent / "data" / "rocket_sim"
@@ -21,7 +19,7 @@ def prediction():
     seconds after the motor's end (the accelerometer's start value for the motor
     time: the log has no burnout event and no full fit is run here)."""
     rocket = dr.read_rocket(SIM / "clean" / "rocket.toml")
-    log = rocket_sim_log(SIM / "clean")
+    log = read_rocket_log(SIM / "clean" / "rocket.toml")
     problem = dr.prepare(rocket, log)
     cut = problem.start["motor_time"] + rocket.motor.burn_time + 2.0
     pred = dr.predict(problem, cut)
@@ -87,7 +85,7 @@ def test_held_terms_against_the_prediction_refitted(prediction):
     held = {"temperature": 2.0, "lapse_rate": 2.0}  # the file states the pad's T
     assert {k: s for k, (s, _) in band.held.items()} == held
     names = pred.fit.model.parameters
-    problem = dr.prepare(pred.rocket, rocket_sim_log(SIM / "clean"))
+    problem = dr.prepare(pred.rocket, read_rocket_log(SIM / "clean" / "rocket.toml"))
     cut = float(pred.record.t[np.flatnonzero(pred.record.inputs[:, 1])[-1]])
     for k, step in (("temperature", 2.0), ("lapse_rate", 1.0)):
         start = dict(zip(names, np.asarray(pred.fit.params), strict=True))

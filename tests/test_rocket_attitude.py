@@ -10,9 +10,8 @@ import jax.numpy as jnp
 import numpy as np
 
 import diffpegasus.rocket as dr
+from diffpegasus import read_rocket_log
 from diffpegasus._vehicle._rocket._barrowman import read_airframe
-
-from .helpers import rocket_sim_log
 
 
 SIM = pathlib.Path(__file__).parent / "data" / "rocket_sim"
@@ -141,7 +140,7 @@ def test_weathercocking_flies_rocketpys_windy_flight():
     rocket = dr.read_rocket(folder / "rocket.toml", attitude=True)
     m, cd = dr.read_drag_curve(folder / "drag.csv")
     knots = dr.DragKnots(tuple(float(v) for v in m[(m >= 0.05) & (m <= 0.85)][::5]))
-    problem = dr.prepare(rocket, rocket_sim_log(folder), knots=knots)
+    problem = dr.prepare(rocket, read_rocket_log(folder / "rocket.toml"), knots=knots)
     start = dict(zip(knots.names, np.interp(knots.mach, m, cd), strict=True))
     start.update(
         thrust_scale=truth["thrust_scale"],

@@ -15,8 +15,7 @@ import numpy as np
 import pytest
 
 import diffpegasus.rocket as dr
-
-from .helpers import rocket_sim_log
+from diffpegasus import read_rocket_log
 
 
 DATA = pathlib.Path(__file__).parent / "data"
@@ -35,7 +34,7 @@ def test_clean_rocketpy_flight_through_its_atmosphere_table_names_nothing():
     atmosphere scores it 5.1 against 9.6 (experiments/rocket_baro_nuisance.py)."""
     rocket = dr.read_rocket(TABLE_FLIGHT / "rocket.toml")
     named, rows, _ = dr.diagnose(
-        dr.prepare(rocket, rocket_sim_log(TABLE_FLIGHT)), rounds=1
+        dr.prepare(rocket, read_rocket_log(TABLE_FLIGHT / "rocket.toml")), rounds=1
     )
     lag = next(r for r in rows if r["candidate"] == "barometer lag")
     assert named == [], (named, lag["statistic"], lag["threshold"])
@@ -55,7 +54,8 @@ def test_height_dependent_barometer_error_is_not_named_a_lag(tmp_path):
     12.0 against 8.8 (see KNOWN_FAILING); the committed `clean` rocket's own flight
     at 50 Hz with the same error names nothing (the lag 5.7 against 12.1)."""
     problem = dr.prepare(
-        dr.read_rocket(TABLE_FLIGHT / "rocket.toml"), rocket_sim_log(TABLE_FLIGHT)
+        dr.read_rocket(TABLE_FLIGHT / "rocket.toml"),
+        read_rocket_log(TABLE_FLIGHT / "rocket.toml"),
     )
     flown = dr.simulate_flight(problem, start={"thrust_scale": 1.0, "motor_time": 0.0})
     n = len(problem.record.t)
@@ -77,7 +77,9 @@ def test_height_dependent_barometer_error_is_not_named_a_lag(tmp_path):
         comments="",
         fmt="%.4f",
     )
-    problem = dr.prepare(dr.read_rocket(folder / "rocket.toml"), rocket_sim_log(folder))
+    problem = dr.prepare(
+        dr.read_rocket(folder / "rocket.toml"), read_rocket_log(folder / "rocket.toml")
+    )
     named, rows, _ = dr.diagnose(problem, rounds=1)
     lag = next(r for r in rows if r["candidate"] == "barometer lag")
     assert named == [], (named, lag["statistic"], lag["threshold"])

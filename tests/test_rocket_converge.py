@@ -9,9 +9,7 @@ import numpy as np
 import pytest
 
 import diffpegasus as dp
-from diffpegasus import rocket as dr
-
-from .helpers import rocket_sim_log
+from diffpegasus import read_rocket_log, rocket as dr
 
 
 SIM = pathlib.Path(__file__).parent / "data" / "rocket_sim"
@@ -51,7 +49,7 @@ def test_air_brakes_held_between_rows_shaped_by_the_table_and_estimated(tmp_path
     schedule is not, and the fit of Camoes did not converge)."""
     folder = _braked_flight(tmp_path)
     rocket = dr.read_rocket(folder / "rocket.toml")
-    problem = dr.prepare(rocket, rocket_sim_log(SIM / "clean"))
+    problem = dr.prepare(rocket, read_rocket_log(SIM / "clean" / "rocket.toml"))
     t, brake = problem.record.t, problem.record.inputs[:, 0]
     # the schedule held from each row to the next, squared by the table
     expected = np.select([t < 5, t < 10, t < 14], [0.0, 1.0, 0.25], 0.0)
@@ -62,7 +60,8 @@ def test_air_brakes_held_between_rows_shaped_by_the_table_and_estimated(tmp_path
     # without a table the deployment itself, the brakes' CD starting from zero
     folder2 = _braked_flight(tmp_path / "plain", table=False)
     plain = dr.prepare(
-        dr.read_rocket(folder2 / "rocket.toml"), rocket_sim_log(SIM / "clean")
+        dr.read_rocket(folder2 / "rocket.toml"),
+        read_rocket_log(SIM / "clean" / "rocket.toml"),
     )
     expected = np.select([t < 5, t < 10, t < 14], [0.0, 1.0, 0.5], 0.0)
     np.testing.assert_allclose(plain.record.inputs[:, 0], expected, atol=1e-12)

@@ -515,6 +515,52 @@ def test_rocketpy_flights(case):
     assert half <= burnout <= thrust[-1, 0]
 
 
+@pytest.mark.skipif(not SIM.is_dir(), reason="RocketPy flight fixtures absent")
+def test_simulated_flight_read_through_its_rocket_toml(tmp_path):
+    """A simulator's export read through its rocket.toml: `[log.column_map]` as a
+    table and `[log.stated_events]` (time zero and apogee as the writer knows them)
+    give the file's columns unchanged, against numpy's own read of the CSV; the
+    events found from the data are reported beside the stated ones. A stated
+    event that is not one, or not a number, is one line naming the key."""
+    folder = SIM / "clean"
+    raw = np.loadtxt(folder / "log.csv", delimiter=",", skiprows=1)
+    log = read_rocket_log(folder / "rocket.toml")
+    assert list(log.channels) == ["altitude", "accel_axial"]
+    for j, name in enumerate(log.channels, start=1):
+        np.testing.assert_array_equal(log[name].t, raw[:, 0])
+        np.testing.assert_array_equal(log[name].values, raw[:, j])
+    assert log.time_offsets == {str(folder / "log.csv"): 0.0}
+    assert log.pad == {}  # no samples before the stated liftoff
+    assert log.events["liftoff"].t == 0.0
+    assert log.events["apogee"].t == raw[-1, 0]
+    assert log.events["apogee"].value == raw[-1, 1]
+    # found from the data: the vertex 0.016 s before the last row (measured)
+    found = [m for m in log.messages if m.startswith("apogee:")]
+    assert found == [
+        "apogee: 24.000 s after liftoff as the rocket.toml states (found from the "
+        "data: 23.984 s)"
+    ]
+    # the found burnout is kept: inside the motor's tail-off, as on the file alone
+    thrust = np.loadtxt(folder / "motor.csv", delimiter=",")
+    assert 0.5 * thrust[-1, 0] < log.events["burnout"].t <= thrust[-1, 0]
+    text = (folder / "rocket.toml").read_text()
+    for line, key in (
+        ("apogee_s = 24.000", "burnup_s"),
+        ("apogee_s = 24.000", "apogee"),
+    ):
+        shutil.copytree(folder, tmp_path / key)
+        bad = text.replace(line, f"{key} = 24.000")
+        (tmp_path / key / "rocket.toml").write_text(bad)
+        with pytest.raises(LogError, match=rf"\[log.stated_events\] {key}: not an"):
+            read_rocket_log(tmp_path / key / "rocket.toml")
+    shutil.copytree(folder, tmp_path / "text")
+    (tmp_path / "text" / "rocket.toml").write_text(
+        text.replace("apogee_s = 24.000", 'apogee_s = "24"')
+    )
+    with pytest.raises(LogError, match="apogee_s = '24': not a time in s"):
+        read_rocket_log(tmp_path / "text" / "rocket.toml")
+
+
 def test_rocket_toml_names_its_logs_and_maps(tmp_path):
     """A user's rocket.toml: `[log] file` with a `column_map` inline (in the syntax of
     every column map: `t` for time, or `{"step": s}` for a file without one), or

@@ -16,6 +16,7 @@ Adding an estimator is one file and one registry line:
 """
 
 import abc
+from collections.abc import Sequence
 
 import equinox as eqx
 import numpy as np
@@ -29,6 +30,13 @@ def is_successful(result) -> bool:
     """Whether a [`RESULTS`][] item is `successful`, compared on the host (`==` of
     two enumeration items is a JAX operation: a program compiled for one bool)."""
     return int(np.asarray(result._value)) == int(np.asarray(RESULTS.successful._value))
+
+
+def covariance(stderr, correlation):
+    """`(..., k, k)`: the covariance of estimates from their standard errors
+    `(..., k)` and correlation `(..., k, k)`, `sd_i corr_ij sd_j` (NumPy or JAX
+    arrays, any leading axes: a windowed fit's per window)."""
+    return correlation * (stderr[..., :, None] * stderr[..., None, :])
 
 
 class AbstractFit(eqx.Module):
@@ -93,6 +101,27 @@ class AbstractFit(eqx.Module):
             )
             if f
         }
+
+    def covariance_of(
+        self, names: Sequence[str] | None = None, corrected: bool = True
+    ) -> np.ndarray:
+        """`(k, k)` covariance of the estimates of `names` (default: every
+        estimated parameter, in the model's order), in their units squared: the
+        standard errors (corrected for coloured residuals, or with `corrected=False`
+        the Cramér-Rao ones) times the correlation, `sd_i corr_ij sd_j`."""
+        params = list(self.model.parameters)
+        if names is None:
+            idx = [i for i, f in enumerate(np.asarray(self.free)) if f]
+        else:
+            unknown = [n for n in names if n not in params]
+            if unknown:
+                raise ValueError(
+                    f"no parameter {unknown[0]!r} in the model (parameters: "
+                    f"{', '.join(params)})"
+                )
+            idx = [params.index(n) for n in names]
+        sd = np.asarray(self.stderr_corrected if corrected else self.stderr)[idx]
+        return covariance(sd, np.asarray(self.correlation)[np.ix_(idx, idx)])
 
     def high_correlations(self, limit: float = 0.9) -> list[tuple[str, str, float]]:
         """Pairs of estimated parameters correlated above `limit` in magnitude."""

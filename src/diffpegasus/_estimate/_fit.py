@@ -244,19 +244,28 @@ def simulate(model: Model, record: Record, params=None, x0=None) -> np.ndarray:
     """The model's states at the record's samples, `(samples, states)`, integrated by
     RK4 at the sample step from `x0` (default: the record's) with `params` (default:
     the model's start values) and the record's inputs."""
+    params = np.asarray(model.start if params is None else params, float)
+    return np.asarray(flown_states(model, record, params, x0))
+
+
+def flown_states(model: Model, record: Record, params, x0=None) -> jax.Array:
+    """[`simulate`][]'s states `(samples, states)` as a JAX array: the model flown
+    over the record by single shooting (RK4 at the sample step, the engine's own
+    segment) from `x0` (default: the record's, else its first measured sample) with
+    `params` `(params,)`; differentiable in `params` and `x0`, and callable inside
+    a traced function (one compiled program per model structure and layout)."""
     from ._engine import segment_solve
 
-    params = np.asarray(model.start if params is None else params, float)
-    x0 = record.x0 if x0 is None else np.asarray(x0, float)
+    x0 = record.x0 if x0 is None else x0
     if x0 is None:
         x0 = record.measured_states(model, [0])[0]
     lay = layout(
         model, [record], SingleShooting(), "fixed", (), np.ones(len(model.states))
     )
     xs, _ = jax.jit(segment_solve, static_argnums=0)(
-        model.structure(), lay, 0, jnp.asarray(x0), jnp.asarray(params)
+        model.structure(), lay, 0, jnp.asarray(x0, float), jnp.asarray(params, float)
     )
-    return np.asarray(xs)[: len(record.t)]
+    return xs[: len(record.t)]
 
 
 def simulate_outputs(

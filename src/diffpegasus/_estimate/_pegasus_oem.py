@@ -97,6 +97,7 @@ from .._vehicle._parts import Geometry
 from .._vehicle._pegasus._aerodynamics import body_axis, load_database
 from .._vehicle._pegasus._vehicle import C_REF, S_REF
 from ._engine import iteration_bound, Layout, RESULTS, segment_solve, solve
+from ._estimator import covariance
 from ._lse import estimate_lse, window_truth
 from ._result import Estimates
 from ._windowed_oem import (
@@ -576,8 +577,7 @@ def windowed_lift_drag(fit: WindowedFit, alpha: Float[Array, " windows"], axes: 
         "terms_held": jnp.any(fit.held[:, 6:], axis=1),
     }
     ok = fit.converged & fit.active
-    sd_c = fit.stderr_corrected[:, :6]
-    cov = sd_c[:, :, None] * corr * sd_c[:, None, :]
+    cov = covariance(fit.stderr_corrected[:, :6], corr)
     values, sd = _to_lift_drag_with_errors(fit.params[:, :6], cov, alpha, axes)
     return (
         jnp.where(ok[:, None], values, jnp.nan),

@@ -44,10 +44,18 @@ def _pad_of(t_lift: float):
     return pad
 
 
-def one_clock(flat: dict[str, Series], auto: bool, messages: list[str]):
+def one_clock(
+    flat: dict[str, Series],
+    auto: bool,
+    messages: list[str],
+    stated: dict[str, float] | None = None,
+):
     """Liftoff, units and events of the channels on one clock (file time): returns
     `(liftoff time in the file, events, pad)`, or `None` for a clock with nothing
-    to find liftoff in (GNSS alone). The series are converted in place."""
+    to find liftoff in (GNSS alone). The series are converted in place. `stated`:
+    name -> file time of events the log's writer states, taken instead of those
+    found (liftoff is then not searched for)."""
+    stated = stated or {}
     alt = flat.get("altitude")
     press = flat.get("pressure")
     if alt is None and press is None:
@@ -63,7 +71,12 @@ def one_clock(flat: dict[str, Series], auto: bool, messages: list[str]):
     else:
         th = hh = None
     t_lift, late, how = None, False, ""
-    if th is not None:
+    if "liftoff" in stated:
+        t_lift, how = (
+            stated["liftoff"],
+            "stated in the rocket.toml's [log.stated_events]",
+        )
+    elif th is not None:
         top = (
             float(np.max(np.convolve(hh, np.ones(3) / 3, "same")[1:-1]))
             if len(hh) > 3
@@ -73,7 +86,7 @@ def one_clock(flat: dict[str, Series], auto: bool, messages: list[str]):
     if auto and "accel_axial" not in flat and t_lift is not None:
         _auto_axis(flat, t_lift, messages)
     acc = flat.get("accel_axial")
-    if acc is not None:
+    if acc is not None and "liftoff" not in stated:
         guess = t_lift if t_lift is not None else float(acc.t[np.argmax(acc.v)])
         refined = liftoff_from_accel(acc.t, acc.v, guess)
         if refined is not None and (t_lift is None or abs(refined - t_lift) < 1.0):
@@ -203,6 +216,19 @@ def one_clock(flat: dict[str, Series], auto: bool, messages: list[str]):
             )
             h_apo *= factor
     _deployments(events, flat, th, hh, t_lift, t_apo, h_apo, pulses, messages)
+    for name, t in stated.items():
+        if name == "liftoff":
+            continue
+        found = events.get(name)
+        messages.append(
+            f"{name}: {t - t_lift:.3f} s after liftoff as the rocket.toml states "
+            + (f"(found from the data: {found.t:.3f} s)" if found else "(not found)")
+        )
+        events[name] = Event(
+            t - t_lift,
+            "stated in the rocket.toml's [log.stated_events]",
+            float(np.interp(t, th, hh)),
+        )
     return t_lift, events, pad
 
 

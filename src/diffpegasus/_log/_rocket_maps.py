@@ -229,7 +229,8 @@ def streams_from_map(
         if not isinstance(s, dict) or "file" not in s or "time" not in s:
             raise LogError(f"{here}: needs 'file' and 'time'")
         file = pathlib.Path(s["file"])
-        if not file.is_absolute() and root is not None:
+        # a map without streams names the file given, already found
+        if not file.is_absolute() and root is not None and file not in files:
             file = root / file
         header = Header(file)
         time = _time_spec(s["time"], here, header)

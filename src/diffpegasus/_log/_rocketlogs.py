@@ -138,13 +138,19 @@ def read_rocket_log(
 
     - `source`: a `rocket.toml` (its `[log]` table's `file` or `files`, or the
       `file` of each `[log.*]` table, name the logs, relative to it), or one log
-      file, or a list of the log files of one flight.
+      file, or a list of the log files of one flight. Its `[log.stated_events]`
+      table may give events the log's writer knows, in the file's seconds
+      (`liftoff_s`, `apogee_s`, ... for the events below): a simulator's export
+      whose time zero is its start (`liftoff_s = 0.0`: the file's clock is kept,
+      liftoff not searched for) and whose last row is its apogee. A stated event
+      replaces the one found, with a message giving the found time.
     - `column_map`: which column holds which channel, in the syntax of every column
       map (`{"altitude": {"column": "alt(ft)", "unit": "ft"}}`), as a dict or a
       `.json` / `.toml` file. For several files or several streams in one file it is
       `{"streams": [{"file": "logs/a.csv", "time": "ts", "altitude": ...}, ...]}`.
       An accelerometer's entry may say `"gravity": "included"` or `"removed"`, any
-      entry `"filtered": true`. Default: the map next to the `rocket.toml`
+      entry `"filtered": true`. Default: the `rocket.toml`'s `[log] column_map`
+      (a table, or the path of a map file), else the map next to the `rocket.toml`
       (`columns.json`), else a shipped one for the flight's folder, else the layout
       the files' headers show (AltOS, CATS, or column names with units in brackets
       or as a suffix: `alt(ft)`, `altitude_m`). A unit the map or header gives is
@@ -162,6 +168,7 @@ def read_rocket_log(
     unit that the data contradict, no column for a channel).
     """
     files, root, log_table = _sources(source)
+    stated = _stated_events(log_table, root)
     messages: list[str] = []
     streams = _streams(files, root, column_map, log_table, messages)
     series_by_stream: list[dict[str, Series]] = []
@@ -222,7 +229,7 @@ def read_rocket_log(
                 f"{flat['accel_axial'].where} (a flight computer's estimate)"
             )
             del flat["accel_axial"]
-        found = one_clock(flat, auto, messages)
+        found = one_clock(flat, auto, messages, stated if primary else {})
         if found is None:
             files_here = ", ".join(sorted({spec.file.name for spec, _ in members}))
             messages.append(
@@ -303,6 +310,34 @@ def _sources(source) -> tuple[list[pathlib.Path], pathlib.Path | None, dict]:
     return paths, None, {}
 
 
+def _stated_events(log_table: dict, root: pathlib.Path | None) -> dict[str, float]:
+    """name -> the file's time (s) of the events a `rocket.toml`'s
+    `[log.stated_events]` states (`liftoff_s`, `apogee_s`, ...: what the log's
+    writer knows, a simulator's time zero and its end at apogee)."""
+    table = log_table.get("stated_events", {})
+    where = f"{root / 'rocket.toml' if root is not None else 'rocket.toml'}"
+    if not isinstance(table, dict):
+        raise LogError(f"{where}: [log.stated_events] must be a table of times in s")
+    out = {}
+    for key, value in table.items():
+        name = key.removesuffix("_s")
+        if not key.endswith("_s") or name not in EVENT_NAMES:
+            raise LogError(
+                f"{where}: [log.stated_events] {key}: not an event time; give "
+                + ", ".join(f"{n}_s" for n in EVENT_NAMES)
+            )
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise LogError(
+                f"{where}: [log.stated_events] {key} = {value!r}: not a time in s"
+            )
+        if not np.isfinite(value):
+            raise LogError(
+                f"{where}: [log.stated_events] {key} = {value!r}: not a finite time"
+            )
+        out[name] = float(value)
+    return out
+
+
 def shipped_map(folder: str) -> pathlib.Path | None:
     """The column map shipped for a known flight's folder name, if any."""
     path = pathlib.Path(__file__).parents[1] / "data" / "rocket_logs" / f"{folder}.json"
@@ -323,6 +358,8 @@ def _streams(files, root, column_map, log_table, messages) -> list[StreamSpec]:
         }
         if isinstance(named, str):
             column_map = root / named
+        elif isinstance(named, dict):
+            column_map = named
         elif per_file:
             out = []
             for f in files:
@@ -345,7 +382,12 @@ def _streams(files, root, column_map, log_table, messages) -> list[StreamSpec]:
             column_map = beside if beside.is_file() else shipped_map(root.name)
     if column_map is not None:
         data, map_folder = load_map(column_map)
-        where = str(column_map) if not isinstance(column_map, dict) else "column map"
+        if not isinstance(column_map, dict):
+            where = str(column_map)
+        elif root is not None and column_map is log_table.get("column_map"):
+            where = f"{root / 'rocket.toml'}: [log] column_map"
+        else:
+            where = "column map"
         # a map's file names are relative to the rocket.toml, else to the map
         return streams_from_map(data, where, root or map_folder, files)
     out = []

@@ -62,37 +62,28 @@ def held_sigmas(result) -> dict:
 def apogee_function(result, extra: float = 30.0):
     """`params (params,) -> apogee` m, the barometric apogee of `result`'s flight
     flown from the pad with the full parameter vector `params` (the model's order),
-    a jitted JAX function: RK4 at the record's step over the record and `extra` s
-    beyond it, the peak sample before the climb rate's first sign change and a
-    second on, refined by the parabola through it and its neighbours (smooth in the
-    parameters where the sample maximum steps)."""
+    a jitted JAX function: the flight as the engine flies it (`flown_states`, RK4
+    at the record's step over the record and `extra` s beyond it), the peak sample
+    within the trajectory's own cut (`apogee_cut`: up to a second after the climb
+    rate's first sign change), refined by the parabola through it and its
+    neighbours (smooth in the parameters where the sample maximum steps)."""
     import jax
     import jax.numpy as jnp
 
-    from .._estimate._engine import segment_solve
-    from .._estimate._fit import layout, SingleShooting
-    from ._identify import _long_record, _observed
+    from .._estimate._fit import flown_states
+    from ._identify import _long_record, _observed, apogee_cut
 
     model = result.fit.model
     record = result.record
     t, inputs, long = _long_record(record, extra)
-    lay = layout(
-        model, [long], SingleShooting(), "fixed", (), np.ones(len(model.states))
-    )
-    structure = model.structure()
-    x0 = jnp.asarray(record.x0)
     n = len(t)
     names = model.parameters
     flight = result.flight
 
     def apogee(params):
-        xs, _ = segment_solve(structure, lay, 0, x0, params)
-        xs = xs[:n]
+        xs = flown_states(model, long, params)
         baro = _observed(flight, t, xs, inputs, params, names)[:, 0]
-        falling = (xs[:, 5] <= 0) & (jnp.asarray(t) > 1.0)
-        top = jnp.where(jnp.any(falling), jnp.argmax(falling), n - 1)
-        cut = top + int(round(1.0 / record.dt))
-        within = jnp.arange(n) < cut
+        within = jnp.arange(n) < apogee_cut(jnp.asarray(t), xs[:, 5], record.dt)
         i = jnp.argmax(jnp.where(within, jax.lax.stop_gradient(baro), -jnp.inf))
         i = jnp.clip(i, 1, n - 2)
         y0, y1, y2 = baro[i - 1], baro[i], baro[i + 1]
@@ -109,29 +100,23 @@ def outputs_function(result):
     """`params (params,) -> outputs (samples, outputs)`, the measured channels of
     `result`'s flight flown from the pad at its record's samples (zero where the
     record has no sample: past the prediction's cut, a channel's gaps), a jitted
-    JAX function (the single-shooting model of the fit's data)."""
+    JAX function (the single-shooting model of the fit's data, `flown_states`)."""
     import jax
     import jax.numpy as jnp
 
-    from .._estimate._engine import segment_solve
-    from .._estimate._fit import layout, SingleShooting
+    from .._estimate._fit import flown_states
     from ._identify import _long_record, _observed
 
     model = result.fit.model
     record = result.record
     t, inputs, long = _long_record(record, 0.0)
-    lay = layout(
-        model, [long], SingleShooting(), "fixed", (), np.ones(len(model.states))
-    )
-    structure = model.structure()
-    x0 = jnp.asarray(record.x0)
     n, k = len(record.t), len(result.outputs)
     has = jnp.asarray(record.inputs[:n, 1 : 1 + k])
     names = model.parameters
     flight = result.flight
 
     def outputs(params):
-        xs, _ = segment_solve(structure, lay, 0, x0, params)
+        xs = flown_states(model, long, params)
         ys = _observed(flight, t[:n], xs[:n], inputs[:n], params, names)
         return ys[:, jnp.asarray([0, 1, 3][:k])] * has
 
@@ -169,8 +154,7 @@ def apogee_band(result, held: dict | None = None) -> ApogeeBand:
 
     grad = np.asarray(jax.jacfwd(along)(params[jnp.asarray(idx)]))
     g_free, g_held = grad[: len(free)], grad[len(free) :]
-    sd = np.asarray(fit.stderr_corrected)[free]
-    cov = np.asarray(fit.correlation)[np.ix_(free, free)] * np.outer(sd, sd)
+    cov = fit.covariance_of()  # the estimated parameters, in the model's order
     var_fit = float(g_free @ cov @ g_free)
     total = g_held
     if held:

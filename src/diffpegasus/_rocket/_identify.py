@@ -80,8 +80,7 @@ class RocketFit:
         names = self.fit.model.parameters
         idx = [names.index(n) for n in self.knots.names]
         est = self.fit.params[idx] * self.fit.params[names.index("cd_scale")]
-        sd = self.fit.stderr_corrected[idx]
-        cov = self.fit.correlation[np.ix_(idx, idx)] * np.outer(sd, sd)
+        cov = self.fit.covariance_of(self.knots.names)
         w = self.knots.weights(mach)
         var = np.einsum("mk,kl,ml->m", w, cov, w)
         if structural and self.spread is not None:
@@ -701,13 +700,10 @@ def trajectory(
     model = result.model if model is None else model
     params = result.params if params is None else params
     t, x, inputs = _flown(model, params, record, extra)
-    n = len(t)
     dt = record.dt
     ys = np.asarray(_observed(flight, t, x, inputs, params, model.parameters))
     baro, accel, mach = ys[:, 0], ys[:, 1], ys[:, 2]
-    falling = np.flatnonzero((x[:, 5] <= 0) & (t > 1.0))
-    top = int(falling[0]) if falling.size else n - 1
-    cut = min(n, top + int(1.0 / dt))
+    cut = int(apogee_cut(t, x[:, 5], dt))
     peak = int(np.argmax(baro[:cut]))
     return RocketFit(
         rocket=rocket,
@@ -723,6 +719,20 @@ def trajectory(
         apogee=float(baro[peak]),
         apogee_time=float(t[peak]),
     )
+
+
+def apogee_cut(t, climb, dt: float):
+    """How many samples the flown apogee is sought in: up to a second (rounded to
+    samples of `dt` s) after the climb rate `climb` (m/s, `(samples,)` at the times
+    `t`) first falls to zero or below past t = 1 s; all of them where it never
+    does. NumPy or JAX arrays; a JAX integer (traceable, so the apogee's gradient
+    shares it)."""
+    import jax.numpy as jnp
+
+    n = climb.shape[0]
+    falling = (climb <= 0) & (t > 1.0)
+    top = jnp.where(jnp.any(falling), jnp.argmax(falling), n - 1)
+    return jnp.minimum(n, top + int(round(1.0 / dt)))
 
 
 def _flown(model, params, record, extra=30.0):
