@@ -28,6 +28,9 @@ WIND_FREE = ("wind_along",)
 ACCEL_FREE = ("temperature", "lapse_rate")
 # with gyros and the attitude: the weathercocking's stiffness and damping
 GYRO_FREE = ("cn_alpha_scale", "pitch_damping_scale")
+# the motor's burn time over the catalogue's, where an accelerometer spans the boost:
+# the burn's shape is what it reads (a barometer integrates it twice, into drag)
+BURN_FREE = ("burn_scale",)
 # the CD the air brakes add fully out, where the rocket flew them: held at zero the
 # drag knots take it up as a function of Mach, which the brakes' schedule is not
 AIRBRAKE_FREE = ("airbrake_cd",)
@@ -123,6 +126,7 @@ def default_start(rocket: Rocket, knots: DragKnots, temperature: float) -> dict:
     start.update(
         power_on_ratio=ratio,
         thrust_scale=1.0,
+        burn_scale=1.0,
         cd_scale=1.0,
         motor_time=-max(float(lift), rocket.holddown),
         temperature=temperature,
@@ -246,6 +250,25 @@ def accel_covers_ascent(record, share: float = 0.9) -> bool:
         return False
     t = record.t[(record.inputs[:, 2] > 0) & (record.t >= 0)]
     return t.size > 1 and (t[-1] - max(t[0], 0.0)) >= share * record.t[-1]
+
+
+def accel_covers_boost(record, rocket, motor_time: float, after: float = 0.5) -> bool:
+    """Whether the accelerometer was read over the whole burn: from the motor's
+    start (or the log's liftoff, whichever is later) to `after` s past the
+    catalogue's burnout, at least 20 samples between. Then the burn's length is
+    estimated (`burn_scale`): the specific force shows where the thrust ends, which
+    the barometer, integrating it twice into height, cannot tell from the drag."""
+    if record.inputs.shape[1] < 3:
+        return False
+    t = record.t[record.inputs[:, 2] > 0]
+    end = motor_time + rocket.motor.burn_time
+    inside = (t >= max(motor_time, 0.0)) & (t <= end)
+    return (
+        t.size > 0
+        and t[0] <= max(motor_time, 0.0) + 0.1
+        and t[-1] >= end + after
+        and int(inside.sum()) >= 20
+    )
 
 
 def knots_for(record, rocket, temperature) -> DragKnots:
@@ -424,7 +447,8 @@ def fit_rocket(
 
     - `problem`: from [`prepare`][].
     - `free`: effects estimated besides the drag, the thrust scale, the motor's
-      start time and, with an accelerometer, its offset and either the day's
+      start time and, with an accelerometer, its offset, the burn's length where
+      it spans the boost (see [`accel_covers_boost`][]) and either the day's
       temperature and lapse rate or its scale (see [`accel_covers_ascent`][]) (names
       in the model's parameter list); by default [`default_free`][]'s.
     - `until`: s, use the log only up to this time (the model still runs to apogee;
@@ -436,7 +460,8 @@ def fit_rocket(
       record: single shooting alone).
     - `hold_temperature`: hold the pad temperature and lapse rate even with an
       accelerometer over the whole ascent (see [`accel_covers_ascent`][]).
-    - `hold`: parameters otherwise estimated (the thrust scale, the motor time, the
+    - `hold`: parameters otherwise estimated (the thrust scale, the motor time and
+      burn scale, the
       accelerometer's offset, the day's atmosphere) held at their start values: what
       a diagnosis tests as absent.
     - `single`: follow the multiple-shooting tries by single shooting from the
@@ -461,6 +486,8 @@ def fit_rocket(
     extras = ()
     if "accel" in problem.outputs:
         extras += ("accel_bias",)
+        if accel_covers_boost(problem.record, problem.rocket, values["motor_time"]):
+            extras += BURN_FREE
         if not accel_covers_ascent(problem.record):
             extras += ("accel_scale",) if "accel_scale" not in free else ()
         elif not hold_temperature:
