@@ -483,10 +483,13 @@ def fit_rocket(
     knots = problem.flight.knots
     if drag not in ("knots", "scale"):
         raise ValueError(f"drag must be 'knots' or 'scale', got {drag!r}")
+    record = problem.record
+    if until is not None:
+        record = record_until(record, until)
     extras = ()
     if "accel" in problem.outputs:
         extras += ("accel_bias",)
-        if accel_covers_boost(problem.record, problem.rocket, values["motor_time"]):
+        if accel_covers_boost(record, problem.rocket, values["motor_time"]):
             extras += BURN_FREE
         if not accel_covers_ascent(problem.record):
             extras += ("accel_scale",) if "accel_scale" not in free else ()
@@ -496,9 +499,6 @@ def fit_rocket(
     scaled = ("cd_scale",) + base
     estimated = knots.names + base if drag == "knots" else scaled
     estimated += tuple(f for f in free if f not in base)
-    record = problem.record
-    if until is not None:
-        record = record_until(record, until)
 
     if problem.rocket.airframe is None:
         tried, flown = _tries(
