@@ -127,3 +127,25 @@ def test_burn_time_estimated_where_the_accelerometer_spans_the_boost():
     )
     alone = Record(record.t, record.inputs[:, :2], record.measured[:, :1])
     assert not accel_covers_boost(alone, rocket, 0.0)
+
+
+def test_burn_scale_start_from_the_accelerometer():
+    """The equation-error start: RocketPy's flights (an independent simulator, the
+    catalogue's burn) read 1.00 (measured 1.00 on both: the search's step is
+    0.01); the model's own flight of the clean rocket with its burn stretched by
+    1.2 (noise-free, the rocket file's drag curve) reads 1.2 within a step
+    (measured 1.20): the drag the search adds back is only sea-level-ish."""
+    from diffpegasus._estimate._fit import simulate_outputs
+    from diffpegasus._model import Record
+    from diffpegasus._rocket._identify import measured_burn_scale
+
+    for name in ("clean", "planted"):
+        rocket = dr.read_rocket(SIM / name / "rocket.toml")
+        problem = dr.prepare(rocket, rocket_sim_log(SIM / name))
+        assert abs(problem.start["burn_scale"] - 1.0) < 0.011
+    start = dict(problem.start, burn_scale=1.2, motor_time=0.0)
+    model = dr.rocket_model(problem.flight, problem.outputs, start, ())
+    rec = problem.record
+    y = simulate_outputs(model, rec.t, rec.inputs, x0=problem.flight.initial_state())
+    flown = Record(rec.t, rec.inputs, y, x0=rec.x0)
+    assert abs(measured_burn_scale(flown, problem.rocket, 0.0) - 1.2) < 0.011
