@@ -452,12 +452,18 @@ def prepare(rocket: Rocket, log, *, knots: DragKnots | None = None) -> Problem:
 
 def altitude_only(problem: Problem) -> Problem:
     """The same flight with the barometric altitude alone (the accelerometer's
-    channel dropped)."""
+    channel dropped, and the burn scale it read: held, without it, at the
+    catalogue's 1)."""
     rec = problem.record
     record = type(rec)(
         rec.t, rec.inputs[:, :2], rec.measured[:, :1], x0=rec.x0, name=rec.name
     )
-    return dataclasses.replace(problem, record=record, outputs=problem.outputs[:1])
+    return dataclasses.replace(
+        problem,
+        record=record,
+        outputs=problem.outputs[:1],
+        start=dict(problem.start, burn_scale=1.0),
+    )
 
 
 def record_until(record, until: float):
