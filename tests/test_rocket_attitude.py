@@ -87,6 +87,7 @@ def test_restoring_and_damping_moments_against_their_scalar_formulas():
         cd_scale=1.0,
         power_on_ratio=1.0,
         thrust_scale=1.0,
+        burn_scale=1.0,
         motor_time=-100.0,  # long burned out
         temperature=288.15,
         lapse_rate=-6.5,

@@ -58,6 +58,7 @@ def test_weathercocking_mode_against_its_closed_form(coasting, cn_scale, damping
         cd_scale=1.0,
         power_on_ratio=1.0,
         thrust_scale=1.0,
+        burn_scale=1.0,
         motor_time=-100.0,  # long burned out
         temperature=288.15,
         lapse_rate=-6.5,

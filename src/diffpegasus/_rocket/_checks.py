@@ -29,7 +29,7 @@ def equation_error_drag(result: RocketFit, min_q: float = 2e3):
     idx = np.flatnonzero(has & (rec.t <= result.t[-1]))
     rocket = flight.rocket
     t_motor = rec.t[idx] - float(p["motor_time"])
-    coast = t_motor > rocket.motor.burn_time + 0.1
+    coast = t_motor > rocket.motor.burn_time * float(p["burn_scale"]) + 0.1
     idx = idx[coast]
     x = np.interp(rec.t[idx], result.t, np.arange(len(result.t)))
     states = np.array(
@@ -72,6 +72,7 @@ def resimulate(problem: Problem, result: RocketFit, cd_curve=None) -> RocketFit:
         params[names.index(name)] = np.interp(m, mach[good], cd[good])
     params[names.index("cd_scale")] = 1.0
     params[names.index("thrust_scale")] = 1.0
+    params[names.index("burn_scale")] = 1.0
     refit = eqx.tree_at(lambda f: f.params, result.fit, params)
     return trajectory(
         problem.rocket, problem.flight, refit, result.record, result.outputs

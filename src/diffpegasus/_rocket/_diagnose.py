@@ -2,8 +2,12 @@
 
 Each candidate is one of the model's parameters held at "absent" in the base fit
 (drag knots, motor time and the accelerometer's offset and the day's atmosphere or
-its scale estimated; the thrust at the catalogue's, the sensors and the wind at
-none). At the fit, every candidate held is scored at once on the one path
+its scale estimated, and the burn's length where the accelerometer spans the boost;
+the thrust at the catalogue's, the sensors and the wind at none). The burn's length
+is no candidate: where an accelerometer reads the boost it is estimated with the
+motor's start time, the two placing the thrust curve in time; without one the
+barometer cannot tell it from the drag (its multiple correlation with the other
+parameters 0.99997 on an altitude-only flight), so no test could name it. At the fit, every candidate held is scored at once on the one path
 ([`score_candidates`][]: the score test with the free unknowns re-adjusted, its
 statistic's variance from the residuals' colour), against a threshold taken from this
 log (the largest statistic over all candidates in sieve-bootstrap replicates of the

@@ -28,6 +28,9 @@ WIND_FREE = ("wind_along",)
 ACCEL_FREE = ("temperature", "lapse_rate")
 # with gyros and the attitude: the weathercocking's stiffness and damping
 GYRO_FREE = ("cn_alpha_scale", "pitch_damping_scale")
+# the motor's burn time over the catalogue's, where an accelerometer spans the boost:
+# the burn's shape is what it reads (a barometer integrates it twice, into drag)
+BURN_FREE = ("burn_scale",)
 # the CD the air brakes add fully out, where the rocket flew them: held at zero the
 # drag knots take it up as a function of Mach, which the brakes' schedule is not
 AIRBRAKE_FREE = ("airbrake_cd",)
@@ -122,6 +125,7 @@ def default_start(rocket: Rocket, knots: DragKnots, temperature: float) -> dict:
     start.update(
         power_on_ratio=ratio,
         thrust_scale=1.0,
+        burn_scale=1.0,
         cd_scale=1.0,
         motor_time=-max(float(lift), rocket.holddown),
         temperature=temperature,
@@ -182,17 +186,69 @@ def measured_thrust_scale(record, rocket, motor_time: float | None = None) -> fl
         t - start, tc, burned, left=0.0, right=1.0
     )
     dt = np.gradient(t)
-    # drag from the speed the accelerometer integrates to, sea-level-ish air and
-    # the start drag curve (the team's, else 0.5): a few per cent of the thrust
-    speed = np.cumsum(np.where(t > 0, f - 9.80665 * sin, 0.0) * dt)
+    drag = start_drag(t, f, rocket)
+    impulse = float(np.sum(((mass * f + drag) * dt)[burning]))
+    total = float(np.sum((catalogue * dt)[burning]))
+    return float(np.clip(impulse / max(total, 1e-9), 0.5, 1.5))
+
+
+def start_drag(t, f, rocket):
+    """N, the drag at the accelerometer's samples `t`, `f` `(samples,)` (s, m/s^2)
+    of the speed it integrates to (less gravity along the rail, from log time 0),
+    sea-level-ish air and the start drag curve (the team's, else 0.5): a few per
+    cent of the thrust, for the equation-error starts."""
+    sin = np.sin(np.radians(rocket.inclination))
+    speed = np.cumsum(np.where(t > 0, f - 9.80665 * sin, 0.0) * np.gradient(t))
     if rocket.team_drag_off is not None:
         cd = np.interp(speed / 340.0, *rocket.team_drag_off)
     else:
         cd = 0.5
-    drag = 0.5 * 1.1 * speed**2 * rocket.area * cd
-    impulse = float(np.sum(((mass * f + drag) * dt)[burning]))
-    total = float(np.sum((catalogue * dt)[burning]))
-    return float(np.clip(impulse / max(total, 1e-9), 0.5, 1.5))
+    return 0.5 * 1.1 * speed**2 * rocket.area * cd
+
+
+def measured_burn_scale(
+    record, rocket, motor_time: float, search: float = 0.5, step: float = 0.01
+) -> float:
+    """The burn scale the accelerometer reads (an equation-error start): the
+    stretch of the catalogue curve (0.7 to 1.5, by `step`), with a shift within
+    `search` s of `motor_time`, whose thrust over the mass (propellant burned along
+    the stretched curve) best fits by least squares, with a free scale and offset,
+    the measured specific force plus the start drag over the mass
+    ([`start_drag`][]), from half a second before the motor's start to a second
+    after the longest burn. The shift is searched with it (a filtered channel's
+    lag) and dropped. 1 where the accelerometer does not span the boost
+    ([`accel_covers_boost`][]). On RocketPy's flights 1.00 (clean, planted, a
+    thrust scale of 1.05); on Camoes 1.24, whose specific force burns 4.42 s for
+    the file's 3.72. From 1 its fit stopped at 1.04 (det(R) 10560)."""
+    if not accel_covers_boost(record, rocket, motor_time):
+        return 1.0
+    has = record.inputs[:, 2] > 0
+    t, f = record.t[has], record.measured[has, 1]
+    tc, fc, burned = rocket.motor.tables()
+    stretches = np.arange(0.7, 1.5 + step / 2, step)
+    w = (t >= motor_time - search - 0.5) & (
+        t <= motor_time + search + stretches[-1] * tc[-1] + 1.0
+    )
+    t, f = t[w], f[w]
+    drag = start_drag(t, f, rocket)
+    shifts = np.arange(-search, search + step / 2, step)
+    best, found = np.inf, 1.0
+    for s in stretches:
+        tm = (t[None, :] - motor_time - shifts[:, None]) / s  # (shifts, samples)
+        mass = rocket.loaded_mass - rocket.motor.propellant_mass * np.interp(
+            tm, tc, burned, left=0.0, right=1.0
+        )
+        x = np.interp(tm, tc, fc, left=0.0, right=0.0) / s / mass
+        y = f[None, :] + drag[None, :] / mass
+        # least squares y = a x + b on each row, in closed form
+        xc = x - x.mean(axis=1, keepdims=True)
+        yc = y - y.mean(axis=1, keepdims=True)
+        sxx = np.sum(xc**2, axis=1)
+        a = np.sum(xc * yc, axis=1) / np.where(sxx > 0, sxx, 1.0)
+        sse = np.mean((yc - a[:, None] * xc) ** 2, axis=1)
+        if np.min(sse) < best:
+            best, found = float(np.min(sse)), float(s)
+    return found
 
 
 def measured_motor_time(
@@ -245,6 +301,25 @@ def accel_covers_ascent(record, share: float = 0.9) -> bool:
         return False
     t = record.t[(record.inputs[:, 2] > 0) & (record.t >= 0)]
     return t.size > 1 and (t[-1] - max(t[0], 0.0)) >= share * record.t[-1]
+
+
+def accel_covers_boost(record, rocket, motor_time: float, after: float = 0.5) -> bool:
+    """Whether the accelerometer was read over the whole burn: from the motor's
+    start (or the log's liftoff, whichever is later) to `after` s past the
+    catalogue's burnout, at least 20 samples between. Then the burn's length is
+    estimated (`burn_scale`): the specific force shows where the thrust ends, which
+    the barometer, integrating it twice into height, cannot tell from the drag."""
+    if record.inputs.shape[1] < 3:
+        return False
+    t = record.t[record.inputs[:, 2] > 0]
+    end = motor_time + rocket.motor.burn_time
+    inside = (t >= max(motor_time, 0.0)) & (t <= end)
+    return (
+        t.size > 0
+        and t[0] <= max(motor_time, 0.0) + 0.1
+        and t[-1] >= end + after
+        and int(inside.sum()) >= 20
+    )
 
 
 def knots_for(record, rocket, temperature) -> DragKnots:
@@ -370,17 +445,24 @@ def prepare(rocket: Rocket, log, *, knots: DragKnots | None = None) -> Problem:
         filtered=bool(getattr(accel, "filtered", 0)),
     )
     start["thrust_scale"] = measured_thrust_scale(record, rocket, start["motor_time"])
+    start["burn_scale"] = measured_burn_scale(record, rocket, start["motor_time"])
     return Problem(rocket, flight, record, outputs, start)
 
 
 def altitude_only(problem: Problem) -> Problem:
     """The same flight with the barometric altitude alone (the accelerometer's
-    channel dropped)."""
+    channel dropped, and the burn scale it read: held, without it, at the
+    catalogue's 1)."""
     rec = problem.record
     record = type(rec)(
         rec.t, rec.inputs[:, :2], rec.measured[:, :1], x0=rec.x0, name=rec.name
     )
-    return dataclasses.replace(problem, record=record, outputs=problem.outputs[:1])
+    return dataclasses.replace(
+        problem,
+        record=record,
+        outputs=problem.outputs[:1],
+        start=dict(problem.start, burn_scale=1.0),
+    )
 
 
 def record_until(record, until: float):
@@ -423,7 +505,8 @@ def fit_rocket(
 
     - `problem`: from [`prepare`][].
     - `free`: effects estimated besides the drag, the thrust scale, the motor's
-      start time and, with an accelerometer, its offset and either the day's
+      start time and, with an accelerometer, its offset, the burn's length where
+      it spans the boost (see [`accel_covers_boost`][]) and either the day's
       temperature and lapse rate or its scale (see [`accel_covers_ascent`][]) (names
       in the model's parameter list); by default [`default_free`][]'s.
     - `until`: s, use the log only up to this time (the model still runs to apogee;
@@ -435,7 +518,8 @@ def fit_rocket(
       record: single shooting alone).
     - `hold_temperature`: hold the pad temperature and lapse rate even with an
       accelerometer over the whole ascent (see [`accel_covers_ascent`][]).
-    - `hold`: parameters otherwise estimated (the thrust scale, the motor time, the
+    - `hold`: parameters otherwise estimated (the thrust scale, the motor time and
+      burn scale, the
       accelerometer's offset, the day's atmosphere) held at their start values: what
       a diagnosis tests as absent.
     - `single`: follow the multiple-shooting tries by single shooting from the
@@ -457,9 +541,14 @@ def fit_rocket(
     knots = problem.flight.knots
     if drag not in ("knots", "scale"):
         raise ValueError(f"drag must be 'knots' or 'scale', got {drag!r}")
+    record = problem.record
+    if until is not None:
+        record = record_until(record, until)
     extras = ()
     if "accel" in problem.outputs:
         extras += ("accel_bias",)
+        if accel_covers_boost(record, problem.rocket, values["motor_time"]):
+            extras += BURN_FREE
         if not accel_covers_ascent(problem.record):
             extras += ("accel_scale",) if "accel_scale" not in free else ()
         elif not hold_temperature:
@@ -468,9 +557,6 @@ def fit_rocket(
     scaled = ("cd_scale",) + base
     estimated = knots.names + base if drag == "knots" else scaled
     estimated += tuple(f for f in free if f not in base)
-    record = problem.record
-    if until is not None:
-        record = record_until(record, until)
 
     if problem.rocket.airframe is None:
         tried, flown = _tries(

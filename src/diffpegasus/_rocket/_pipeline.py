@@ -20,7 +20,7 @@ def burnout_time(log, problem, result) -> float:
     if "burnout" in log.events:
         return float(log.events["burnout"].t)
     t0 = result.estimate("motor_time")[0]
-    return t0 + problem.rocket.motor.burn_time
+    return t0 + problem.rocket.motor.burn_time * result.estimate("burn_scale")[0]
 
 
 def predict(problem, until: float):

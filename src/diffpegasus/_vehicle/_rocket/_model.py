@@ -22,8 +22,13 @@ Parameters (name: unit, meaning):
 - `cd_0`...: drag coefficient at each knot Mach number, power off.
 - `cd_scale`: factor on the whole curve (1 when the knots are estimated).
 - `power_on_ratio`: CD power on / power off.
-- `thrust_scale`: delivered / catalogue thrust.
+- `thrust_scale`: delivered / catalogue impulse (the thrust's factor at the
+  catalogue's burn time).
 - `motor_time`: s, log time of the thrust curve's zero.
+- `burn_scale`: burn time / catalogue burn time (1 the catalogue's): the curve
+  stretched in time and divided by it, so the impulse stays `thrust_scale`'s and
+  the propellant burns along the stretched curve (a solid motor's grain
+  temperature: cold burns longer and weaker, hot shorter and harder).
 - `temperature`: K at the pad; `lapse_rate`: K/km, its fall with geopotential
   height (-6.5 the standard atmosphere's). Together they set density, speed of sound and what the
   barometer reads (it converts pressure with the standard atmosphere).
@@ -73,6 +78,7 @@ EFFECTS = (
     "power_on_ratio",
     "thrust_scale",
     "motor_time",
+    "burn_scale",
     "temperature",
     "lapse_rate",
     "wind_east",
@@ -180,7 +186,7 @@ class Flight(eqx.Module):
         pos, vel = x[:3], x[3:6]
         tables = tuple(jnp.asarray(a) for a in r.motor.tables())
         tm = t - p["motor_time"]
-        thrust, burned = motor_at(tables, tm)
+        thrust, burned = motor_at(tables, tm, p["burn_scale"])
         thrust = p["thrust_scale"] * thrust
         mass = r.dry_mass + p["mass_offset"] + r.motor.propellant_mass * (1 - burned)
         rho, sound, reading, rate = self.air(pos[2], p)

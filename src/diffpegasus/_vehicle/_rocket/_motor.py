@@ -69,11 +69,17 @@ class Motor(eqx.Module):
         return t, f, impulse / impulse[-1]
 
 
-def motor_at(tables, t):
-    """Thrust (N) and burned impulse fraction at `t` s from ignition (jax, scalar)."""
+def motor_at(tables, t, stretch=1.0):
+    """Thrust (N) and burned impulse fraction at `t` s from ignition (jax, scalar)
+    of the curve stretched in time by `stretch` (burn time over the curve's): the
+    thrust `F(t / stretch) / stretch`, the impulse kept, and the fraction burned
+    `B(t / stretch)`. A solid motor's grain temperature does this: a cold motor
+    burns longer at lower thrust, a hot one shorter and harder, at nearly the same
+    impulse."""
     time, thrust, burned = tables
-    f = jnp.interp(t, time, thrust, left=0.0, right=0.0)
-    b = jnp.interp(t, time, burned, left=0.0, right=1.0)
+    tc = t / stretch
+    f = jnp.interp(tc, time, thrust, left=0.0, right=0.0) / stretch
+    b = jnp.interp(tc, time, burned, left=0.0, right=1.0)
     return f, b
 
 
