@@ -1,0 +1,367 @@
+"""Is the launch vehicle's named effect the same in every time segment of the flight?
+
+A structural misfit of the baseline is a function of Mach (and alpha), and Mach
+rises through the flight, so its projection on a named effect changes from one time
+segment to the next; a planted effect (a constant moment offset, a misalignment, a
+bias, a delay) is the same in every segment. Test: the named effect's parameter
+split into `S` time segments (everything else shared and re-adjusted), its segment
+estimates from the Gauss-Newton step at the baseline fit (first order, as the score
+test's own estimate), and a Wald test of equal segment values with the covariance
+corrected for the residuals' colour and their covariance between outputs (the
+score test's, `diffpegasus._estimate._score.score_variance`, as a matrix), against
+chi-square with `S - 1` degrees of freedom at a level stated in advance (1%).
+
+Segments, stated before any flight was looked at: `S = 3` of equal time, made of
+whole shooting segments (a parameter changing inside one would need a new layout;
+at the shooting nodes the split is exact: a segment's parameter reaches the
+outputs of its own shooting segments and, through the continuity defects, the
+nodes that follow).
+
+    nice python experiments/lv_homogeneity.py capture --flights 200:8 400:44
+    python experiments/lv_homogeneity.py evaluate [--segments 3] [--level 0.01]
+
+`capture`: the baseline fit with `PegasusEntry(knots=12)` (`fit_log`, as
+`experiments/misfit_null.py fit`), then the stacked whitened Jacobian (outputs and
+continuity defects) of the free unknowns and of every held candidate at its
+estimates, to `CACHE/lvhom_{rate}_{seed}_k12.npz` (large: not in the repository).
+`evaluate`: the test for every flight captured, the named effect taken from
+`experiments/results/misfit_null/fits.jsonl` (the twelve-function fit's first
+finding); `experiments/results/lv_homogeneity.json`.
+"""
+
+import argparse
+import json
+import os
+import pathlib
+import sys
+import tempfile
+import time
+
+import numpy as np
+import scipy.stats
+
+
+HERE = pathlib.Path(__file__).resolve().parent
+RESULTS = HERE / "results"
+CACHE = pathlib.Path(os.environ.get("MISFIT_CACHE", "/tmp/misfit_null_cache"))
+sys.path.insert(0, str(HERE.parent / "tests"))
+sys.path.insert(0, str(HERE))
+
+# what decides first: the clean findings at twelve functions, the new moment offsets
+ORDER = [
+    "200:8",
+    "400:44",
+    "50:43",
+    "1000:4",
+    "400:42",
+    "50:1",
+    "1000:7",
+    "200:5",
+    "100:45",
+    "200:2",
+    "50:3",
+    "200:11",
+]
+
+
+def _flights():
+    from acceptance import PEGASUS
+    from misfit_null import NEW
+
+    by = {f"{r:g}:{s}": (r, s, p, v) for _, r, s, p, v in PEGASUS}
+    by.update({f"{r:g}:{s}": (r, s, p, v) for r, s, p, v in NEW})
+    return by
+
+
+def _stem(rate, seed, knots):
+    return f"lvhom_{int(rate)}_{seed}_k{knots}"
+
+
+def capture(args):
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    import independent_generator as gen
+
+    import diffpegasus as dp
+    from diffpegasus._estimate._engine import evaluate
+    from diffpegasus._registry._pegasus import PegasusEntry
+    from diffpegasus.discrepancy import fit_log
+
+    by = _flights()
+    CACHE.mkdir(parents=True, exist_ok=True)
+    folder = pathlib.Path(tempfile.mkdtemp(prefix="lvhom_"))
+    for f in args.flights or ORDER:
+        rate, seed, planted, value = by[f]
+        stem = _stem(rate, seed, args.knots)
+        if (CACHE / f"{stem}.npz").exists():
+            continue
+        effects = {planted: value} if planted else None
+        csv = gen.make_log(folder / f"{stem}.csv", seed, rate, 30.0, effects)
+        t0 = time.time()
+        base = fit_log(PegasusEntry(knots=args.knots), dp.read_log(csv))
+        res = base.result
+        model = res.model
+        names = list(model.parameters)
+        nx, p = len(model.states), len(names)
+        lay = res.layout
+        z = np.asarray(res.z)
+        ev = evaluate(model.structure(), lay, res.z, nx, p)
+        np.savez(
+            CACHE / f"{stem}.npz",
+            **_stacked(lay, ev, z, np.asarray(res.free), np.asarray(res.R), nx, p),
+            names=np.array(names),
+            candidates=np.array(list(base.spec.candidates)),
+            seconds=time.time() - t0,
+        )
+        print(f, f"{time.time() - t0:.0f} s", flush=True)
+
+
+def _stacked(lay, ev, z, free, r, nx, p):
+    """The whitened Jacobian of the stacked residual (output rows, then defect
+    rows) in the free unknowns and every parameter, dense, with each row's shooting
+    segment; the residual; the segments' start times."""
+    from diffpegasus._estimate._engine import _columns
+
+    valid = np.asarray(lay.valid)
+    n_seg, length = valid.shape
+    n = z.shape[0]
+    _, local = _columns(lay, nx, p)
+    local = np.asarray(local)
+    free_cols = np.asarray(lay.free_columns(free, nx, p))
+    w = 1.0 / np.sqrt(r)
+    jy = np.asarray(ev.jy)
+    ny = jy.shape[2]
+    jyw = np.where(valid[..., None, None], -jy * w[None, None, :, None], 0.0)
+    ew = np.where(valid[..., None], np.asarray(ev.e) * w[None, None, :], 0.0)
+    keep = np.flatnonzero(free_cols)
+    par = n_seg * nx + np.arange(p)
+    cols = np.concatenate([keep, par])  # free unknowns, then all parameters
+    where = {c: i for i, c in enumerate(cols)}
+    # output rows: (segment, sample, output)
+    out = np.zeros((n_seg, length, ny, len(cols)))
+    for s in range(n_seg):
+        for a, c in enumerate(local[s]):
+            if c in where:
+                out[s, :, :, where[c]] += jyw[s, :, :, a]
+    # defect rows: link s joins segment s's end to segment s + 1's node
+    link = np.asarray(lay.link)
+    scale = np.asarray(lay.scale)
+    jx = np.asarray(ev.jx)
+    node_cols = np.asarray(lay.node_columns(nx, p))
+    dfc = np.zeros((n_seg - 1, nx, len(cols)))
+    for s in range(n_seg - 1):
+        if not link[s]:
+            continue
+        for a, c in enumerate(local[s]):
+            if c in where:
+                dfc[s, :, where[c]] += jx[s, :, a] / scale
+        for i, c in enumerate(node_cols[s + 1]):
+            if c in where:
+                dfc[s, i, where[c]] -= 1.0 / scale[i]
+    d = np.asarray(ev.d)
+    dt = np.asarray(lay.dt)[np.asarray(lay.record)]
+    return dict(
+        out=out.reshape(-1, len(cols)).astype(np.float64),
+        defects=dfc.reshape(-1, len(cols)),
+        e=ew.reshape(-1),
+        d=d.reshape(-1),
+        free_count=len(keep),
+        segment_of_output=np.repeat(np.arange(n_seg), length * ny),
+        segment_of_defect=np.repeat(np.arange(n_seg - 1), nx),
+        start=np.asarray(lay.first) * dt,
+        length=length,
+        outputs=ny,
+        n_seg=n_seg,
+    )
+
+
+def _cross_spectral(x, e, outputs):
+    """`(joint, own)` `(S, S)`: the covariance of the scores `sum x[:, i] e` when the
+    residuals `e` are a stationary series correlated in time and between outputs,
+    over all lags, by FFT; `joint` with the covariance between outputs, `own` each
+    output's own term only (the matrix form of `score_variance`). `x` `(rows *
+    outputs, S)`, `e` `(rows * outputs,)`, rows in time order, outputs inner."""
+    xs = x.reshape(-1, outputs, x.shape[-1])
+    es = e.reshape(-1, outputs)
+    n = xs.shape[0]
+    m = 2 * n
+    prod = np.conj(np.fft.fft(es, n=m, axis=0))[..., None] * np.fft.fft(xs, n=m, axis=0)
+    tot = prod.sum(axis=1)  # (f, S)
+    joint = np.real(np.einsum("fi,fj->ij", tot, np.conj(tot))) / (n * m)
+    own = np.real(np.einsum("foi,foj->ij", prod, np.conj(prod))) / (n * m)
+    return joint, own
+
+
+def _floor(c, floor):
+    """`c` raised to at least `floor` in every direction (Loewner): the eigenvalues
+    of `c` relative to `floor` clipped below at 1 (for 1x1, `max(c, floor)`)."""
+    val, vec = np.linalg.eigh(floor)
+    half = vec / np.sqrt(val)
+    inner = half.T @ c @ half
+    lam, u = np.linalg.eigh((inner + inner.T) / 2)
+    lam = np.maximum(lam, 1.0)
+    back = vec * np.sqrt(val)
+    return back @ (u * lam) @ u.T @ back.T
+
+
+def segment_test(out, defects, e, d, free_count, column, groups_out, groups_def,
+                 outputs, segments):  # fmt: skip
+    """Segment estimates of the parameter in `column` (an index into the stacked
+    Jacobian's columns), their covariance and the Wald statistic of equal values.
+
+    `out` `(rows * outputs, columns)`, `defects` `(links * states, columns)`: the
+    stacked whitened Jacobian (first `free_count` columns the free unknowns);
+    `e`, `d` the whitened residuals and defects; `groups_out`, `groups_def` each
+    row's time segment (`0 .. segments - 1`). The step from the fit (held value 0)
+    with the free unknowns re-adjusted: `theta = -(X^T X)^-1 X^T r`, `X` the
+    segment columns with the free unknowns projected out; covariance `M^-1 C M^-1`,
+    `M = X^T X`, `C` the scores' covariance from the residuals the step leaves, with
+    their colour and their covariance between outputs, never below each output's
+    own term nor below `M` (as the score test's variance). Returns `(theta, cov,
+    wald, dof)`."""
+    a = np.concatenate([out, defects])
+    r = np.concatenate([e, d])
+    groups = np.concatenate([groups_out, groups_def])
+    af = a[:, :free_count]
+    col = a[:, column]
+    xs = np.stack([np.where(groups == g, col, 0.0) for g in range(segments)], axis=1)
+    h = af.T @ af
+    chol = np.linalg.cholesky(h)
+    coef = np.linalg.solve(chol.T, np.linalg.solve(chol, af.T @ xs))
+    x = xs - af @ coef
+    m = x.T @ x
+    theta = -np.linalg.solve(m, x.T @ r)
+    rows = out.shape[0]
+    after = e + x[:rows] @ theta
+    joint, own = _cross_spectral(x[:rows], after, outputs)
+    c = _floor(_floor(joint, own), m) if segments > 1 else np.atleast_2d(
+        max(joint[0, 0], own[0, 0], m[0, 0])
+    )
+    minv = np.linalg.inv(m)
+    cov = minv @ c @ minv
+    if segments == 1:
+        return theta, cov, 0.0, 0
+    contrast = np.eye(segments)[:-1] - np.eye(segments)[1:]
+    diff = contrast @ theta
+    wald = float(diff @ np.linalg.solve(contrast @ cov @ contrast.T, diff))
+    return theta, cov, wald, segments - 1
+
+
+def _groups(start, segments):
+    """Equal-time segments of whole shooting segments: each shooting segment to
+    the third (`segments`-th) of the flight its start falls in."""
+    span = start[-1] + (start[-1] - start[-2]) if len(start) > 1 else 1.0
+    return np.minimum((start / span * segments).astype(int), segments - 1)
+
+
+def _named12():
+    """`{(rate, seed): (effect named first at twelve functions or None, top)}`."""
+    named = {}
+    for line in open(RESULTS / "misfit_null" / "fits.jsonl"):
+        row = json.loads(line)
+        if row["knots"] != 12:
+            continue
+        sig = row["significant"]
+        first = sig[0] if sig else None
+        if isinstance(first, dict):
+            first = first.get("effect")
+        named[(row["rate"], row["seed"])] = (first, row["top"][0][0])
+    return named
+
+
+def evaluate_all(args):
+    by = _flights()
+    named = _named12()
+    rows = []
+    for f in ORDER + [k for k in by if k not in ORDER]:
+        rate, seed, planted, value = by[f]
+        path = CACHE / f"{_stem(rate, seed, 12)}.npz"
+        if not path.exists():
+            continue
+        st = np.load(path)
+        names = [str(n) for n in st["names"]]
+        first, top = named.get((rate, seed), (None, None))
+        effect = first or top
+        cands = [str(c) for c in st["candidates"]]
+        params = [c for c in cands if c.split(".")[0] == effect]
+        seg = _groups(st["start"], args.segments)
+        g_out = seg[st["segment_of_output"]]
+        g_def = seg[st["segment_of_defect"]]
+        free_count = int(st["free_count"])
+        column = free_count + names.index(params[0])
+        common = (st["out"], st["defects"], st["e"], st["d"], free_count, column)
+        one, cov1, _, _ = segment_test(
+            *common, np.zeros_like(g_out), np.zeros_like(g_def), int(st["outputs"]), 1
+        )
+        theta, cov, wald, dof = segment_test(
+            *common, g_out, g_def, int(st["outputs"]), args.segments
+        )
+        p_value = float(scipy.stats.chi2.sf(wald, dof))
+        # the whole-flight step must be the score test's own (stored by misfit_null)
+        stored = CACHE / f"pegasus_{int(rate)}_{seed}_k12.npz"
+        check = None
+        if stored.exists():
+            sc = np.load(stored)
+            i = [str(n) for n in sc["names"]].index(params[0])
+            check = [float(sc["estimate"][i]), float(sc["stderr"][i])]
+        homogeneous = p_value >= args.level
+        row = {
+            "flight": f,
+            "rate": rate,
+            "seed": seed,
+            "planted": planted,
+            "value": value,
+            "named_at_12": first,
+            "tested": params[0],
+            "whole": [float(one[0]), float(np.sqrt(cov1[0, 0]))],
+            "score_test": check,
+            "segments": [
+                [float(t), float(s)] for t, s in zip(theta, np.sqrt(np.diag(cov)))
+            ],
+            "wald": wald,
+            "dof": dof,
+            "p": p_value,
+            "homogeneous": bool(homogeneous),
+            "named_after": first if (first and homogeneous) else None,
+        }
+        want = planted.split(":")[0] if planted else None
+        got = row["named_after"]
+        tied = {"pitch_damping", "alpha_dot_damping"}
+        row["right"] = (
+            got == planted
+            or (got in tied and planted in tied)
+            or (got is None and planted is None)
+            or (got is not None and want is not None and got == planted)
+        )
+        rows.append(row)
+        segs = "  ".join(f"{t:.3g}+/-{s:.2g}" for t, s in row["segments"])
+        print(
+            f"{f:>8} {str(planted):>20} named12={str(first):>20} "
+            f"whole {row['whole'][0]:.4g}+/-{row['whole'][1]:.3g} "
+            f"(score test {check}) | {segs} | "
+            f"W={wald:.1f} p={p_value:.3g} -> {got} ({'yes' if row['right'] else 'no'})"
+        )
+    out = RESULTS / f"lv_homogeneity_s{args.segments}.json"
+    meta = {"segments": args.segments, "level": args.level, "knots": 12}
+    out.write_text(json.dumps({"settings": meta, "flights": rows}, indent=1) + "\n")
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__)
+    sub = p.add_subparsers(dest="cmd", required=True)
+    c = sub.add_parser("capture")
+    c.add_argument("--knots", type=int, default=12)
+    c.add_argument("--flights", nargs="+", default=None, metavar="RATE:SEED")
+    e = sub.add_parser("evaluate")
+    e.add_argument("--segments", type=int, default=3)
+    e.add_argument("--level", type=float, default=0.01)
+    args = p.parse_args()
+    if args.cmd == "capture":
+        capture(args)
+    else:
+        evaluate_all(args)
+
+
+if __name__ == "__main__":
+    main()
