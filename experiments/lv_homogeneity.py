@@ -17,8 +17,10 @@ at the shooting nodes the split is exact: a segment's parameter reaches the
 outputs of its own shooting segments and, through the continuity defects, the
 nodes that follow).
 
-    nice python experiments/lv_homogeneity.py capture --flights 200:8 400:44
+    nice python experiments/lv_homogeneity.py capture [--flights 200:8 400:44]
     python experiments/lv_homogeneity.py evaluate [--segments 3] [--level 0.01]
+    python experiments/lv_homogeneity.py evaluate --bootstrap 1000
+    python experiments/lv_homogeneity.py approximate
 
 `capture`: the baseline fit with `PegasusEntry(knots=12)` (`fit_log`, as
 `experiments/misfit_null.py fit`), then the stacked whitened Jacobian (outputs and
@@ -26,7 +28,10 @@ continuity defects) of the free unknowns and of every held candidate at its
 estimates, to `CACHE/lvhom_{rate}_{seed}_k12.npz` (large: not in the repository).
 `evaluate`: the test for every flight captured, the named effect taken from
 `experiments/results/misfit_null/fits.jsonl` (the twelve-function fit's first
-finding); `experiments/results/lv_homogeneity.json`.
+finding); `experiments/results/lv_homogeneity_s{S}.json` (`_boot{R}` with
+`--bootstrap R`: the statistic's null from the log's sieve in place of
+chi-square). `approximate`: a shortcut from `misfit_null.py`'s stored score-test
+parts, rejected (it does not reproduce the whole-flight estimate).
 """
 
 import argparse
