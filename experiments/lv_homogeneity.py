@@ -21,6 +21,7 @@ nodes that follow).
     python experiments/lv_homogeneity.py evaluate [--segments 3] [--level 0.01]
     python experiments/lv_homogeneity.py evaluate --bootstrap 1000
     python experiments/lv_homogeneity.py approximate
+    python experiments/lv_homogeneity.py selfcheck
 
 `capture`: the baseline fit with `PegasusEntry(knots=12)` (`fit_log`, as
 `experiments/misfit_null.py fit`), then the stacked whitened Jacobian (outputs and
@@ -504,6 +505,34 @@ def approximate(args):
     out.write_text(json.dumps({"settings": meta, "flights": rows}, indent=1) + "\n")
 
 
+def selfcheck(args):
+    """The test's level on a linear problem with white noise: six Mach-like hat
+    functions times a manoeuvre in one output and a constant in another, free; a
+    constant effect in both; `args.draws` noise draws; rejections at 1% and 5%."""
+    rng = np.random.default_rng(0)
+    n, ny = 600, 2
+    t = np.linspace(0.0, 1.0, n)
+    mach = 0.5 + 2.0 * t
+    knots = np.linspace(mach.min(), mach.max(), 6)
+    hats = np.maximum(0.0, 1.0 - np.abs(mach[:, None] - knots) / (knots[1] - knots[0]))
+    sig = np.sin(2.0 * np.pi * 7.0 * t)
+    free = np.zeros((n, ny, 7))
+    free[:, 0, :6] = hats * sig[:, None]
+    free[:, 1, 6] = 1.0
+    eff = np.stack([np.ones(n), 0.5 * sig], axis=1)
+    out = np.concatenate([free.reshape(n * ny, 7), eff.reshape(n * ny, 1)], axis=1)
+    g = np.repeat(np.minimum((t * 3).astype(int), 2), ny)
+    p = []
+    for _ in range(args.draws):
+        e = rng.standard_normal(n * ny) + 0.3 * out[:, 7]
+        _, _, w, dof = segment_test(
+            out, np.zeros((0, 8)), e, np.zeros(0), 7, 7, g, np.zeros(0, int), ny, 3
+        )
+        p.append(scipy.stats.chi2.sf(w, dof))
+    p = np.array(p)
+    print(f"rejected at 1%: {np.mean(p < 0.01):.4f}, at 5%: {np.mean(p < 0.05):.4f}")
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__)
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -524,8 +553,12 @@ def main():
     a = sub.add_parser("approximate")
     a.add_argument("--segments", type=int, default=3)
     a.add_argument("--level", type=float, default=0.01)
+    k = sub.add_parser("selfcheck")
+    k.add_argument("--draws", type=int, default=400)
     args = p.parse_args()
-    if args.cmd == "capture":
+    if args.cmd == "selfcheck":
+        selfcheck(args)
+    elif args.cmd == "capture":
         capture(args)
     elif args.cmd == "approximate":
         approximate(args)
