@@ -122,7 +122,7 @@ def main():
             "weights": result.knots.weights(mach).tolist(),
             "sensor_cov": None if spread is None else spread.covariances.tolist(),
             "joint_knots": knot_values(result).tolist(),
-            "joint_cov": knot_cov(result).tolist(),
+            "joint_cov": result.knot_covariance().tolist(),
             "points": len(mach),
             "thrust_scale": result.estimate("thrust_scale"),
             "thrust_scale_planted": truth["thrust_scale"],
@@ -187,12 +187,6 @@ def knot_values(result):
         np.array([result.fit.params[names.index(k)] for k in result.knots.names])
         * scale
     )
-
-
-def knot_cov(result):
-    names = list(result.fit.model.parameters)
-    scale = result.fit.params[names.index("cd_scale")]
-    return result.fit.covariance_of(result.knots.names) * scale**2
 
 
 def write(out, name):

@@ -109,3 +109,26 @@ def test_rocketpy_apogee_inside_the_predicted_band(prediction):
     assert abs(miss) <= band.half_width
     assert band.half_width < 0.03 * top
     assert abs(miss) > 1.96 * band.stderr_fit
+
+
+def test_prediction_drag_band_is_the_curve_times_its_scale(prediction):
+    """The prediction holds the team's curve in shape and estimates its scale, so
+    its CD at any Mach is the scale times the held curve and its standard error
+    the curve times the scale's (written out here with numpy); a band from the held
+    knots' own entries would be zero or undefined."""
+    pred, _, _ = prediction
+    names = list(pred.fit.model.parameters)
+    free = dict(zip(names, np.asarray(pred.fit.free), strict=True))
+    assert free["cd_scale"] and not any(free[k] for k in pred.knots.names)
+    mach = np.array([0.1, 0.3, 0.5])
+    curve = (
+        pred.knots.weights(mach)
+        @ pred.fit.params[[names.index(k) for k in pred.knots.names]]
+    )
+    i = names.index("cd_scale")
+    cd, sd = pred.cd(mach, structural=False)
+    np.testing.assert_allclose(cd, pred.fit.params[i] * curve, rtol=1e-12)
+    np.testing.assert_allclose(
+        sd, np.abs(curve) * pred.fit.stderr_corrected[i], rtol=1e-12
+    )
+    assert np.all(sd > 0)

@@ -83,12 +83,29 @@ class RocketFit:
         names = self.fit.model.parameters
         idx = [names.index(n) for n in self.knots.names]
         est = self.fit.params[idx] * self.fit.params[names.index("cd_scale")]
-        cov = self.fit.covariance_of(self.knots.names)
+        cov = self.knot_covariance()
         w = self.knots.weights(mach)
         var = np.einsum("mk,kl,ml->m", w, cov, w)
         if structural and self.spread is not None:
             var = var + (np.abs(w) @ self.spread.tau) ** 2
         return w @ est, np.sqrt(np.clip(var, 0, None))
+
+    def knot_covariance(self) -> np.ndarray:
+        """`(k, k)` covariance of the power-off CD at the knots, `cd_scale` times
+        each knot's value: the estimated ones' covariance (coloured-residual) carried
+        through that product's Jacobian, so a fit with the knots held and the scale
+        estimated (the prediction's) gives the curve's shape times the scale's
+        uncertainty, and one with the knots estimated and the scale held at 1 the
+        knots' own covariance."""
+        names = list(self.fit.model.parameters)
+        both = [*self.knots.names, "cd_scale"]
+        idx = [names.index(n) for n in both]
+        knots = self.fit.params[idx[:-1]]
+        scale = self.fit.params[idx[-1]]
+        jac = np.column_stack([scale * np.eye(len(knots)), knots])
+        free = np.asarray(self.fit.free)[idx]
+        cov = self.fit.covariance_of([n for n, f in zip(both, free, strict=True) if f])
+        return jac[:, free] @ cov @ jac[:, free].T
 
     def estimate(self, name) -> tuple[float, float]:
         i = self.fit.model.parameters.index(name)
