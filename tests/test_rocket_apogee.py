@@ -115,7 +115,7 @@ def test_prediction_drag_band_is_the_curve_times_its_scale(prediction):
     """The prediction holds the team's curve in shape and estimates its scale, so
     its CD at any Mach is the scale times the held curve and its standard error
     the curve times the scale's (written out here with numpy); a band from the held
-    knots' own entries would be zero or undefined."""
+    knots' own entries (zero standard errors) would be zero."""
     pred, _, _ = prediction
     names = list(pred.fit.model.parameters)
     free = dict(zip(names, np.asarray(pred.fit.free), strict=True))
