@@ -331,10 +331,15 @@ def airbrake_input(rocket: Rocket, deployment):
     return np.interp(deployment, levels, inc) / inc[-1]
 
 
-def prepare(rocket: Rocket, log, *, knots: DragKnots | None = None) -> Problem:
+def prepare(
+    rocket: Rocket, log, *, knots: DragKnots | None = None, descent: bool = False
+) -> Problem:
     """The [`Problem`][] of `rocket` flying `log`'s ascent: the record (see
     [`ascent_record`][]), the pad's pressure and temperature, the drag knots (by
-    default over the flight's Mach range) and the start values."""
+    default over the flight's Mach range) and the start values. `descent`: the
+    record goes on through the descent under parachutes (the barometer alone; see
+    `_rocket/_descent.py`), each stage's drag area a parameter estimated with the
+    drag (the knots, motor time and thrust read from the ascent as without)."""
     from .._vehicle._atmosphere import isa
     from .._vehicle._rocket import pressure_altitude
 
@@ -371,6 +376,19 @@ def prepare(rocket: Rocket, log, *, knots: DragKnots | None = None) -> Problem:
         filtered=bool(getattr(accel, "filtered", 0)),
     )
     start["thrust_scale"] = measured_thrust_scale(record, rocket, start["motor_time"])
+    if descent:
+        from .._vehicle._rocket._descent import Descent
+        from ._descent import descent_record, start_drag_areas
+
+        long, outputs, deploy = descent_record(
+            log, rocket, gyro=rocket.airframe is not None
+        )
+        inputs = long.inputs.copy()
+        if rocket.airbrakes is not None:
+            inputs[:, 0] = airbrake_input(rocket, held(long.t, tb, db))
+        record = type(long)(long.t, inputs, long.measured, x0=record.x0, name=long.name)
+        flight = Flight(rocket, knots, pressure, Descent(deploy))
+        start.update(start_drag_areas(rocket, record, deploy, pressure, temperature))
     return Problem(rocket, flight, record, outputs, start)
 
 
@@ -465,6 +483,8 @@ def fit_rocket(
             extras += ("accel_scale",) if "accel_scale" not in free else ()
         elif not hold_temperature:
             extras += tuple(a for a in ACCEL_FREE if a not in free)
+    if problem.flight.descent is not None:
+        extras += problem.flight.descent.names
     base = tuple(n for n in BASE_FREE + extras if n not in hold)
     scaled = ("cd_scale",) + base
     estimated = knots.names + base if drag == "knots" else scaled
@@ -610,7 +630,12 @@ def point_mass(problem: Problem, record=None) -> tuple[Problem, object]:
         rocket = dataclasses.replace(problem.rocket, airframe=None)
         _POINT_MASS[key] = (
             problem.flight,
-            Flight(rocket, problem.flight.knots, problem.flight.pad_pressure),
+            Flight(
+                rocket,
+                problem.flight.knots,
+                problem.flight.pad_pressure,
+                problem.flight.descent,
+            ),
         )
     flight = _POINT_MASS[key][1]
     simple = dataclasses.replace(
