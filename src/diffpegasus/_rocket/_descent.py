@@ -3,9 +3,13 @@ ends, the drag areas to start from, and what the fit says about them.
 
 The record past apogee holds the barometer alone (the accelerometer and the gyros
 read the deployment shocks and the tumbling under the canopy, which the point mass
-does not model). It ends two seconds before the log's landing event, else where
-the barometer first reads below `GROUND` m above the pad (a log lying on the
-ground is not falling), else at the log's end.
+does not model), and not for `SETTLE` s after each deployment (ejection charges
+pressurise the bay, and the canopy's inflation and the air it carries along are
+not modelled). It ends two seconds before the log's landing event, else where the
+barometer first reads below `GROUND` m above the pad (a log lying on the ground is
+not falling), else at the log's end. Its grid step is `MAX_STEP` (20 Hz, each
+channel's samples averaged into it): a descent of minutes at a flight computer's
+100 Hz would be tens of thousands of steps.
 """
 
 import pathlib
@@ -13,7 +17,7 @@ import pathlib
 import numpy as np
 
 from .._errors import LogError
-from ._data import apogee_time, ascent_record, baro_channel
+from ._data import apogee_time, ascent_record, baro_channel, MAX_STEP
 
 
 GROUND = 30.0  # m above the pad: below this the record ends
@@ -63,9 +67,11 @@ def descent_record(log, rocket, gyro: bool = False):
             f"the log has {max(end - deploy[0], 0.0):.1f} s of descent after the "
             f"drogue at {deploy[0]:.1f} s: too little for its drag area"
         )
-    record, outputs = ascent_record(log, until=end, gyro=gyro)
+    record, outputs = ascent_record(log, until=end, gyro=gyro, step=MAX_STEP)
     inputs = record.inputs.copy()
     inputs[record.t >= deploy[0], 2:] = 0.0
+    for when in deploy:
+        inputs[(record.t >= when) & (record.t < when + SETTLE), 1] = 0.0
     measured = np.where(inputs[:, 1:] > 0, record.measured, 0.0)
     record = type(record)(record.t, inputs, measured, x0=record.x0, name=record.name)
     return record, outputs, deploy

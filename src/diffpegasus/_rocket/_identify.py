@@ -235,17 +235,26 @@ def measured_motor_time(
     return shift
 
 
-def accel_covers_ascent(record, share: float = 0.9) -> bool:
+def ascent_end(problem) -> float:
+    """s: where the ascent ends in the problem's record: the first parachute's
+    deployment with a descent, else the record's end."""
+    if problem.flight.descent is not None:
+        return float(problem.flight.descent.deploy[0])
+    return float(problem.record.t[-1])
+
+
+def accel_covers_ascent(record, share: float = 0.9, end: float | None = None) -> bool:
     """Whether the accelerometer was read over the ascent (its samples spanning
-    `share` of the time from liftoff to the record's end). One of two length scales
+    `share` of the time from liftoff to `end`, s, by default the record's end). One of two length scales
     must be trusted: the accelerometer's over a whole ascent fixes the day's
     temperature and lapse rate the barometer reads through; an accelerometer that
     stops after the boost is instead calibrated (its scale) against the barometer
     read through the day's atmosphere."""
     if record.inputs.shape[1] < 3:
         return False
+    end = record.t[-1] if end is None else end  # s, the ascent's end
     t = record.t[(record.inputs[:, 2] > 0) & (record.t >= 0)]
-    return t.size > 1 and (t[-1] - max(t[0], 0.0)) >= share * record.t[-1]
+    return t.size > 1 and (t[-1] - max(t[0], 0.0)) >= share * end
 
 
 def knots_for(record, rocket, temperature) -> DragKnots:
@@ -287,7 +296,7 @@ def default_free(problem) -> tuple[str, ...]:
     free = SENSOR_FREE
     if problem.flight.knots.mach[-1] > 1.0 - TRANSONIC_WIDTH:
         free += ("transonic_error",)
-    if accel_covers_ascent(problem.record):
+    if accel_covers_ascent(problem.record, end=ascent_end(problem)):
         free += WIND_FREE
     if "gyro" in problem.outputs:
         free += GYRO_FREE
@@ -479,7 +488,7 @@ def fit_rocket(
     extras = ()
     if "accel" in problem.outputs:
         extras += ("accel_bias",)
-        if not accel_covers_ascent(problem.record):
+        if not accel_covers_ascent(problem.record, end=ascent_end(problem)):
             extras += ("accel_scale",) if "accel_scale" not in free else ()
         elif not hold_temperature:
             extras += tuple(a for a in ACCEL_FREE if a not in free)
