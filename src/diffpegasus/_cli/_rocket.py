@@ -220,14 +220,20 @@ def diagnose_command(
     columns: MapOption = None,
     as_json: JsonOption = False,
     attitude: AttitudeOption = False,
+    descent: DescentOption = False,
 ):
     """Name the effects the flight shows beyond drag and thrust (wind, rail
-    friction, barometer lag, static-pressure errors, mass error, air brakes, ...)."""
+    friction, barometer lag, static-pressure errors, mass error, air brakes, ...).
+    --descent: with the descent under parachutes in the fit."""
     from .._rocket._diagnose import diagnose
     from .._rocket._identify import prepare
 
     rocket, flight_log = _load(toml, log, columns, attitude)
-    named, rows, _ = diagnose(prepare(rocket, flight_log))
+    try:
+        problem = prepare(rocket, flight_log, descent=descent)
+    except LogError as e:
+        _fail(str(e))
+    named, rows, _ = diagnose(problem)
     if as_json:
         typer.echo(
             json.dumps(
