@@ -16,7 +16,7 @@ rocket.toml path a real flight (/work/shared/data/rockets layout), and
 RocketPy's atmosphere-table error by height with a lag of LAG s
 ([`table_flight`][]). Writes
 experiments/results/rocket_descent.json (or `--out=PATH`; merged by flight) and a figure per
-flight in experiments/results/rocket_descent/.
+flight in docs/rockets/descent/ (the docs show three).
 """
 
 import json
@@ -128,7 +128,7 @@ def main():
     outs = [a.removeprefix("--out=") for a in sys.argv if a.startswith("--out=")]
     path = pathlib.Path(outs[0]) if outs else OUT / "rocket_descent.json"
     out = json.loads(path.read_text()) if path.exists() else {}
-    figs = OUT / "rocket_descent"
+    figs = ROOT / "docs" / "rockets" / "descent"
     figs.mkdir(exist_ok=True)
     for arg in args:
         if arg.startswith("table:"):  # table:FOLDER:LAG

@@ -194,9 +194,6 @@ HELD_OUT_2 = {
 # RocketPy's standard-atmosphere table like `curve-c-s5-20hz`'s
 CHUTES = ((0.25, "apogee"), (2.5, 300.0))
 DESCENT = {
-    "descent-c-s41-20hz": dict(
-        VALIDATION["curve-c-s5-20hz"], seed=41, chutes=CHUTES, duration=135.0
-    ),
     # `curve-c-s5-20hz`'s seed: its barometer's noise over the ascent is that
     # flight's (the first draws); the accelerometer's differs
     "descent-c-s5-20hz": dict(
