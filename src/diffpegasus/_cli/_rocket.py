@@ -117,7 +117,8 @@ def fit_command(
 
     rocket, flight_log = _load(toml, log, columns, attitude)
     try:
-        row = run_flight(rocket, flight_log, out, spread=sensor_spread, descent=descent)
+        extra = {"descent": True} if descent else {}  # the call as before without
+        row = run_flight(rocket, flight_log, out, spread=sensor_spread, **extra)
     except LogError as e:
         _fail(str(e))
     if as_json:
