@@ -18,7 +18,7 @@ from diffpegasus._vehicle._rocket._model import observe
 
 DATA = pathlib.Path(__file__).parent / "data"
 # RocketPy's rocket (scripts/make_rocket_fixtures.py --descent): 9.8 kg burned out
-FOLDER = DATA / "rocket_descent" / "descent-c-s41-20hz"
+FOLDER = DATA / "rocket_descent" / "descent-c-s5-20hz"
 
 
 def _flight(deploy):
