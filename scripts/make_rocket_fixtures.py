@@ -22,7 +22,10 @@ channels. Run: `python scripts/make_rocket_fixtures.py` (RocketPy from PyPI); wi
 `--validation DIR --smooth` the committed two and those, each through the exact
 standard-atmosphere pressure instead of RocketPy's table (`clean-smooth`'s option);
 `--gyro DIR [NAME ...]` flights with a fourth column, the lateral body rate (rad/s)
-two gyros across the axis read.
+two gyros across the axis read;
+`--descent DIR [NAME ...]` flights that go on under a drogue (deployed at apogee) and a main
+(at its altitude) for `duration` s after liftoff (`DESCENT`; the rocket.toml lists
+the parachutes' CdS and the main's altitude, and the log the descent).
 """
 
 import pathlib
@@ -186,6 +189,27 @@ HELD_OUT_2 = {
 }
 
 
+# Under parachutes: RocketPy's drogue at apogee and main at 300 m, no deployment lag
+# (drogue CdS 0.25 m^2: about 27 m/s near the ground; main 2.5 m^2: about 8.5 m/s),
+# logged to 135 s (the main opens at 117 s, about 150 m above the pad at the end); the clean one's barometer reads
+# RocketPy's standard-atmosphere table like `curve-c-s5-20hz`'s
+CHUTES = ((0.25, "apogee"), (2.5, 300.0))
+DESCENT = {
+    # `curve-c-s5-20hz`'s seed: its barometer's noise over the ascent is that
+    # flight's (the first draws); the accelerometer's differs
+    "descent-c-s5-20hz": dict(
+        VALIDATION["curve-c-s5-20hz"], chutes=CHUTES, duration=135.0
+    ),
+    "descent-lag-c-s42-20hz": dict(
+        VALIDATION["curve-c-s5-20hz"],
+        lag=0.15,
+        seed=42,
+        chutes=CHUTES,
+        duration=135.0,
+    ),
+}
+
+
 def _isa_pressure(h):
     """Pa, the standard atmosphere's troposphere at geometric height `h` m."""
     hg = 6_356_766.0 * h / (6_356_766.0 + h)
@@ -249,13 +273,19 @@ def rocketpy_flight(spec):
         n=4, root_chord=0.2, tip_chord=0.07, span=0.1, position=0.21
     )
     rocket.set_rail_buttons(1.1, 0.3)
+    for k, (cds, trigger) in enumerate(spec.get("chutes", ())):
+        rocket.add_parachute(f"chute{k}", cd_s=cds, trigger=trigger, lag=0.0)
     fl = Flight(
         rocket=rocket,
         environment=env,
         rail_length=12,
         inclination=84,
         heading=133,
-        terminate_on_apogee=True,
+        terminate_on_apogee="chutes" not in spec,
+        max_time=spec.get("duration", 600.0),
+        # with overshooting time steps RocketPy 1.13 never checks a second
+        # parachute once the first is out (the main stayed packed)
+        time_overshoot="chutes" not in spec,
         max_time_step=0.01,
     )
     return env, rocket, fl
@@ -276,7 +306,8 @@ def flight(name, spec, out=OUT):
         fmt="%.5f",
     )
     dt = 1.0 / spec.get("rate", 50.0)
-    t = np.arange(0.0, float(fl.apogee_time), dt)
+    end = fl.t_final if "chutes" in spec else fl.apogee_time
+    t = np.arange(0.0, float(end), dt)
     rng = np.random.default_rng(spec["seed"])
     # static pressure at the rocket, the ports' error, then the flight computer's
     # standard-atmosphere altitude above the pad's reading
@@ -325,6 +356,15 @@ def flight(name, spec, out=OUT):
         'gyro_lateral = { column = "gyro_lateral_rad_s", unit = "rad/s" }\n'
         if spec.get("gyro")
         else ""
+    )
+    chutes = "".join(
+        f'\n[[parachutes]]\nname = "chute{k}"\ncd_s_m2 = {cds}\n'
+        + (
+            f'trigger = "{trig}"\n'
+            if isinstance(trig, str)
+            else f"trigger_altitude_agl_m = {trig}\n"
+        )
+        for k, (cds, trig) in enumerate(spec.get("chutes", ()))
     )
     (folder / "rocket.toml").write_text(f"""\
 # A flight simulated by RocketPy {__import__("importlib.metadata").metadata.version("rocketpy")} (scripts/make_rocket_fixtures.py)
@@ -391,7 +431,7 @@ noise_altitude_m = {spec["noise"][0]}
 noise_accel_m_s2 = {spec["noise"][1]}
 apogee_geometric_agl_m = {float(fl.apogee) - 150.0:.3f}
 max_mach = {float(fl.max_mach_number):.4f}
-""")
+{chutes}""")
     print(name, "apogee", fl.apogee - 150.0, "max Mach", fl.max_mach_number)
 
 
@@ -405,6 +445,9 @@ if __name__ == "__main__":
         names = sys.argv[3:] or ["clean", "planted", "wind-s6", "heldout-c-s22"]
         for name in names:
             flight(name, dict(every[name], gyro=0.003), pathlib.Path(sys.argv[2]))
+    elif len(sys.argv) > 2 and sys.argv[1] == "--descent":
+        for name in sys.argv[3:] or DESCENT:
+            flight(name, DESCENT[name], pathlib.Path(sys.argv[2]))
     elif len(sys.argv) > 2 and sys.argv[1] in ("--held-out", "--held-out-2"):
         held = HELD_OUT if sys.argv[1] == "--held-out" else HELD_OUT_2
         for name, spec in held.items():

@@ -6,7 +6,9 @@ height have one signature. The cases here are the acceptance ones: flights with 
 lag whose barometer reads an atmosphere the model's (one temperature, one lapse
 rate) does not hold, on which `diagnose` must name nothing. Both fail today (known
 failures, validation tests: a diagnosis each); the ascent alone cannot tell the
-two apart (docs/rockets/simulated.md, Diagnose)."""
+two apart (docs/rockets/simulated.md, Diagnose), and the descent under parachutes
+(`prepare(..., descent=True)`) was measured not to either on RocketPy's flights
+(docs/rockets/index.md, The descent under parachutes): these stay on the ascent."""
 
 import pathlib
 import shutil

@@ -88,6 +88,16 @@ def _band(half_width):
     return f"+/- {half_width:.0f} m (95%) "
 
 
+DescentOption = Annotated[
+    bool,
+    typer.Option(
+        "--descent",
+        help="fit the record past apogee too: the fall under each parachute stage "
+        "(the barometer alone), each stage's drag area CdS",
+    ),
+]
+
+
 @rocket_app.command("fit")
 def fit_command(
     toml: TomlArgument,
@@ -97,14 +107,20 @@ def fit_command(
     as_json: JsonOption = False,
     attitude: AttitudeOption = False,
     sensor_spread: SpreadOption = True,
+    descent: DescentOption = False,
 ):
     """Fit CD(Mach), thrust scale and the barometer to the ascent; reconstruct and
     predict the apogee (from the log up to 2 s after burnout); re-simulate with the
-    team's drag curve; write figures with --out."""
+    team's drag curve; write figures with --out. --descent: the descent under
+    parachutes too, each stage's CdS."""
     from .._rocket._pipeline import run_flight
 
     rocket, flight_log = _load(toml, log, columns, attitude)
-    row = run_flight(rocket, flight_log, out, spread=sensor_spread)
+    try:
+        extra = {"descent": True} if descent else {}  # the call as before without
+        row = run_flight(rocket, flight_log, out, spread=sensor_spread, **extra)
+    except LogError as e:
+        _fail(str(e))
     if as_json:
         typer.echo(json.dumps(row, default=float))
         return
@@ -139,6 +155,15 @@ def fit_command(
     note = row.get("cd_structural", {}).get("note")
     if note:
         typer.echo(f"  CD band                {note}")
+    for d in row.get("descent", []):
+        file = d["cds_rocket_file_m2"]
+        typer.echo(
+            f"  {d['stage']:<6} CdS            {d['cds_m2']:.3f} "
+            f"+/- {d['cds_stderr_m2']:.3f} m^2"
+            + ("" if file is None else f" (rocket file {file:.3f})")
+            + f", falling {d['fall_rate_log_m_s']:.1f} m/s "
+            f"(model {d['fall_rate_model_m_s']:.1f})"
+        )
     if out is not None:
         typer.echo(f"  figures and summary.json in {out}")
 
@@ -196,14 +221,20 @@ def diagnose_command(
     columns: MapOption = None,
     as_json: JsonOption = False,
     attitude: AttitudeOption = False,
+    descent: DescentOption = False,
 ):
     """Name the effects the flight shows beyond drag and thrust (wind, rail
-    friction, barometer lag, static-pressure errors, mass error, air brakes, ...)."""
+    friction, barometer lag, static-pressure errors, mass error, air brakes, ...).
+    --descent: with the descent under parachutes in the fit."""
     from .._rocket._diagnose import diagnose
     from .._rocket._identify import prepare
 
     rocket, flight_log = _load(toml, log, columns, attitude)
-    named, rows, _ = diagnose(prepare(rocket, flight_log))
+    try:
+        problem = prepare(rocket, flight_log, descent=descent)
+    except LogError as e:
+        _fail(str(e))
+    named, rows, _ = diagnose(problem)
     if as_json:
         typer.echo(
             json.dumps(

@@ -96,11 +96,11 @@ def apogee_time(log) -> float:
 
 
 def ascent_record(
-    log, until=None, name="flight", gyro: bool = False
+    log, until=None, name="flight", gyro: bool = False, step: float = MIN_STEP
 ) -> tuple[Record, tuple[str, ...]]:
     """The record of the ascent from just before liftoff to `until` (default the
     apogee), and its output names (`gyro`: the lateral body rate where the log has
-    it, for the attitude).
+    it, for the attitude; `step`: s, the shortest grid step allowed).
 
     **Returns:** `(record, outputs)`; the record's inputs are `airbrake` (0 here,
     filled by the caller where the rocket has air brakes) and `has_<output>`.
@@ -120,7 +120,7 @@ def ascent_record(
             steps.append(float(np.median(np.diff(inside))))
     if not steps:
         raise LogError("the log has no samples between liftoff and apogee")
-    dt = float(np.clip(min(steps), MIN_STEP, MAX_STEP))
+    dt = float(np.clip(min(steps), max(MIN_STEP, step), MAX_STEP))
     first = min(-0.3, min(float(t[t > -1.0][0]) for t, _ in series.values()))
     n = int(np.floor((end - first) / dt)) + 1
     grid = first + dt * np.arange(n)

@@ -307,17 +307,26 @@ def measured_motor_time(
     return shift
 
 
-def accel_covers_ascent(record, share: float = 0.9) -> bool:
+def ascent_end(problem) -> float:
+    """s: where the ascent ends in the problem's record: the first parachute's
+    deployment with a descent, else the record's end."""
+    if problem.flight.descent is not None:
+        return float(problem.flight.descent.deploy[0])
+    return float(problem.record.t[-1])
+
+
+def accel_covers_ascent(record, share: float = 0.9, end: float | None = None) -> bool:
     """Whether the accelerometer was read over the ascent (its samples spanning
-    `share` of the time from liftoff to the record's end). One of two length scales
+    `share` of the time from liftoff to `end`, s, by default the record's end). One of two length scales
     must be trusted: the accelerometer's over a whole ascent fixes the day's
     temperature and lapse rate the barometer reads through; an accelerometer that
     stops after the boost is instead calibrated (its scale) against the barometer
     read through the day's atmosphere."""
     if record.inputs.shape[1] < 3:
         return False
+    end = record.t[-1] if end is None else end  # s, the ascent's end
     t = record.t[(record.inputs[:, 2] > 0) & (record.t >= 0)]
-    return t.size > 1 and (t[-1] - max(t[0], 0.0)) >= share * record.t[-1]
+    return t.size > 1 and (t[-1] - max(t[0], 0.0)) >= share * end
 
 
 def accel_covers_boost(record, rocket, motor_time: float, after: float = 0.5) -> bool:
@@ -378,7 +387,7 @@ def default_free(problem) -> tuple[str, ...]:
     free = SENSOR_FREE
     if problem.flight.knots.mach[-1] > 1.0 - TRANSONIC_WIDTH:
         free += ("transonic_error",)
-    if accel_covers_ascent(problem.record):
+    if accel_covers_ascent(problem.record, end=ascent_end(problem)):
         free += WIND_FREE
     if "gyro" in problem.outputs:
         free += GYRO_FREE
@@ -422,10 +431,15 @@ def airbrake_input(rocket: Rocket, deployment):
     return np.interp(deployment, levels, inc) / inc[-1]
 
 
-def prepare(rocket: Rocket, log, *, knots: DragKnots | None = None) -> Problem:
+def prepare(
+    rocket: Rocket, log, *, knots: DragKnots | None = None, descent: bool = False
+) -> Problem:
     """The [`Problem`][] of `rocket` flying `log`'s ascent: the record (see
     [`ascent_record`][]), the pad's pressure and temperature, the drag knots (by
-    default over the flight's Mach range) and the start values."""
+    default over the flight's Mach range) and the start values. `descent`: the
+    record goes on through the descent under parachutes (the barometer alone; see
+    `_rocket/_descent.py`), each stage's drag area a parameter estimated with the
+    drag (the knots, motor time and thrust read from the ascent as without)."""
     from .._vehicle._atmosphere import isa
     from .._vehicle._rocket import pressure_altitude
 
@@ -463,6 +477,19 @@ def prepare(rocket: Rocket, log, *, knots: DragKnots | None = None) -> Problem:
     )
     start["thrust_scale"] = measured_thrust_scale(record, rocket, start["motor_time"])
     start["burn_scale"] = measured_burn_scale(record, rocket, start["motor_time"])
+    if descent:
+        from .._vehicle._rocket._descent import Descent
+        from ._descent import descent_record, start_drag_areas
+
+        long, outputs, deploy = descent_record(
+            log, rocket, gyro=rocket.airframe is not None
+        )
+        inputs = long.inputs.copy()
+        if rocket.airbrakes is not None:
+            inputs[:, 0] = airbrake_input(rocket, held(long.t, tb, db))
+        record = type(long)(long.t, inputs, long.measured, x0=record.x0, name=long.name)
+        flight = Flight(rocket, knots, pressure, Descent(deploy))
+        start.update(start_drag_areas(rocket, record, deploy, pressure, temperature))
     return Problem(rocket, flight, record, outputs, start)
 
 
@@ -566,10 +593,12 @@ def fit_rocket(
         extras += ("accel_bias",)
         if accel_covers_boost(record, problem.rocket, values["motor_time"]):
             extras += BURN_FREE
-        if not accel_covers_ascent(problem.record):
+        if not accel_covers_ascent(problem.record, end=ascent_end(problem)):
             extras += ("accel_scale",) if "accel_scale" not in free else ()
         elif not hold_temperature:
             extras += tuple(a for a in ACCEL_FREE if a not in free)
+    if problem.flight.descent is not None:
+        extras += problem.flight.descent.names
     base = tuple(n for n in BASE_FREE + extras if n not in hold)
     scaled = ("cd_scale",) + base
     estimated = knots.names + base if drag == "knots" else scaled
@@ -712,7 +741,12 @@ def point_mass(problem: Problem, record=None) -> tuple[Problem, object]:
         rocket = dataclasses.replace(problem.rocket, airframe=None)
         _POINT_MASS[key] = (
             problem.flight,
-            Flight(rocket, problem.flight.knots, problem.flight.pad_pressure),
+            Flight(
+                rocket,
+                problem.flight.knots,
+                problem.flight.pad_pressure,
+                problem.flight.descent,
+            ),
         )
     flight = _POINT_MASS[key][1]
     simple = dataclasses.replace(

@@ -9,7 +9,13 @@ import numpy as np
 from ._apogee import apogee_band
 from ._checks import equation_error_drag, resimulate
 from ._data import baro_channel
-from ._identify import accel_covers_ascent, altitude_only, fit_rocket, prepare
+from ._identify import (
+    accel_covers_ascent,
+    altitude_only,
+    ascent_end,
+    fit_rocket,
+    prepare,
+)
 
 
 PREDICTION_HORIZON = 2.0  # s after burnout: what an air-brake controller has
@@ -39,7 +45,9 @@ def predict(problem, until: float):
     # cannot tell its scale from the drag, so the prediction reads the barometer
     # alone there
     short = problem
-    if "accel" in problem.outputs and not accel_covers_ascent(problem.record):
+    if "accel" in problem.outputs and not accel_covers_ascent(
+        problem.record, end=ascent_end(problem)
+    ):
         short = altitude_only(problem)
     # multiple shooting only: a few seconds of log leave the thrust, drag and
     # static-error split weakly determined, and single shooting from there found
@@ -56,12 +64,15 @@ def predict(problem, until: float):
     )
 
 
-def run_flight(rocket, log, out=None, *, free=None, spread=True) -> dict:
+def run_flight(rocket, log, out=None, *, free=None, spread=True, descent=False) -> dict:
     """Fit the ascent, predict the apogee from the log up to two seconds after
     burnout with its band ([`apogee_band`][]), re-simulate with the team's drag curve, and (with `out`) write the
     figures and `summary.json` there. `spread`: carry the disagreement between
     the log's sensors in CD's band (see [`fit_rocket`][]; `False`: the noise's
-    band alone).
+    band alone). `descent`: fit the record through the descent under parachutes
+    too (see [`prepare`][]; the prediction reads the ascent as without), each
+    stage's drag area in the summary's `descent` rows and, with `out`,
+    `descent.png`.
 
     **Returns:** the summary (see [`summary`][]) with `cd_table` rows (Mach, CD,
     standard error with the sensors' spread and of the noise alone, team CD) and,
@@ -72,14 +83,14 @@ def run_flight(rocket, log, out=None, *, free=None, spread=True) -> dict:
     from ._report import figures, summary
 
     t0 = time.perf_counter()
-    problem = prepare(rocket, log)
+    problem = prepare(rocket, log, descent=descent)
     if free is None:
         free = default_free(problem)
     free = tuple(free)
     result = fit_rocket(problem, free=free, throw=False, spread=spread)
     seconds = time.perf_counter() - t0
     cut = burnout_time(log, problem, result) + PREDICTION_HORIZON
-    prediction = predict(problem, cut)
+    prediction = predict(prepare(rocket, log) if descent else problem, cut)
     band = apogee_band(prediction)
     team = resimulate(problem, result) if rocket.team_drag_off is not None else result
     t, h = baro_channel(log)
@@ -125,6 +136,12 @@ def run_flight(rocket, log, out=None, *, free=None, spread=True) -> dict:
         label: {"det_r": own, "det_r_flown": flown, "converged": ok}
         for label, (own, flown, ok) in result.tries.items()
     }
+    if descent:
+        from ._descent import descent_figure, descent_table
+
+        row["descent"] = descent_table(problem, result)
+        if out is not None:
+            descent_figure(problem, result, pathlib.Path(out) / "descent.png")
     if out is not None:
         ee = equation_error_drag(result)
         figures(problem, result, prediction, team, ee, out)

@@ -21,6 +21,8 @@ read, every other key is kept for people:
     [atmosphere] surface_temperature_K (or a notebook_surface_conditions text
               "T 299.96 K, ..." or era5_near_surface_temperature_K); optional
     [results] recorded_apogee_agl_m, preflight_simulated_apogee_agl_m (optional)
+    [[parachutes]] cd_s_m2 (or cd_s_m2_design), trigger_altitude_agl_m (optional,
+              a main's deployment height), in deployment order; optional
 
 Paths are relative to the file's folder.
 """
@@ -68,6 +70,8 @@ class Rocket(eqx.Module):
       file gives one, else `None` (the rocket points along its air-relative velocity).
     - `latitude`: deg, the pad's geodetic latitude (gravity from the WGS84 ellipsoid
       there), or `None` (standard gravity, 9.80665 m/s^2 at sea level).
+    - `parachutes`: `((CdS m^2 or None, deployment height m AGL or None), ...)`
+      in the file's order (the drogue first), `()` without.
     """
 
     name: str = eqx.field(static=True)
@@ -89,6 +93,7 @@ class Rocket(eqx.Module):
     latitude: float | None = eqx.field(static=True, default=None)
     airframe: Airframe | None = None
     airbrake_table: tuple | None = None
+    parachutes: tuple = eqx.field(static=True, default=())
 
     @property
     def loaded_mass(self) -> float:
@@ -288,4 +293,22 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
         if attitude
         else None,
         airbrake_table=_airbrake_table(folder, ae, path),
+        parachutes=_parachutes(doc, path),
     )
+
+
+def _parachutes(doc, path) -> tuple:
+    """`((CdS or None, deployment height or None), ...)` from `[[parachutes]]`
+    (a table that is not a list of tables, as "no parachute", gives none)."""
+    chutes = doc.get("parachutes", [])
+    if not isinstance(chutes, list):
+        return ()
+    out = []
+    for c in chutes:
+        cds = _optional(c, "cd_s_m2")
+        if cds is None:
+            cds = _optional(c, "cd_s_m2_design")
+        if cds is not None and not cds > 0:
+            raise LogError(f"{path}: [[parachutes]] cd_s_m2 = {cds:g} must be > 0")
+        out.append((cds, _optional(c, "trigger_altitude_agl_m")))
+    return tuple(out)

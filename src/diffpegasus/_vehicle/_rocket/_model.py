@@ -50,6 +50,10 @@ Parameters (name: unit, meaning):
   radian of `q d / V`, scaled alone). Both 1 by default; with the attitude only
   (without an airframe nothing depends on them).
 
+With a [`Descent`][] (the record past apogee), from the first deployment the
+rocket falls under each parachute stage's drag area (parameters `cds_drogue`,
+`cds_main`, m^2; see `_descent`), the attitude frozen.
+
 Outputs: `altitude` (m), `accel` (m/s^2) and, with the attitude, `gyro`: the
 lateral body rate `sqrt(w_pitch^2 + w_yaw^2)` (rad/s; what two gyros across the
 axis read whatever the roll).
@@ -65,6 +69,7 @@ from ..._model import Model
 from .._atmosphere import GAMMA_AIR, R_AIR
 from .._gravity import coriolis, gravity, normal_gravity
 from ._config import Rocket
+from ._descent import Descent, parachute_acceleration
 from ._drag import DragKnots
 from ._motor import motor_at
 from ._sensors import axial_specific_force, baro_altitude, layered_air
@@ -101,12 +106,22 @@ EFFECTS = (
 class Flight(eqx.Module):
     """What the dynamics need besides the parameters: the rocket and the day.
 
-    **Fields:** `rocket`, `knots` ([`DragKnots`][]), `pad_pressure` (Pa).
+    **Fields:** `rocket`, `knots` ([`DragKnots`][]), `pad_pressure` (Pa),
+    `descent` (a [`Descent`][]: the parachutes' deployment times, or `None`: the
+    ascent alone).
     """
 
     rocket: Rocket
     knots: DragKnots
     pad_pressure: float = eqx.field(static=True)
+    descent: Descent | None = None
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        """The model's parameters: the drag knots, the effects and the
+        parachutes' drag areas (with a descent)."""
+        chutes = () if self.descent is None else self.descent.names
+        return self.knots.names + EFFECTS + chutes
 
     def rail_axis(self):
         r = self.rocket
@@ -232,6 +247,15 @@ class Flight(eqx.Module):
         held = (tm < r.holddown) | ((v_along <= 1e-6) & (a_along < 0))
         a_along = jnp.where(held, 0.0, a_along)
         accel = jnp.where(on_rail, a_along * rail, free)
+        if self.descent is not None:
+            chute = parachute_acceleration(
+                vel, wind, rho, g, mass, self.descent.drag_area(t, p)
+            )
+            if r.latitude is not None:
+                chute = chute + coriolis(vel, r.latitude)
+            down = self.descent.active(t)
+            accel = jnp.where(down, chute, accel)
+            spin = jnp.where(down, 0.0, spin)
         return accel, axis, (q, rho, g, mach, reading, rate, spin)
 
 
@@ -278,7 +302,7 @@ def rocket_model(flight: Flight, outputs, start: dict, free) -> Model:
         raise ValueError(f"outputs must be a prefix of {OUTPUTS}, got {outputs}")
     if "gyro" in outputs and flight.rocket.airframe is None:
         raise ValueError("a gyro output needs the attitude (an airframe)")
-    names = flight.knots.names + EFFECTS
+    names = flight.parameter_names
     missing = [n for n in names if n not in start]
     if missing:
         raise ValueError(f"no start value for {missing}")

@@ -1,0 +1,170 @@
+"""The rocket's descent under parachutes: the fall under a drag area and each
+stage's drag area recovered from a log."""
+
+import pathlib
+import types
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import diffpegasus.rocket as dr
+from diffpegasus._estimate._fit import simulate
+from diffpegasus._model import Record
+from diffpegasus._vehicle._rocket._descent import Descent, terminal_velocity
+from diffpegasus._vehicle._rocket._model import observe
+
+
+DATA = pathlib.Path(__file__).parent / "data"
+# RocketPy's rocket (scripts/make_rocket_fixtures.py --descent): 9.8 kg burned out
+FOLDER = DATA / "rocket_descent" / "descent-c-s5-20hz"
+
+
+def _flight(deploy):
+    rocket = dr.read_rocket(FOLDER / "rocket.toml")
+    knots = dr.DragKnots((0.1, 0.5, 0.9))
+    return rocket, dr.Flight(rocket, knots, 99_500.0, Descent(deploy))
+
+
+def _start(flight, **over):
+    start = dict.fromkeys(flight.parameter_names, 0.0)
+    start.update(dict.fromkeys(flight.knots.names, 0.5))
+    start.update(
+        thrust_scale=1.0,
+        power_on_ratio=1.0,
+        cd_scale=1.0,
+        temperature=287.0,
+        lapse_rate=-6.5,
+        accel_scale=1.0,
+        cn_alpha_scale=1.0,
+        pitch_damping_scale=1.0,
+        motor_time=-100.0,  # burned out long before
+        cds_drogue=0.25,
+    )
+    start.update(over)
+    return start
+
+
+def test_falling_point_mass_reaches_its_terminal_velocity():
+    """Dropped at rest from 1.5 km under CdS 0.8 m^2 for 60 s: the fall rate is
+    `sqrt(2 m g / (rho CdS))` at the height it has reached (m the burned-out
+    9.8 kg; rho and g the model's there). The fall is quasi-steady in a density
+    that changes with height: the lag behind the local terminal velocity is
+    about v^2 / (2 H g) ~ 0.1% (H ~ 9 km the density's scale height), so 0.3%."""
+    rocket, flight = _flight((0.0,))
+    model = dr.rocket_model(flight, ("altitude",), _start(flight, cds_drogue=0.8), ())
+    t = np.arange(0.0, 60.0, 0.02)
+    x0 = np.zeros(6)
+    x0[2] = 1500.0
+    rec = Record(t, np.column_stack([np.zeros_like(t), np.ones_like(t)]), 0 * t, x0)
+    x = simulate(model, rec)
+    h, vu = x[-1, 2], x[-1, 5]
+    rho = float(flight.air(h, _start(flight))[0])
+    g = float(flight.gravity(h))
+    expected = float(terminal_velocity(rocket.dry_mass, g, rho, 0.8))
+    assert 11.0 < expected < 17.0  # the case is a parachute's, not a brick's
+    assert -vu == pytest.approx(expected, rel=3e-3)
+    assert abs(x[-1, 0]) < 1.0 and abs(x[-1, 1]) < 1.0  # no wind: no drift
+
+
+def test_the_main_replaces_the_drogue_at_its_deployment():
+    """Under the drogue to 10 s, the main after: the fall rate approaches each
+    stage's terminal velocity (drogue 0.25 m^2 then main 2.5 m^2: about
+    sqrt(10) slower)."""
+    rocket, flight = _flight((0.0, 10.0))
+    p = _start(flight, cds_drogue=0.25, cds_main=2.5)
+    model = dr.rocket_model(flight, ("altitude",), p, ())
+    t = np.arange(0.0, 30.0, 0.02)
+    x0 = np.zeros(6)
+    x0[2] = 2000.0
+    rec = Record(t, np.column_stack([np.zeros_like(t), np.ones_like(t)]), 0 * t, x0)
+    x = simulate(model, rec)
+    for when, cds in ((9.9, 0.25), (29.9, 2.5)):
+        k = int(np.argmin(np.abs(t - when)))
+        rho = float(flight.air(x[k, 2], p)[0])
+        v = float(terminal_velocity(rocket.dry_mass, flight.gravity(x[k, 2]), rho, cds))
+        assert -x[k, 5] == pytest.approx(v, rel=5e-3), when
+
+
+def test_start_drag_areas_from_a_logs_fall_rates():
+    """A rocket file without CdS: each stage's start is the drag area whose
+    terminal velocity is the log's fall rate. The model's fall under 0.3 then
+    3.0 m^2 (main at 40 s), its heights read as the log: both within 1% (the
+    rates' median over the stage is at its median height within the density's
+    change over a second's fall)."""
+    import dataclasses
+
+    from diffpegasus._rocket._descent import start_drag_areas
+
+    rocket, flight = _flight((0.0, 40.0))
+    p = _start(flight, cds_drogue=0.3, cds_main=3.0)
+    model = dr.rocket_model(flight, ("altitude",), p, ())
+    t = np.arange(0.0, 70.0, 0.05)
+    x0 = np.zeros(6)
+    x0[2] = 2500.0
+    x0[5] = -25.0
+    rec = Record(t, np.column_stack([np.zeros_like(t), np.ones_like(t)]), 0 * t, x0)
+    h = np.asarray(simulate(model, rec))[:, 2]
+    log = Record(t, rec.inputs, h[:, None], x0)
+    bare = dataclasses.replace(rocket, parachutes=((None, None), (None, 300.0)))
+    start = start_drag_areas(bare, log, (0.0, 40.0), 99_500.0, 287.0)
+    assert start["cds_drogue"] == pytest.approx(0.3, rel=0.01)
+    assert start["cds_main"] == pytest.approx(3.0, rel=0.01)
+    given = start_drag_areas(rocket, log, (0.0, 40.0), 99_500.0, 287.0)
+    assert given == {"cds_drogue": 0.25, "cds_main": 2.5}  # the rocket file's
+
+
+@pytest.mark.validation
+def test_a_synthetic_descent_logs_drag_areas_are_recovered():
+    """The model's own flight of the RocketPy fixture's rocket (its drag curve,
+    catalogue thrust) under a drogue of 0.32 m^2 from 23 s and a main of 1.9 m^2
+    from 45 s, to 60 s, read at 20 Hz with 1 m of noise on the barometer and
+    0.5 m/s^2 on the accelerometer (ascent only), events giving both
+    deployments. Fitted with the descent from the rocket file's 0.25 and 2.5
+    m^2: each stage's CdS within three of its standard errors of the truth, and
+    those errors small (the drogue's about 0.2%, the main's about 2%: 15 s of
+    fall)."""
+    rocket = dr.read_rocket(FOLDER / "rocket.toml")
+    t = np.arange(0.0, 60.0, 0.05)
+    truth = {"cds_drogue": 0.32, "cds_main": 1.9}
+    # a log to prepare the flight from: the fixture's own, cut at 60 s
+    a = np.loadtxt(FOLDER / "log.csv", delimiter=",", skiprows=1)
+    a = a[a[:, 0] < 60.0]
+    log = _log(a[:, 0], a[:, 1], a[:, 2], {"drogue": 23.0, "main": 45.0})
+    problem = dr.prepare(rocket, log, descent=True)
+    start = dict(problem.start, thrust_scale=1.0, motor_time=0.0, **truth)
+    flight = problem.flight
+    model = dr.rocket_model(flight, problem.outputs, start, ())
+    rec = problem.record
+    x = simulate(model, rec)
+    y = np.asarray(
+        jax.vmap(lambda ti, xi: observe(flight, ti, xi, jnp.ones(3), start))(
+            rec.t, jnp.asarray(x)
+        )
+    )
+    rng = np.random.default_rng(3)
+    keep = (rec.t >= 0.0) & (rec.t < t[-1])
+    baro = y[keep, 0] + rng.normal(0.0, 1.0, keep.sum())
+    accel = y[keep, 1] + rng.normal(0.0, 0.5, keep.sum())
+    log = _log(rec.t[keep], baro, accel, {"drogue": 23.0, "main": 45.0})
+    problem = dr.prepare(rocket, log, descent=True)
+    assert problem.start["cds_drogue"] == 0.25  # the rocket file's
+    fit = dr.fit_rocket(problem, free=(), drag="scale", throw=False, spread=False)
+    for name, value in truth.items():
+        est, se = fit.estimate(name)
+        assert abs(est - value) < 3 * se, (name, est, se)
+        assert se < 0.03 * value, (name, se)
+
+
+def _log(t, baro, accel, events):
+    def channel(v):
+        return types.SimpleNamespace(t=t, values=v, filtered=False)
+
+    ev = {"liftoff": types.SimpleNamespace(t=0.0)}
+    ev.update({k: types.SimpleNamespace(t=v) for k, v in events.items()})
+    return types.SimpleNamespace(
+        channels={"altitude": channel(baro), "accel_axial": channel(accel)},
+        events=ev,
+        pad={},
+    )
