@@ -156,3 +156,45 @@ def test_rule_finds_one_effect_not_its_lookalikes_and_judges_delays():
     ranking, _ = decide(test, delays=[True, False, False], resolution=1.0)
     by = {r["effect"]: r for r in ranking}
     assert by["late"]["resolution_limit"] and not by["late"]["significant"]
+
+
+def test_a_candidate_the_log_holds_no_information_on_is_not_scored():
+    """A candidate with no sensitivity in this log (a rail's friction when the rail
+    is vertical: its curvature 0, its statistic 0/0) leaves the family instead of
+    making the threshold undefined: the decisions and the threshold are those of
+    the other three alone (the bootstrap pads three candidates to four with a zero
+    one, so the two nulls are the same draws), and the verdict says it was not
+    scored. Before, every statistic was judged against a NaN threshold and nothing
+    could be found."""
+    from diffpegasus._diagnose._rule import verdict
+
+    rng = np.random.default_rng(5)
+    n = 400
+    rows = rng.normal(size=(n, 1, 3))
+    e = rng.normal(size=(n, 1)) - 0.4 * rows[..., 1]
+    rule = DecisionRule(significance=0.01, replicates=500)
+    three, cal3 = rule.decide(
+        _score_test(rows, e, np.zeros(3)),
+        ["a", "b", "c"],
+        ["a", "b", "c"],
+        delays=[False] * 3,
+        resolution=0.01,
+    )
+    with np.errstate(invalid="ignore", divide="ignore"):
+        four = _score_test(
+            np.concatenate([rows, np.zeros((n, 1, 1))], 2), e, np.zeros(4)
+        )
+    assert np.isnan(four.statistic[3]) or four.statistic[3] == 0.0
+    ranking, cal4 = rule.decide(
+        four, ["a", "b", "c", "rail"], ["a", "b", "c", "r"],
+        delays=[False] * 4, resolution=0.01,
+    )  # fmt: skip
+    assert np.isfinite(cal4[0].threshold)
+    assert cal4[0].threshold == cal3[0].threshold
+    assert [r["effect"] for r in ranking if r["significant"]] == ["b"]
+    assert [r["effect"] for r in three if r["significant"]] == ["b"]
+    by = {r["effect"]: r for r in ranking}
+    assert by["rail"]["uninformed"] and not by["rail"]["significant"]
+    assert not any(r["uninformed"] for r in three)
+    assert ranking[-1]["effect"] == "rail"
+    assert "rail was not scored" in verdict(ranking, 0.01)

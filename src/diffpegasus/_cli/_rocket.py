@@ -245,6 +245,12 @@ def diagnose_command(
     typer.echo(f"{rocket.name}: " + (", ".join(named) if named else "nothing named"))
     for r in rows:
         mark = "*" if r["significant"] else " "
+        if r.get("uninformed"):
+            typer.echo(
+                f" {mark} round {r['round']}: {r['candidate']:<34} not scored: "
+                "this log holds no information on it"
+            )
+            continue
         line = (
             f" {mark} round {r['round']}: {r['candidate']:<34} "
             f"score {r['statistic']:9.1f} (threshold {r['threshold']:.1f})"

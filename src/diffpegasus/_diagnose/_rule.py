@@ -125,11 +125,25 @@ class DecisionRule:
         s = np.array(test.curvature, float)
         g = np.array(test.slope, float)
         est = np.asarray(test.estimate, float)
-        start = est + g / s  # the held values
-        corr = np.asarray(test.correlation, float)
+        # a candidate this log holds no information on (no sensitivity: a rail's
+        # friction on a vertical rail) has no statistic; it leaves the family as a
+        # padded one does (zero rows, unit curvature: statistic 0), so it cannot
+        # make every threshold undefined
+        informed = (
+            np.isfinite(s)
+            & (s > 0.0)
+            & np.isfinite(g)
+            & np.all(np.isfinite(rows), axis=tuple(range(rows.ndim - 1)))
+        )
+        rows[..., ~informed] = 0.0
+        g = np.where(informed, g, 0.0)
+        s = np.where(informed, s, 1.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            start = est + g / s  # the held values
+        corr = np.where(np.outer(informed, informed), test.correlation, 0.0)
+        corr[~informed, ~informed] = 1.0
         h = corr * np.sqrt(np.outer(s, s))
-        k = len(effects)
-        pool = np.ones(k, bool)
+        pool = informed.copy()
         found: list[int] = []
         taken: list[int] = []  # found, and signatures that are not findings
         judged: dict[int, tuple[float, float, list[str]]] = {}
@@ -178,7 +192,7 @@ class DecisionRule:
         reduction = 1.0 - np.asarray(test.cost_ratio, float)
         ranking = []
         for i, name in enumerate(effects):
-            passes = bool(stat0[i] > first.threshold)
+            passes = bool(informed[i] and stat0[i] > first.threshold)
             lead = bool(delays[i] and est[i] < 0.0)
             limited = bool(delays[i] and passes and abs(est[i]) < resolution)
             close = [
@@ -201,6 +215,8 @@ class DecisionRule:
                 "found_given": i in found[1:],
                 "resolution_limit": limited,
                 "lead": bool(lead and passes),
+                # no sensitivity in this log: not scored (its statistic undefined)
+                "uninformed": not bool(informed[i]),
                 "hard_to_tell_from": close,
                 "threshold": first.threshold,
                 "false_alarm_level": first.level,
@@ -216,7 +232,8 @@ class DecisionRule:
         ranking.sort(
             key=lambda r: (
                 order.get(effects.index(r["effect"]), len(found)),
-                -r["cost_reduction"],
+                r["uninformed"],
+                -np.nan_to_num(r["cost_reduction"], nan=-np.inf),
             )
         )
         return ranking, cals
@@ -269,9 +286,15 @@ def verdict(ranking: list[dict], resolution: float) -> str:
         # a lead or a sub-sample delay is never a finding (said below): the
         # strongest candidate that could have been one is the one to report
         possible = [
-            r for r in ranking if not (r.get("lead") or r.get("resolution_limit"))
+            r
+            for r in ranking
+            if not (r.get("lead") or r.get("resolution_limit") or r.get("uninformed"))
         ]
-        strongest = max(possible or ranking, key=lambda r: r["statistic"])
+        if not possible:
+            return (
+                "no candidate effect was scored: this log holds no information on any"
+            )
+        strongest = max(possible, key=lambda r: r["statistic"])
         if strongest["statistic"] > threshold and strongest.get("given"):
             where = (
                 f"above the threshold {threshold:.3g} from this log's residuals "
@@ -317,6 +340,11 @@ def verdict(ranking: list[dict], resolution: float) -> str:
             f"{significant[0]['effect']} and diagnose again to tell"
         )
     for r in ranking:
+        if r.get("uninformed"):
+            message += (
+                f". {r['effect']} was not scored: this log holds no information on "
+                "it (its sensitivity is zero)"
+            )
         if r["resolution_limit"]:
             message += (
                 f". {r['effect']} = {r['estimate']:.2g} s is below half a log sample "

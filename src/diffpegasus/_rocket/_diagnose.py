@@ -135,6 +135,8 @@ def diagnose(problem: Problem, *, level: float = 0.01, rounds: int = 3):
                     "cost_ratio": 1.0 - float(row["cost_reduction"]),
                     "estimates": {row["parameter"]: float(row["estimate"])},
                     "significant": bool(row["significant"]),
+                    # no sensitivity in this log (a vertical rail's friction)
+                    "uninformed": bool(row.get("uninformed", False)),
                     # the smallest effect this test names on this log: its
                     # threshold in standard errors
                     "smallest_named": float(
