@@ -168,3 +168,51 @@ def _log(t, baro, accel, events):
         events=ev,
         pad={},
     )
+
+
+def test_bad_parachutes_and_stated_events_refused_in_one_line(tmp_path):
+    """A rocket file's parachutes and stated events that cannot be right stop with
+    one line naming the file, the entry and key, and the value: a stage that is
+    not a table, a number given as text, a deployment height below the pad, a
+    stated event outside the log's times (it would move every event, or cut the
+    ascent past the descent), and a main opening too soon after the drogue for
+    its own drag area (a trigger height above the apogee: at once)."""
+    import shutil
+
+    import diffpegasus as dp
+
+    good = (FOLDER / "rocket.toml").read_text()
+
+    def case(name, text):
+        folder = tmp_path / name
+        shutil.copytree(FOLDER, folder)
+        (folder / "rocket.toml").write_text(text)
+        return folder / "rocket.toml"
+
+    chute = "trigger_altitude_agl_m = 300.0"
+    for name, text, words in [
+        ("entry", "parachutes = [1, 2]\n" + good.split("[[parachutes]]")[0],
+         ("entry 1", "1")),
+        ("text", good.replace(chute, 'trigger_altitude_agl_m = "300 m"'),
+         ("entry 2", "trigger_altitude_agl_m", "'300 m'")),
+        ("below", good.replace(chute, "trigger_altitude_agl_m = -50"),
+         ("entry 2", "trigger_altitude_agl_m", "-50")),
+    ]:  # fmt: skip
+        with pytest.raises(dp.LogError) as err:
+            dr.read_rocket(case(name, text))
+        line = str(err.value)
+        assert "\n" not in line and "rocket.toml" in line
+        assert all(w in line for w in words), line
+    late = case(
+        "late",
+        good + '\n[log]\nfile = "log.csv"\n[log.stated_events]\napogee_s = 1000.0\n',
+    )
+    with pytest.raises(dp.LogError, match=r"apogee_s = 1000 is outside .*134\.95"):
+        dp.read_rocket_log(late)
+    high = case("high", good.replace(chute, "trigger_altitude_agl_m = 5000.0"))
+    rocket = dr.read_rocket(high)
+    log = dp.read_rocket_log(high.parent / "log.csv")
+    log.events.pop("main")  # a log that does not say when its main opened
+    with pytest.raises(dp.LogError, match=r"log\.csv: the main .* 5000") as err:
+        dr.prepare(rocket, log, descent=True)
+    assert "\n" not in str(err.value)

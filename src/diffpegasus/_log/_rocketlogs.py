@@ -229,6 +229,8 @@ def read_rocket_log(
                 f"{flat['accel_axial'].where} (a flight computer's estimate)"
             )
             del flat["accel_axial"]
+        if primary and stated and flat:
+            _stated_within(stated, flat, root)
         found = one_clock(flat, auto, messages, stated if primary else {})
         if found is None:
             files_here = ", ".join(sorted({spec.file.name for spec, _ in members}))
@@ -336,6 +338,20 @@ def _stated_events(log_table: dict, root: pathlib.Path | None) -> dict[str, floa
             )
         out[name] = float(value)
     return out
+
+
+def _stated_within(stated: dict[str, float], flat: dict, root) -> None:
+    """Refuse a stated event outside the log's own times (s, the file's clock): it
+    would move every event, or cut the ascent past the descent."""
+    first = min(float(c.t[0]) for c in flat.values())
+    last = max(float(c.t[-1]) for c in flat.values())
+    for name, t in stated.items():
+        if not first <= t <= last:
+            where = root / "rocket.toml" if root is not None else "rocket.toml"
+            raise LogError(
+                f"{where}: [log.stated_events] {name}_s = {t:g} is outside the log's "
+                f"times ({first:g} to {last:g} s in the file)"
+            )
 
 
 def shipped_map(folder: str) -> pathlib.Path | None:

@@ -17,6 +17,7 @@ import pathlib
 import numpy as np
 
 from .._errors import LogError
+from .._vehicle._atmosphere import G0, R_AIR
 from ._data import apogee_time, ascent_record, baro_channel, MAX_STEP
 
 
@@ -33,15 +34,30 @@ def deployments(log, rocket) -> tuple[float, ...]:
     drogue = float(log.events["drogue"].t) if "drogue" in log.events else None
     if drogue is None:
         drogue = apogee_time(log)
+    main, why = None, ""
     if "main" in log.events:
-        return (drogue, float(log.events["main"].t))
-    heights = [h for _, h in rocket.parachutes[1:] if h is not None]
-    if heights:
-        t, h = baro_channel(log)
-        below = np.flatnonzero((t > drogue) & (h < heights[0]))
-        if below.size:
-            return (drogue, float(t[below[0]]))
-    return (drogue,)
+        main, why = float(log.events["main"].t), "the log's main event"
+    else:
+        heights = [h for _, h in rocket.parachutes[1:] if h is not None]
+        if heights:
+            t, h = baro_channel(log)
+            below = np.flatnonzero((t > drogue) & (h < heights[0]))
+            if below.size:
+                main = float(t[below[0]])
+                why = (
+                    f"the rocket file's [[parachutes]] entry 2 "
+                    f"trigger_altitude_agl_m = {heights[0]:g}"
+                )
+    if main is None:
+        return (drogue,)
+    if main < drogue + 2 * SETTLE:
+        files = ", ".join(f.name for f in log.files)
+        raise LogError(
+            f"{files}: the main parachute opens at {main:.2f} s ({why}), "
+            f"{main - drogue:.2f} s after the drogue at {drogue:.2f} s: a stage "
+            f"needs {2 * SETTLE:g} s of its own fall for its drag area"
+        )
+    return (drogue, main)
 
 
 def descent_end(log, drogue: float) -> float:
@@ -63,9 +79,10 @@ def descent_record(log, rocket, gyro: bool = False):
     deploy = deployments(log, rocket)
     end = descent_end(log, deploy[0])
     if end < deploy[0] + 2 * SETTLE:
+        files = ", ".join(f.name for f in log.files)
         raise LogError(
-            f"the log has {max(end - deploy[0], 0.0):.1f} s of descent after the "
-            f"drogue at {deploy[0]:.1f} s: too little for its drag area"
+            f"{files}: the log has {max(end - deploy[0], 0.0):.1f} s of descent "
+            f"after the drogue at {deploy[0]:.1f} s: too little for its drag area"
         )
     record, outputs = ascent_record(log, until=end, gyro=gyro, step=MAX_STEP)
     inputs = record.inputs.copy()
@@ -116,9 +133,9 @@ def start_drag_areas(rocket, record, deploy, pad_pressure, temperature) -> dict:
         m = (t >= start) & (t <= stop) & (record.inputs[:, 1] > 0)
         height = float(np.median(h[m])) if m.any() else 0.0
         p, temp, _, _ = layered_air(pad_pressure, temperature, -6.5, height)
-        rho = float(p / (287.05287 * temp))
+        rho = float(p / (R_AIR * temp))
         rate = rates[k] if np.isfinite(rates[k]) else (20.0 if k == 0 else 6.0)
-        out[name] = float(drag_area_for_rate(rocket.dry_mass, 9.80665, rho, rate))
+        out[name] = float(drag_area_for_rate(rocket.dry_mass, G0, rho, rate))
     return out
 
 

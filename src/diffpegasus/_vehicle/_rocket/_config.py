@@ -298,17 +298,46 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
 
 
 def _parachutes(doc, path) -> tuple:
-    """`((CdS or None, deployment height or None), ...)` from `[[parachutes]]`
-    (a table that is not a list of tables, as "no parachute", gives none)."""
+    """`((CdS or None, deployment height or None), ...)` from `[[parachutes]]`, in
+    stage order. A single `[parachutes]` table without a stage's keys (a note that
+    the flight had none) gives none; a number that is not one is refused."""
     chutes = doc.get("parachutes", [])
-    if not isinstance(chutes, list):
+    keys = ("cd_s_m2", "cd_s_m2_design", "trigger_altitude_agl_m", "lag_s")
+    if isinstance(chutes, dict):
+        if any(k in chutes for k in keys):
+            raise LogError(
+                f"{path}: [parachutes] is one table; write each stage as its own "
+                "[[parachutes]] (drogue first)"
+            )
         return ()
+    if not isinstance(chutes, list):
+        raise LogError(f"{path}: parachutes = {chutes!r} is not a list of stages")
     out = []
-    for c in chutes:
+    for k, c in enumerate(chutes, 1):
+        if not isinstance(c, dict):
+            raise LogError(f"{path}: [[parachutes]] entry {k} = {c!r} is not a table")
+        for key in keys:
+            v = c.get(key)
+            if v is not None and (
+                isinstance(v, bool)
+                or not isinstance(v, int | float)
+                or not np.isfinite(v)
+            ):
+                raise LogError(
+                    f"{path}: [[parachutes]] entry {k}: {key} = {v!r} is not a number"
+                )
         cds = _optional(c, "cd_s_m2")
         if cds is None:
             cds = _optional(c, "cd_s_m2_design")
         if cds is not None and not cds > 0:
-            raise LogError(f"{path}: [[parachutes]] cd_s_m2 = {cds:g} must be > 0")
-        out.append((cds, _optional(c, "trigger_altitude_agl_m")))
+            raise LogError(
+                f"{path}: [[parachutes]] entry {k}: cd_s_m2 = {cds:g} must be > 0"
+            )
+        height = _optional(c, "trigger_altitude_agl_m")
+        if height is not None and not height > 0:
+            raise LogError(
+                f"{path}: [[parachutes]] entry {k}: trigger_altitude_agl_m = "
+                f"{height:g} must be above the pad (> 0)"
+            )
+        out.append((cds, height))
     return tuple(out)
