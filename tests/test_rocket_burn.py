@@ -112,7 +112,7 @@ def test_burn_time_estimated_where_the_accelerometer_spans_the_boost():
     """The rule: the accelerometer read from the motor's start to half a second past
     the catalogue's burnout (RocketPy's clean flight: yes); the same log with the
     accelerometer stopping inside the burn, or an altitude alone: no."""
-    from diffpegasus._model import Record
+    from diffpegasus import Record
     from diffpegasus._rocket._data import ascent_record
     from diffpegasus._rocket._identify import accel_covers_boost
 
@@ -134,8 +134,8 @@ def test_burn_scale_start_from_the_accelerometer():
     0.01); the model's own flight of the clean rocket with its burn stretched by
     1.2 (noise-free, the rocket file's drag curve) reads 1.2 within a step
     (measured 1.20): the drag the search adds back is only sea-level-ish."""
+    from diffpegasus import Record
     from diffpegasus._estimate._fit import simulate_outputs
-    from diffpegasus._model import Record
     from diffpegasus._rocket._identify import altitude_only, measured_burn_scale
 
     for name in ("clean", "planted"):

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import diffpegasus.rocket as dr
+from diffpegasus import Record
 from diffpegasus._estimate._fit import simulate
-from diffpegasus._model import Record
 from diffpegasus._vehicle._rocket._descent import Descent, terminal_velocity
 from diffpegasus._vehicle._rocket._model import observe
 
