@@ -122,7 +122,7 @@ def table_flight(folder, lag=0.0, seed=11):
 
 def main():
     import diffpegasus.rocket as dr
-    from diffpegasus._rocket._descent import descent_figure, descent_table
+    from diffpegasus._rocket._descent_report import descent_figure, descent_table
 
     args = [a for a in sys.argv[1:] if not a.startswith("--")]
     outs = [a.removeprefix("--out=") for a in sys.argv if a.startswith("--out=")]

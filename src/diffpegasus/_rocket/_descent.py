@@ -12,8 +12,6 @@ channel's samples averaged into it): a descent of minutes at a flight computer's
 100 Hz would be tens of thousands of steps.
 """
 
-import pathlib
-
 import numpy as np
 
 from .._errors import LogError
@@ -137,88 +135,3 @@ def start_drag_areas(rocket, record, deploy, pad_pressure, temperature) -> dict:
         rate = rates[k] if np.isfinite(rates[k]) else (20.0 if k == 0 else 6.0)
         out[name] = float(drag_area_for_rate(rocket.dry_mass, G0, rho, rate))
     return out
-
-
-def descent_table(problem, result) -> list[dict]:
-    """One row per stage: `stage`, `deploy_s`, `cds_m2` and its standard error
-    (the fit's), `cds_rocket_file_m2` (or `None`), `fall_rate_log_m_s` (the
-    barometer's, [`fall_rates`][]) and `fall_rate_model_m_s` (the fitted model's
-    over the same seconds)."""
-    descent = problem.flight.descent
-    t, baro = descent_trajectory(problem, result)
-    rec = problem.record
-    has = rec.inputs[:, 1] > 0
-    log_rates = fall_rates(rec.t, rec.measured[:, 0], has, descent.deploy)
-    model_rates = fall_rates(t, baro, has, descent.deploy)
-    rows = []
-    for k, name in enumerate(descent.names):
-        value, stderr = result.estimate(name)
-        given = (
-            problem.rocket.parachutes[k][0]
-            if k < len(problem.rocket.parachutes)
-            else None
-        )
-        rows.append(
-            {
-                "stage": name.removeprefix("cds_"),
-                "deploy_s": float(descent.deploy[k]),
-                "cds_m2": float(value),
-                "cds_stderr_m2": float(stderr),
-                "cds_rocket_file_m2": given,
-                "fall_rate_log_m_s": log_rates[k],
-                "fall_rate_model_m_s": model_rates[k],
-            }
-        )
-    return rows
-
-
-def descent_trajectory(problem, result):
-    """`(t (samples,) s, barometric altitude (samples,) m)`: the fitted model
-    flown from the pad over the whole record (through the descent)."""
-    from ._identify import _flown, _observed
-
-    model, params = result.fit.model, result.fit.params
-    t, x, inputs = _flown(model, params, problem.record, extra=0.0)
-    ys = np.asarray(_observed(problem.flight, t, x, inputs, params, model.parameters))
-    n = len(problem.record.t)
-    return t[:n], ys[:n, 0]
-
-
-def descent_figure(problem, result, path) -> pathlib.Path:
-    """A PNG at `path`: the barometric altitude logged and fitted through the
-    descent (m above the pad against s), each deployment marked, and the residual
-    below."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    t, model = descent_trajectory(problem, result)
-    rec = problem.record
-    has = rec.inputs[:, 1] > 0
-    fig, (ax, res) = plt.subplots(
-        2, 1, figsize=(8, 6), sharex=True, gridspec_kw={"height_ratios": [3, 1]}
-    )
-    ax.plot(rec.t[has], rec.measured[has, 0], ".", ms=2, label="log (barometer)")
-    ax.plot(t, model, "-", lw=1.2, label="model")
-    for k, (name, when) in enumerate(
-        zip(problem.flight.descent.names, problem.flight.descent.deploy, strict=True)
-    ):
-        value, stderr = result.estimate(name)
-        label = (
-            f"{name.removeprefix('cds_')} at {when:.1f} s: "
-            f"CdS {value:.4g} +/- {stderr:.2g} m$^2$"
-        )
-        for a in (ax, res):
-            a.axvline(when, color=f"C{k + 2}", ls="--", lw=0.8)
-        ax.plot([], [], color=f"C{k + 2}", ls="--", lw=0.8, label=label)
-    ax.set_ylabel("altitude above the pad (m)")
-    ax.legend(loc="upper right", fontsize=8)
-    res.plot(rec.t[has], rec.measured[has, 0] - model[has], ".", ms=2)
-    res.set_ylabel("log - model (m)")
-    res.set_xlabel("time since liftoff (s)")
-    fig.tight_layout()
-    path = pathlib.Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path

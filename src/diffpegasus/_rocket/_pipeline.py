@@ -137,7 +137,7 @@ def run_flight(rocket, log, out=None, *, free=None, spread=True, descent=False) 
         for label, (own, flown, ok) in result.tries.items()
     }
     if descent:
-        from ._descent import descent_figure, descent_table
+        from ._descent_report import descent_figure, descent_table
 
         row["descent"] = descent_table(problem, result)
         if out is not None:
