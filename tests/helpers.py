@@ -62,3 +62,25 @@ def short_period_model(parameters: dict) -> dp.Model:
         short_period_rates,
         short_period_outputs,
     )
+
+
+def rocket_parameters(flight, **over) -> dict:
+    """A rocket model's parameters (`flight.parameter_names`) with every effect
+    absent: the drag knots at 0.5, every scale 1 (drag, power-on, thrust, burn,
+    accelerometer, normal force, pitch damping), 288.15 K at the pad with the
+    standard lapse, the rest 0; `over` replaces any of them."""
+    p = dict.fromkeys(flight.parameter_names, 0.0)
+    p.update(dict.fromkeys(flight.knots.names, 0.5))
+    p.update(
+        cd_scale=1.0,
+        power_on_ratio=1.0,
+        thrust_scale=1.0,
+        burn_scale=1.0,
+        temperature=288.15,
+        lapse_rate=-6.5,
+        accel_scale=1.0,
+        cn_alpha_scale=1.0,
+        pitch_damping_scale=1.0,
+    )
+    p.update(over)
+    return p

@@ -13,6 +13,8 @@ import diffpegasus.rocket as dr
 from diffpegasus import read_rocket_log
 from diffpegasus._vehicle._rocket._barrowman import read_airframe
 
+from .helpers import rocket_parameters
+
 
 SIM = pathlib.Path(__file__).parent / "data" / "rocket_sim"
 
@@ -81,20 +83,7 @@ def test_restoring_and_damping_moments_against_their_scalar_formulas():
     frame = rocket.airframe
     knots = dr.DragKnots((0.1, 0.5, 0.9))
     flight = dr.Flight(rocket, knots, 101325.0)
-    p = dict.fromkeys(dr.EFFECTS, 0.0)
-    p.update(dict(zip(knots.names, (0.5, 0.5, 0.5), strict=True)))
-    p.update(
-        cd_scale=1.0,
-        power_on_ratio=1.0,
-        thrust_scale=1.0,
-        burn_scale=1.0,
-        motor_time=-100.0,  # long burned out
-        temperature=288.15,
-        lapse_rate=-6.5,
-        accel_scale=1.0,
-        cn_alpha_scale=1.0,
-        pitch_damping_scale=1.0,
-    )
+    p = rocket_parameters(flight, motor_time=-100.0)  # long burned out
     p = {k: jnp.asarray(v) for k, v in p.items()}
     m_r, m_m = rocket.dry_mass - rocket.motor.dry_mass, rocket.motor.dry_mass
     cg = (m_r * frame.cg_rocket + m_m * frame.motor_cg) / (m_r + m_m)

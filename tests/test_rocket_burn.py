@@ -12,6 +12,8 @@ import numpy as np
 from diffpegasus import read_rocket_log, rocket as dr
 from diffpegasus._vehicle._rocket._motor import motor_at
 
+from .helpers import rocket_parameters
+
 
 SIM = pathlib.Path(__file__).parent / "data" / "rocket_sim"
 G0 = 9.80665
@@ -74,19 +76,7 @@ def test_model_thrust_follows_the_stretched_curve():
     fl = flight()
     r = fl.rocket
     tc, fc, burned = r.motor.tables()
-    p = dict.fromkeys(dr.EFFECTS, 0.0)
-    p.update(
-        {n: 0.5 for n in fl.knots.names},
-        cd_scale=1.0,
-        power_on_ratio=1.0,
-        thrust_scale=0.96,
-        burn_scale=1.19,
-        temperature=288.15,
-        lapse_rate=-6.5,
-        accel_scale=1.0,
-        cn_alpha_scale=1.0,
-        pitch_damping_scale=1.0,
-    )
+    p = rocket_parameters(fl, thrust_scale=0.96, burn_scale=1.19)
     x = jnp.asarray(fl.initial_state())
     u = jnp.zeros(3)
     t = 0.6 * tc[-1]  # inside the burn, stretched or not

@@ -15,6 +15,8 @@ from diffpegasus._estimate._fit import simulate
 from diffpegasus._vehicle._rocket._descent import Descent, terminal_velocity
 from diffpegasus._vehicle._rocket._model import observe
 
+from .helpers import rocket_parameters
+
 
 DATA = pathlib.Path(__file__).parent / "data"
 # RocketPy's rocket (scripts/make_rocket_fixtures.py --descent): 9.8 kg burned out
@@ -28,22 +30,10 @@ def _flight(deploy):
 
 
 def _start(flight, **over):
-    start = dict.fromkeys(flight.parameter_names, 0.0)
-    start.update(dict.fromkeys(flight.knots.names, 0.5))
-    start.update(
-        thrust_scale=1.0,
-        power_on_ratio=1.0,
-        cd_scale=1.0,
-        temperature=287.0,
-        lapse_rate=-6.5,
-        accel_scale=1.0,
-        cn_alpha_scale=1.0,
-        pitch_damping_scale=1.0,
-        motor_time=-100.0,  # burned out long before
-        cds_drogue=0.25,
+    # burned out long before
+    return rocket_parameters(
+        flight, temperature=287.0, motor_time=-100.0, **{"cds_drogue": 0.25, **over}
     )
-    start.update(over)
-    return start
 
 
 def test_falling_point_mass_reaches_its_terminal_velocity():
