@@ -198,15 +198,26 @@ def measured_thrust_scale(record, rocket, motor_time: float | None = None) -> fl
     start = motor_time
     if start is None:
         start = default_start(rocket, DragKnots((0.1,)), 288.15)["motor_time"]
-    catalogue = np.interp(t - start, tc, fc, left=0.0, right=0.0)
-    mass = rocket.loaded_mass - rocket.motor.propellant_mass * np.interp(
-        t - start, tc, burned, left=0.0, right=1.0
-    )
+    catalogue, mass = _thrust_and_mass(rocket, (tc, fc, burned), t - start)
     dt = np.gradient(t)
     drag = start_drag(t, f, rocket)
     impulse = float(np.sum(((mass * f + drag) * dt)[burning]))
     total = float(np.sum((catalogue * dt)[burning]))
     return float(np.clip(impulse / max(total, 1e-9), 0.5, 1.5))
+
+
+def _thrust_and_mass(rocket, tables, tm, stretch=1.0):
+    """N and kg at motor times `tm` (s, any shape) of the motor's `tables`
+    (`rocket.motor.tables()`) stretched in time by `stretch`: [`motor_at`][]'s
+    thrust and the mass with the propellant burned along it, in NumPy for the
+    start searches (thousands of evaluations, no tracing)."""
+    tc, fc, burned = tables
+    tm = tm / stretch
+    thrust = np.interp(tm, tc, fc, left=0.0, right=0.0) / stretch
+    mass = rocket.loaded_mass - rocket.motor.propellant_mass * np.interp(
+        tm, tc, burned, left=0.0, right=1.0
+    )
+    return thrust, mass
 
 
 def start_drag(t, f, rocket):
@@ -251,11 +262,9 @@ def measured_burn_scale(
     shifts = np.arange(-search, search + step / 2, step)
     best, found = np.inf, 1.0
     for s in stretches:
-        tm = (t[None, :] - motor_time - shifts[:, None]) / s  # (shifts, samples)
-        mass = rocket.loaded_mass - rocket.motor.propellant_mass * np.interp(
-            tm, tc, burned, left=0.0, right=1.0
-        )
-        x = np.interp(tm, tc, fc, left=0.0, right=0.0) / s / mass
+        tm = t[None, :] - motor_time - shifts[:, None]  # (shifts, samples)
+        thrust, mass = _thrust_and_mass(rocket, (tc, fc, burned), tm, s)
+        x = thrust / mass
         y = f[None, :] + drag[None, :] / mass
         # least squares y = a x + b on each row, in closed form
         xc = x - x.mean(axis=1, keepdims=True)
@@ -294,11 +303,8 @@ def measured_motor_time(
     best, shift = np.inf, start
     for s in np.arange(start - search, start + search + step / 2, step):
         w = t <= s + tc[-1] + 1.0
-        tm = t[w] - s
-        mass = rocket.loaded_mass - rocket.motor.propellant_mass * np.interp(
-            tm, tc, burned, left=0.0, right=1.0
-        )
-        x = np.interp(tm, tc, fc, left=0.0, right=0.0) / mass
+        thrust, mass = _thrust_and_mass(rocket, (tc, fc, burned), t[w] - s)
+        x = thrust / mass
         a = np.column_stack([x, np.ones_like(x)])
         coef, *_ = np.linalg.lstsq(a, f[w], rcond=None)
         sse = float(np.mean((a @ coef - f[w]) ** 2))
