@@ -43,7 +43,7 @@ from ._rocket_clean import clean_stream, Series
 from ._rocket_events import Event as Event
 from ._rocket_flight import one_clock
 from ._rocket_maps import detect_streams, load_map, streams_from_map, StreamSpec
-from ._rocket_read import Header, read_columns
+from ._rocket_read import read_columns
 
 
 G0 = 9.80665
@@ -173,8 +173,8 @@ def read_rocket_log(
     streams = _streams(files, root, column_map, log_table, messages)
     series_by_stream: list[dict[str, Series]] = []
     for file in dict.fromkeys(s.file for s in streams):
-        header = Header(file)
         mine = [s for s in streams if s.file == file]
+        header = mine[0].header()
         wanted = sorted(
             {
                 header.index(c.column)
