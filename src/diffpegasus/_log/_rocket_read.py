@@ -28,6 +28,7 @@ _NUMBER = re.compile(
 _SEPARATORS = (",", ";", "\t")
 _SNIFF_LINES = 400  # a preamble longer than this needs "header_row" in the map
 _ENCODINGS = ("utf-8-sig", "cp1252", "latin-1")  # Windows exports write cp1252
+_SPOKEN = {"utf-8-sig": "UTF-8", "cp1252": "Windows-1252", "latin-1": "Latin-1"}
 
 
 class Header:
@@ -117,6 +118,25 @@ class Header:
             self._set(lines, first, first + 1)
             return
         start, self.sep, self.decimal, width = found
+        head = _split(line, self.sep)
+        if (
+            len(head) == width
+            and not _numeric(head, self.decimal)
+            and all(
+                len(_split(lines[k], self.sep)) == width
+                for k in range(first + 1, start)
+                if lines[k].strip()
+            )
+        ):
+            # the header on the first line and rows of its width below it that are
+            # not numbers: bad data rows, which the careful reader names
+            k = first + 1
+            while k < start and (
+                not lines[k].strip() or _units_row(lines[k], self.sep, width)
+            ):
+                k += 1
+            self._set(lines, first, k)
+            return
         h = start - 1
         while h >= 0 and not lines[h].strip():
             h -= 1
@@ -190,9 +210,7 @@ def _first_lines(path: pathlib.Path) -> tuple[list[str], str]:
                     lines.append(line.rstrip("\r\n"))
                     if len(lines) >= _SNIFF_LINES:
                         break
-            if encoding != "utf-8-sig" and any(
-                ch in line for line in lines for ch in "\x00"
-            ):
+            if encoding != "utf-8-sig" and any("\x00" in line for line in lines):
                 raise LogError(f"{path}: not a UTF-8 text file")
             return lines, encoding
         except OSError as e:
@@ -231,7 +249,7 @@ def _numeric(cells: list[str], decimal: str) -> bool:
     return any(cells) and all(not c or _NUMBER.fullmatch(c) for c in cells)
 
 
-def _units_row(line: str, sep: str, width: int, decimal: str) -> bool:
+def _units_row(line: str, sep: str | None, width: int) -> bool:
     """A row of units under the header: as many cells, none a number, each short."""
     cells = _split(line, sep)
     return (
@@ -255,7 +273,7 @@ def _data_start(lines, begin, sep, decimal):
         cells = _split(lines[k], sep)
         dec = next((d for d in decimals if _numeric(cells, d)), None)
         if dec is None:
-            if _units_row(lines[k], sep, len(cells), ".") and n < 2:
+            if _units_row(lines[k], sep, len(cells)) and n < 2:
                 continue
             return None
         nxt = _split(lines[rows[n + 1]], sep) if n + 1 < len(rows) else cells
@@ -330,6 +348,20 @@ def _points(header: Header):
             yield line.replace(",", ".")
 
 
+def _decoded(f, header: Header):
+    """The lines of `f` (binary) as text; a line the file's encoding cannot read is
+    one error line."""
+    for r, raw in enumerate(f, start=1):
+        try:
+            yield raw.decode(header.encoding)
+        except UnicodeDecodeError:
+            raise LogError(
+                f"{header.path}: row {r}: not "
+                f"{_SPOKEN.get(header.encoding, header.encoding)} text like the rows "
+                "before it"
+            ) from None
+
+
 def _read_carefully(header: Header, columns: list[int]):
     """The slow path: every cell checked, the first bad one named; a trailing run of
     unreadable rows (a write cut short) dropped with a message."""
@@ -337,10 +369,10 @@ def _read_carefully(header: Header, columns: list[int]):
     rows: list[list[float]] = []
     bad: list[tuple[int, str, str]] = []  # (row, column, value) of unreadable rows
     width = len(header.names)
-    with open(path, encoding=header.encoding, newline="") as f:
+    with open(path, "rb") as f:
         for _ in range(header.skip):
             f.readline()
-        for r, text in enumerate(f, start=1):
+        for r, text in enumerate(_decoded(f, header), start=1):
             if text.lstrip().startswith("#"):
                 continue  # a comment (a simulator's event line)
             line = header.split(text.rstrip("\r\n"))
