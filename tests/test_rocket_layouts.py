@@ -146,3 +146,38 @@ def test_map_says_where_the_header_is(tmp_path):
     files, cmap, _, _ = openlog_arduino(tmp_path, TRUTH)
     log = read_rocket_log(files, {**cmap, "header_row": 2, "delimiter": "tab"})
     assert "pressure" in log.channels
+
+
+def test_a_summary_block_before_the_header(tmp_path):
+    """A flight summary of label and value pairs side by side (14 rows as wide as
+    the data, numbers among them), a blank row, then the header and the data: the
+    structure Altimeter Cloud's Nano altimeter documents for its CSV (the column
+    names here are ours). The header is the row of names right above the data."""
+    f = TRUTH
+    lines = ["Flight,12,Apogee (m),2961,Max accel (g),9.1"] * 7
+    lines += ["Date,2025-06-11,Time,12:07,Pad (m),150"] * 7 + [""]
+    lines += ["Time (ms),Altitude (m),Pressure (Pa),Temperature (C),Ax (g),Ay (g)"]
+    lines += [
+        f"{t * 1000:.0f},{h:.2f},{p:.1f},{k - 273.15:.2f},{a / 9.80665:.4f},0.01"
+        for t, h, p, k, a in zip(
+            f["t"],
+            f["altitude"],
+            f["pressure"],
+            f["temperature"],
+            f["accel_axial"],
+            strict=True,
+        )
+    ]
+    path = tmp_path / "nano.csv"
+    path.write_text("\n".join(lines) + "\n")
+    log = read_rocket_log(
+        path,
+        {
+            "time": {"column": "Time (ms)", "unit": "ms"},
+            "altitude": "Altitude (m)",
+            "accel_axial": {"column": "Ax (g)", "gravity": "included"},
+        },
+    )
+    assert log["altitude"].source == "nano.csv: column 'Altitude (m)' (m)"
+    assert log["accel_axial"].source == "nano.csv: column 'Ax (g)' (g)"
+    assert log.events["apogee"].value == pytest.approx(APOGEE_M, abs=1.5)

@@ -118,25 +118,8 @@ class Header:
             self._set(lines, first, first + 1)
             return
         start, self.sep, self.decimal, width = found
-        head = _split(line, self.sep)
-        if (
-            len(head) == width
-            and not _numeric(head, self.decimal)
-            and all(
-                len(_split(lines[k], self.sep)) == width
-                for k in range(first + 1, start)
-                if lines[k].strip()
-            )
-        ):
-            # the header on the first line and rows of its width below it that are
-            # not numbers: bad data rows, which the careful reader names
-            k = first + 1
-            while k < start and (
-                not lines[k].strip() or _units_row(lines[k], self.sep, width)
-            ):
-                k += 1
-            self._set(lines, first, k)
-            return
+        # the header: the top of the rows of names directly above the data (no cell
+        # a number; the rows under it are units), past comments between them
         h = start - 1
         while h >= 0 and not lines[h].strip():
             h -= 1
@@ -146,17 +129,35 @@ class Header:
             if len(cells) != width and lines[h].lstrip().startswith("#"):
                 h -= 1  # a comment between header and data (a simulator's event)
                 continue
-            if len(cells) != width or _numeric(cells, self.decimal):
+            if len(cells) != width or any(_NUMBER.fullmatch(c) for c in cells):
                 break
             block.append(h)
             h -= 1
-        if not block:
-            raise LogError(
-                f"{path}: no header row of {width} column names above the data "
-                f"(line {start + 1}); give the columns by number in a column map "
-                '(from 1), or the header\'s line as "header_row"'
+        if block:
+            self._set(lines, block[-1], start)
+            return
+        head = _split(line, self.sep)
+        if (
+            len(head) == width
+            and not any(_NUMBER.fullmatch(c) for c in head)
+            and all(
+                len(_split(lines[k], self.sep)) == width
+                for k in range(first + 1, start)
+                if lines[k].strip()
             )
-        self._set(lines, block[-1], start)
+        ):
+            # the header on the first line and rows of its width right below it
+            # that are not all numbers: bad data rows, which the careful reader names
+            k = first + 1
+            while k < start and _units_row(lines[k], self.sep, width):
+                k += 1
+            self._set(lines, first, k)
+            return
+        raise LogError(
+            f"{path}: no header row of {width} column names above the data "
+            f"(line {start + 1}); give the columns by number in a column map "
+            '(from 1), or the header\'s line as "header_row"'
+        )
 
     def _set(self, lines: list[str], h: int, start: int) -> None:
         cells = _split(lines[h], self.sep)
