@@ -181,3 +181,18 @@ def test_a_summary_block_before_the_header(tmp_path):
     assert log["altitude"].source == "nano.csv: column 'Altitude (m)' (m)"
     assert log["accel_axial"].source == "nano.csv: column 'Ax (g)' (g)"
     assert log.events["apogee"].value == pytest.approx(APOGEE_M, abs=1.5)
+
+
+def test_blue_raven_without_a_map(tmp_path):
+    """The wall-clock `Time` before `Flight_Time_(s)` is passed over, a
+    `Baro_Altitude_*` column is an altitude and `Baro_Press_*` a pressure: the
+    numbers the map gives, the altitude above sea level re-zeroed on the pad."""
+    files, cmap, _, _ = LAYOUTS["blue_raven_lr"](tmp_path, TRUTH)
+    mapped, found = read_rocket_log(files, cmap), read_rocket_log(files)
+    assert found["altitude"].source.endswith("'Baro_Altitude_ASL_(feet)' (ft)")
+    for name in ("pressure", "temperature", "velocity"):
+        np.testing.assert_allclose(found[name].values, mapped[name].values, rtol=1e-12)
+    # ASL and AGL columns differ by the pad's height, each rounded to 0.1 ft
+    np.testing.assert_allclose(
+        found["altitude"].values, mapped["altitude"].values, atol=0.1 * 0.3048
+    )

@@ -407,11 +407,12 @@ _CATS = {
 _KEYWORDS = (
     ("gnss_lat", ("latitude", "lat")),
     ("gnss_lon", ("longitude", "lon", "lng")),
-    ("pressure", ("pressure", "press", "baro")),
+    ("pressure", ("pressure", "press")),
     ("temperature", ("temperature", "temp")),
     ("accel_axial", ("accel", "acc", "az")),
     ("velocity", ("velocity", "vel", "speed", "vz")),
     ("altitude", ("altitude", "alt", "height", "h")),
+    ("pressure", ("baro",)),  # a barometer's column that says nothing more
 )
 _TIME_NAMES = ("t", "ts", "time", "timestamp", "time_s", "seconds")
 
@@ -422,7 +423,12 @@ def _bare(name: str) -> str:
 
 def _is_time(name: str) -> bool:
     bare = _bare(name)
-    return bare in _TIME_NAMES or bare.startswith("time")
+    return (
+        bare in _TIME_NAMES
+        or bare.startswith("time")
+        # 'Flight_Time_(s)': a time with a time unit (a clock 'Time' may precede it)
+        or ("time" in re.split(r"[^a-z]+", bare) and _bracket_unit(name) in ("s", "ms"))
+    )
 
 
 def detect_streams(file: pathlib.Path) -> tuple[list[StreamSpec], str]:
