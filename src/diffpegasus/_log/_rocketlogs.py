@@ -149,7 +149,11 @@ def read_rocket_log(
       `.json` / `.toml` file. For several files or several streams in one file it is
       `{"streams": [{"file": "logs/a.csv", "time": "ts", "altitude": ...}, ...]}`.
       An accelerometer's entry may say `"gravity": "included"` or `"removed"`, any
-      entry `"filtered": true`. Default: the `rocket.toml`'s `[log] column_map`
+      entry `"filtered": true`; a stream may say where its file's header is
+      (`"header_row"`, from 1), its separator (`"delimiter"`: `","`, `";"`,
+      `"tab"`, `"whitespace"`) and decimal mark (`"decimal"`: `"."`, `","`),
+      where they are not found from the file (a preamble, a units row, `;` with
+      decimal commas, spaces are). Default: the `rocket.toml`'s `[log] column_map`
       (a table, or the path of a map file), else the map next to the `rocket.toml`
       (`columns.json`), else a shipped one for the flight's folder, else the layout
       the files' headers show (AltOS, CATS, or column names with units in brackets
