@@ -29,6 +29,9 @@ files):
   semicolons, decimal commas, CRLF, Windows-1252 (`Höhe [m]`, `[°C]`, `[m/s²]`).
 - `units_row`: a row of units under the header (`(s),(ft),(ft/s),(mbar),(mG)`),
   as FlySight's track files write it.
+- `flysight_track`: FlySight's track CSV: a units row, ISO 8601 UTC times, the
+  GNSS altitude `hMSL` and `velD` (down) (the format notes of
+  github.com/sco1/pyflysight).
 - `easymini_altos`: Altus Metrum EasyMini (AltOS CSV, barometer only: no
   acceleration column).
 - `whitespace_logger`: space-separated, a model-name line and a line of setup
@@ -228,6 +231,35 @@ def units_row(folder, f):
     return [path], None, tol, 0.0
 
 
+FLYSIGHT_START = 1618892453.0  # 2021-04-20T04:20:53Z, s since 1970
+
+
+def flysight_track(folder, f):
+    lines = [
+        "time,lat,lon,hMSL,velN,velE,velD,hAcc,vAcc,sAcc,gpsFix,numSV",
+        ",(deg),(deg),(m),(m/s),(m/s),(m/s),(m),(m),(m/s),,",
+    ]
+    lines += [
+        f"2021-04-20T04:20:{53.0 + t:06.3f}Z,33.6568828,-117.7466357,"
+        f"{ELEVATION + h:.3f},0.10,0.20,{-v:.2f},2.1,3.4,0.25,3,11"
+        for t, h, v in zip(f["t"], f["altitude"], f["velocity"], strict=True)
+    ]
+    path = folder / "TRACK.CSV"
+    path.write_text("\n".join(lines) + "\n")
+    cmap = {
+        "time": "time",
+        "altitude": "hMSL",
+        "velocity": {"column": "velD", "scale": -1},
+        "gnss_lat": "lat",
+        "gnss_lon": "lon",
+    }
+    # the time's resolution is 1 ms; s since 1970 in float64 keep it
+    # the altitude above sea level: the pad's 150 m is its datum; times since 1970
+    # in float64 are 1e-7 s off, a speed changing 50 m/s^2 moves 5e-6 m/s in it
+    tol = {"altitude": 0.0005, "velocity": 0.00501, "_datum": ELEVATION}
+    return [path], cmap, tol, FLYSIGHT_START
+
+
 def easymini_altos(folder, f):
     header = (
         "#version,serial,flight,call,time,clock,rssi,lqi,state,state_name,pressure,"
@@ -314,6 +346,7 @@ LAYOUTS = {
         openlog_arduino,
         excel_semicolon,
         units_row,
+        flysight_track,
         easymini_altos,
         whitespace_logger,
         openrocket_export,

@@ -9,6 +9,7 @@ which it drops with a message.
 """
 
 import csv
+import datetime
 import math
 import pathlib
 import re
@@ -25,9 +26,15 @@ _NUMBER = re.compile(
     r"\s*[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|nan|inf|infinity)\s*",
     re.IGNORECASE | re.ASCII,
 )
+_CLOCK = re.compile(
+    r"\s*(?:(\d{4})-(\d\d)-(\d\d)[T ])?(\d{1,2}):(\d\d):(\d\d(?:\.\d*)?)"
+    r"\s*(Z|[+-]\d\d:?\d\d)?\s*",
+    re.ASCII,
+)
 _SEPARATORS = (",", ";", "\t")
 _SNIFF_LINES = 400  # a preamble longer than this needs "header_row" in the map
 _ENCODINGS = ("utf-8-sig", "cp1252", "latin-1")  # Windows exports write cp1252
+_EPOCH = datetime.date(1970, 1, 1).toordinal()
 _SPOKEN = {"utf-8-sig": "UTF-8", "cp1252": "Windows-1252", "latin-1": "Latin-1"}
 
 
@@ -112,10 +119,13 @@ class Header:
                     f"{path}: the first line has no ',', ';' or tab: not a CSV file "
                     "with a header row"
                 )
-            # a header with no readable data below it: the careful reader names
-            # the first bad cell
+            # a header with no readable data below it (past rows of units): the
+            # careful reader names the first bad cell
             self.sep, self.decimal = sep, decimal or "."
-            self._set(lines, first, first + 1)
+            k = first + 1
+            while k < len(lines) and _units_row(lines[k], sep, width):
+                k += 1
+            self._set(lines, first, k)
             return
         start, self.sep, self.decimal, width = found
         # the header: the top of the rows of names directly above the data (no cell
@@ -243,20 +253,31 @@ def _split(line: str, sep: str | None) -> list[str]:
 
 
 def _numeric(cells: list[str], decimal: str) -> bool:
-    """All cells numbers or empty, at least one a number."""
+    """All cells numbers (or clock times) or empty, at least one not empty."""
     cells = [c.strip() for c in cells]
     if decimal == ",":
         cells = [c.replace(",", ".") for c in cells]
-    return any(cells) and all(not c or _NUMBER.fullmatch(c) for c in cells)
+    return any(cells) and all(
+        not c or _NUMBER.fullmatch(c) or _CLOCK.fullmatch(c) for c in cells
+    )
 
 
 def _units_row(line: str, sep: str | None, width: int) -> bool:
-    """A row of units under the header: as many cells, none a number, each short."""
-    cells = _split(line, sep)
+    """A row of units under the header: as many cells, each empty or a short word
+    (`(deg)`, `m/s^2`, `°C`), no number among them."""
+    cells = [c.strip() for c in _split(line, sep)]
     return (
         len(cells) == width
-        and not any(_NUMBER.fullmatch(c.strip()) for c in cells if c.strip())
-        and all(len(c.strip()) <= 12 for c in cells)
+        and any(cells)
+        and all(
+            not c
+            or (
+                len(c) <= 12
+                and not _NUMBER.fullmatch(c)
+                and re.search(r"[^\W\d_]|%", c) is not None
+            )
+            for c in cells
+        )
     )
 
 
@@ -314,9 +335,14 @@ def _find_layout(lines, forced, decimal):
     return None
 
 
-def read_columns(header: Header, columns: list[int]) -> tuple[np.ndarray, list[str]]:
+def read_columns(
+    header: Header, columns: list[int], clocks: frozenset[int] = frozenset()
+) -> tuple[np.ndarray, list[str]]:
     """The float values of `columns` (0-based), shape `(rows, len(columns))`; empty
-    cells are nan. Returns the array and messages about rows dropped."""
+    cells are nan. Columns in `clocks` (time columns) may hold clock times
+    (`12:07:53.25`, `2024-04-20T12:07:53.25Z`), read as seconds (since midnight, or
+    since 1970 with a date). Returns the array and messages about rows dropped or
+    clock times read."""
     path = header.path
     columns = sorted(set(columns))
     try:
@@ -338,7 +364,7 @@ def read_columns(header: Header, columns: list[int]) -> tuple[np.ndarray, list[s
         pass
     except OSError as e:
         raise LogError(f"{path}: cannot read the file ({e.strerror})") from None
-    return _read_carefully(header, columns)
+    return _read_carefully(header, columns, clocks)
 
 
 def _points(header: Header):
@@ -347,6 +373,27 @@ def _points(header: Header):
     with open(header.path, encoding=header.encoding, newline="") as f:
         for line in f:
             yield line.replace(",", ".")
+
+
+def clock_seconds(cell: str) -> float | None:
+    """A clock time as seconds: `hh:mm:ss(.f)` since midnight; with a date
+    (`YYYY-MM-DD` and `T` or a space before it) since 1970-01-01 UTC, less a
+    `+hh:mm` offset. None if the cell is not one."""
+    m = _CLOCK.fullmatch(cell)
+    if m is None:
+        return None
+    year, month, day, hh, mm, ss, zone = m.groups()
+    seconds = int(hh) * 3600 + int(mm) * 60 + float(ss)
+    if year is not None:
+        try:
+            days = datetime.date(int(year), int(month), int(day)).toordinal()
+        except ValueError:
+            return None
+        seconds += (days - _EPOCH) * 86400
+    if zone and zone != "Z":
+        sign = -1 if zone[0] == "+" else 1
+        seconds += sign * (int(zone[1:3]) * 3600 + int(zone[-2:]) * 60)
+    return seconds
 
 
 def _decoded(f, header: Header):
@@ -363,12 +410,15 @@ def _decoded(f, header: Header):
             ) from None
 
 
-def _read_carefully(header: Header, columns: list[int]):
+def _read_carefully(
+    header: Header, columns: list[int], clocks: frozenset[int] = frozenset()
+):
     """The slow path: every cell checked, the first bad one named; a trailing run of
     unreadable rows (a write cut short) dropped with a message."""
     path = header.path
     rows: list[list[float]] = []
     bad: list[tuple[int, str, str]] = []  # (row, column, value) of unreadable rows
+    clocked: set[int] = set()
     width = len(header.names)
     with open(path, "rb") as f:
         for _ in range(header.skip):
@@ -396,6 +446,9 @@ def _read_carefully(header: Header, columns: list[int]):
                         values.append(math.nan)
                     elif _NUMBER.fullmatch(cell):
                         values.append(float(cell))
+                    elif j in clocks and (seconds := clock_seconds(cell)) is not None:
+                        values.append(seconds)
+                        clocked.add(j)
                     else:
                         problem = (r, header.names[j], cell)
                         break
@@ -416,7 +469,10 @@ def _read_carefully(header: Header, columns: list[int]):
                 f"{path}: column {col!r}, row {r0}: {value!r} is not a number"
             )
         raise LogError(f"{path}: the file has a header but no data rows")
-    messages = []
+    messages = [
+        f"{path.name}: column {header.names[j]!r}: clock times read as seconds"
+        for j in sorted(clocked)
+    ]
     if bad:
         r0, col, value = bad[0]
         messages.append(

@@ -187,7 +187,10 @@ def read_rocket_log(
                 if not c.axis_auto and c.step is None
             }
         )
-        data, notes = read_columns(header, wanted)
+        clocks = frozenset(
+            header.index(s.time.column) for s in mine if s.time.step is None
+        )
+        data, notes = read_columns(header, wanted, clocks)
         messages += notes
         cols = {header.names[j]: k for k, j in enumerate(wanted)}
         for s in mine:
