@@ -10,8 +10,7 @@ import json
 import numpy as np
 import pytest
 
-from diffpegasus._errors import LogError
-from diffpegasus._log._rocketlogs import read_rocket_log
+from diffpegasus import LogError, read_rocket_log
 
 from .rocket_layouts import (
     APOGEE_T,
@@ -197,4 +196,28 @@ def test_blue_raven_without_a_map(tmp_path):
     # ASL and AGL columns differ by the pad's height, each rounded to 0.1 ft
     np.testing.assert_allclose(
         found["altitude"].values, mapped["altitude"].values, atol=0.1 * 0.3048
+    )
+
+
+def test_a_speed_no_unit_explains_is_dropped_not_fatal(tmp_path):
+    """A flight computer's speed that climbs ten times what the altitude climbs
+    (neither m/s nor ft/s): the fit does not use it, so the log is still read,
+    without it, and the message says why."""
+    f = TRUTH
+    rows = ["t,alt_m,vel"] + [
+        f"{t:.3f},{h:.3f},{10 * v:.3f}"
+        for t, h, v in zip(f["t"], f["altitude"], f["velocity"], strict=True)
+    ]
+    path = tmp_path / "flight.csv"
+    path.write_text("\n".join(rows) + "\n")
+    cmap = {
+        "t": "t",
+        "altitude": {"column": "alt_m", "unit": "m"},
+        "velocity": {"column": "vel", "unit": "m/s"},
+    }
+    log = read_rocket_log(path, cmap)
+    assert "velocity" not in log.channels
+    assert "altitude" in log.channels
+    assert any(
+        "no unit explains it, the channel is not used" in m for m in log.messages
     )

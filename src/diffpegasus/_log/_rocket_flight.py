@@ -218,7 +218,10 @@ def one_clock(
             h_apo *= factor
     if "velocity" in flat and th is not None:
         h_lift = float(np.interp(t_lift, th, hh))
-        check_velocity_unit(flat["velocity"], t_lift, t_apo, h_apo - h_lift, messages)
+        if not check_velocity_unit(
+            flat["velocity"], t_lift, t_apo, h_apo - h_lift, messages
+        ):
+            del flat["velocity"]
     _deployments(events, flat, th, hh, t_lift, t_apo, h_apo, pulses, messages)
     for name, t in stated.items():
         if name == "liftoff":
