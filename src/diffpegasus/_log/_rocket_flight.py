@@ -33,6 +33,7 @@ from ._rocket_units import (
     check_imu,
     check_pressure,
     check_temperature,
+    check_velocity_unit,
 )
 
 
@@ -215,6 +216,12 @@ def one_clock(
                 events["apogee"], value=h_apo * factor, how=how
             )
             h_apo *= factor
+    if "velocity" in flat and th is not None:
+        h_lift = float(np.interp(t_lift, th, hh))
+        if not check_velocity_unit(
+            flat["velocity"], t_lift, t_apo, h_apo - h_lift, messages
+        ):
+            del flat["velocity"]
     _deployments(events, flat, th, hh, t_lift, t_apo, h_apo, pulses, messages)
     for name, t in stated.items():
         if name == "liftoff":

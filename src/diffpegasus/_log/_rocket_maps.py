@@ -38,9 +38,17 @@ from ._rocket_read import Header
 
 
 _EXTRA_KEYS = ("gravity", "filtered", "axis")
-_STREAM_KEYS = ("file", "time", "clock", "label")
-# temperatures have an offset; the generic map's units are factors only
-_TEMPERATURE_OFFSETS = {"degc": 273.15, "c": 273.15, "k": 0.0}
+_READ_KEYS = ("header_row", "delimiter", "decimal")
+_STREAM_KEYS = ("file", "time", "clock", "label", *_READ_KEYS)
+# temperatures have an offset; the generic map's units are factors only:
+# unit -> (factor, offset) to K
+_TEMPERATURES = {
+    "degc": (1.0, 273.15),
+    "c": (1.0, 273.15),
+    "k": (1.0, 0.0),
+    "degf": (5.0 / 9.0, 273.15 - 32.0 * 5.0 / 9.0),
+    "f": (5.0 / 9.0, 273.15 - 32.0 * 5.0 / 9.0),
+}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,6 +75,10 @@ class StreamSpec:
     channels: tuple[ChannelSpec, ...]
     clock: str = "flight"
     label: str = ""
+    read: tuple = ()  # (key, value) of the map's header_row, delimiter, decimal
+
+    def header(self) -> Header:
+        return Header(self.file, **dict(self.read))
 
 
 _SUFFIXES = {
@@ -85,8 +97,47 @@ _SUFFIXES = {
     "m": "m",
     "g": "g",
     "ms": "ms",
+    "us": "us",
     "s": "s",
     "degc": "degc",
+    "degf": "degf",
+    "mbar": "mbar",
+    "atm": "atm",
+    "psi": "psi",
+    "inhg": "inhg",
+    "mg": "mg",
+}
+# how logs write units in brackets, as the column-map unit
+_SPELLINGS = {
+    "gs": "g",
+    "g's": "g",
+    "sec": "s",
+    "secs": "s",
+    "msec": "ms",
+    "millis": "ms",
+    "usec": "us",
+    "feet": "ft",
+    "meters": "m",
+    "metres": "m",
+    "fps": "ft/s",
+    "ft/sec": "ft/s",
+    "m/s2": "m/s^2",
+    "m/s/s": "m/s^2",
+    "ft/s2": "ft/s^2",
+    "ft/s/s": "ft/s^2",
+    "mb": "mbar",
+    "millibar": "mbar",
+    "in hg": "inhg",
+    "inches hg": "inhg",
+    "°c": "degc",
+    "deg c": "degc",
+    "°f": "degf",
+    "deg f": "degf",
+    "°/s": "deg/s",
+    "dps": "deg/s",
+    "kelvin": "k",
+    "c": "degc",
+    "f": "degf",
 }
 
 
@@ -99,12 +150,17 @@ def _bracket_unit(name: str) -> str:
         # a suffix: altitude_m, accel_m_s2, time_s, pressure_hPa
         m = re.search(r"_(" + "|".join(_SUFFIXES) + r")$", name.strip().lower())
         return _SUFFIXES[m.group(1)] if m else ""
-    text = m.group(1).strip().lower()
+    return unit_name(m.group(1))
+
+
+def unit_name(text: str) -> str:
+    """A unit as a log writes it ('Ft-AGL', 'm/s²', '°F', 'mbar') as the column-map
+    unit ('ft', 'm/s^2', 'degf', 'mbar'); '' if not one known."""
+    text = text.strip().strip("()[]").strip().lower().replace("²", "2")
     text = re.sub(r"[-_ ]*(agl|asl|msl)$", "", text)
-    text = {"gs": "g", "sec": "s", "secs": "s", "feet": "ft", "meters": "m"}.get(
-        text, text
-    )
-    return text if text in UNITS or text in _TEMPERATURE_OFFSETS else ""
+    text = _SPELLINGS.get(text, text)
+    text = re.sub(r"^(m|ft)/s2$", r"\1/s^2", text)
+    return text if text in UNITS or text in _TEMPERATURES else ""
 
 
 def channel_spec(
@@ -136,9 +192,9 @@ def channel_spec(
         return ChannelSpec(name, "", 1.0, gravity="included", axis_auto=True)
     unit = base.get("unit", "")
     offset = 0.0
-    if isinstance(unit, str) and unit.lower() in _TEMPERATURE_OFFSETS:
-        offset = _TEMPERATURE_OFFSETS[unit.lower()]
-        base = {**base, "unit": ""}
+    if isinstance(unit, str) and unit.lower() in _TEMPERATURES:
+        factor, offset = _TEMPERATURES[unit.lower()]
+        base = {**base, "unit": "", "scale": factor * base.get("scale", 1.0)}
     column = Column(name, base, where)
     if header is not None:
         try:
@@ -150,11 +206,17 @@ def channel_spec(
             ) from None
     source = unit_from if unit else ""
     if not unit and header is not None:
-        found = _bracket_unit(header.names[header.index(column.column)])
+        j = header.index(column.column)
+        found = _bracket_unit(header.names[j])
+        if not found and j < len(header.units):
+            found = unit_name(header.units[j])  # a row of units under the header
         if found:
             unit, source = found, "header"
-            if found in _TEMPERATURE_OFFSETS:
-                offset = _TEMPERATURE_OFFSETS[found]
+            if found in _TEMPERATURES:
+                factor, offset = _TEMPERATURES[found]
+                column = Column(
+                    name, {**base, "scale": factor * base.get("scale", 1.0)}, where
+                )
             else:
                 column = Column(name, {**base, "unit": found}, where)
     return ChannelSpec(
@@ -209,7 +271,7 @@ def streams_from_map(
             )
         flat = _time_key({**data, "file": str(files[0])})
         if "time" not in flat:
-            header = Header(files[0])
+            header = Header(files[0], **_read_options(flat, where))
             times = [n for n in header.names if _is_time(n)]
             if len(times) != 1:
                 raise LogError(
@@ -232,7 +294,8 @@ def streams_from_map(
         # a map without streams names the file given, already found
         if not file.is_absolute() and root is not None and file not in files:
             file = root / file
-        header = Header(file)
+        read = _read_options(s, here)
+        header = Header(file, **read)
         time = _time_spec(s["time"], here, header)
         channels = tuple(
             channel_spec(n, v, here, header)
@@ -246,7 +309,24 @@ def streams_from_map(
                 channels,
                 str(s.get("clock", "flight")),
                 str(s.get("label", file.stem)),
+                tuple(sorted(read.items())),
             )
+        )
+    return out
+
+
+def _read_options(stream: dict, where: str) -> dict:
+    """A stream's `header_row`, `delimiter`, `decimal`, checked."""
+    out = {k: stream[k] for k in _READ_KEYS if k in stream}
+    row = out.get("header_row")
+    if row is not None and (isinstance(row, bool) or not isinstance(row, int)):
+        raise LogError(f"{where}: header_row must be a line number from 1, got {row!r}")
+    if "decimal" in out and out["decimal"] not in (".", ","):
+        raise LogError(f'{where}: decimal must be "." or ",", got {out["decimal"]!r}')
+    if "delimiter" in out and out["delimiter"] not in (",", ";", "tab", "whitespace"):
+        raise LogError(
+            f'{where}: delimiter must be ",", ";", "tab" or "whitespace", got '
+            f"{out['delimiter']!r}"
         )
     return out
 
@@ -327,11 +407,12 @@ _CATS = {
 _KEYWORDS = (
     ("gnss_lat", ("latitude", "lat")),
     ("gnss_lon", ("longitude", "lon", "lng")),
-    ("pressure", ("pressure", "press", "baro")),
+    ("pressure", ("pressure", "press")),
     ("temperature", ("temperature", "temp")),
     ("accel_axial", ("accel", "acc", "az")),
     ("velocity", ("velocity", "vel", "speed", "vz")),
     ("altitude", ("altitude", "alt", "height", "h")),
+    ("pressure", ("baro",)),  # a barometer's column that says nothing more
 )
 _TIME_NAMES = ("t", "ts", "time", "timestamp", "time_s", "seconds")
 
@@ -342,7 +423,12 @@ def _bare(name: str) -> str:
 
 def _is_time(name: str) -> bool:
     bare = _bare(name)
-    return bare in _TIME_NAMES or bare.startswith("time")
+    return (
+        bare in _TIME_NAMES
+        or bare.startswith("time")
+        # 'Flight_Time_(s)': a time with a time unit (a clock 'Time' may precede it)
+        or ("time" in re.split(r"[^a-z]+", bare) and _bracket_unit(name) in ("s", "ms"))
+    )
 
 
 def detect_streams(file: pathlib.Path) -> tuple[list[StreamSpec], str]:

@@ -9,6 +9,7 @@ which it drops with a message.
 """
 
 import csv
+import datetime
 import math
 import pathlib
 import re
@@ -25,47 +26,174 @@ _NUMBER = re.compile(
     r"\s*[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|nan|inf|infinity)\s*",
     re.IGNORECASE | re.ASCII,
 )
+_CLOCK = re.compile(
+    r"\s*(?:(\d{4})-(\d\d)-(\d\d)[T ])?(\d{1,2}):(\d\d):(\d\d(?:\.\d*)?)"
+    r"\s*(Z|[+-]\d\d:?\d\d)?\s*",
+    re.ASCII,
+)
 _SEPARATORS = (",", ";", "\t")
+_SNIFF_LINES = 400  # a preamble longer than this needs "header_row" in the map
+_ENCODINGS = ("utf-8-sig", "cp1252", "latin-1")  # Windows exports write cp1252
+_EPOCH = datetime.date(1970, 1, 1).toordinal()
+_SPOKEN = {"utf-8-sig": "UTF-8", "cp1252": "Windows-1252", "latin-1": "Latin-1"}
 
 
 class Header:
-    """A CSV file's column names, where its data start, its separator."""
+    """A CSV file's column names, where its data start, its separator.
 
-    def __init__(self, path: pathlib.Path):
+    The header is the first non-blank line when the data follow it (after any
+    comment lines starting with '#'); otherwise the layout is found from the data:
+    the first two rows of numbers with as many cells as each other (cells split at
+    ',', ';', tab or whitespace; with ';' or tab a decimal comma is read as a
+    point), the header the top one of the rows of as many cells directly above them
+    (a preamble before it, a blank row or a summary block, is skipped), and any rows
+    between header and data unit rows (`,(deg),(m),(m/s)`: each column's unit). A
+    column map may say where the header is (`header_row`, the line's number from
+    1), the separator (`delimiter`: ",", ";", "tab" or "whitespace") and the
+    decimal mark (`decimal`: "." or ",")."""
+
+    def __init__(
+        self,
+        path: pathlib.Path,
+        header_row: int | None = None,
+        delimiter: str | None = None,
+        decimal: str | None = None,
+    ):
         self.path = path
-        try:
-            with open(path, encoding="utf-8-sig", newline="") as f:
-                skipped = 0
-                for line in f:
-                    skipped += 1
-                    if line.strip():
-                        break
-                else:
-                    raise LogError(f"{path}: the file is empty")
-        except OSError as e:
-            raise LogError(f"{path}: cannot read the file ({e.strerror})") from None
-        except UnicodeDecodeError:
-            raise LogError(f"{path}: not a UTF-8 text file") from None
-        self.sep = max(_SEPARATORS, key=line.count)
-        if line.count(self.sep) == 0 and len(line.split()) > 1:
-            raise LogError(
-                f"{path}: the first line has no ',', ';' or tab: not a CSV file "
-                "with a header row"
+        self.units: list[str] = []
+        lines, self.encoding = _first_lines(path)
+        if not any(line.strip() for line in lines):
+            raise LogError(f"{path}: the file is empty")
+        forced = _delimiter(delimiter, path)
+        self.decimal = decimal or "."
+        if header_row is not None:
+            if not 1 <= header_row <= len(lines) or not lines[header_row - 1].strip():
+                raise LogError(
+                    f"{path}: header_row {header_row}: "
+                    + (
+                        "that line is blank"
+                        if 1 <= header_row <= len(lines)
+                        else f"the file's first {len(lines)} lines do not reach it"
+                    )
+                )
+            h = header_row - 1
+            line = lines[h]
+            self.sep = forced if forced is not None else _best_sep(line)
+            data = _data_start(lines, h + 1, self.sep, decimal)
+            if decimal is None and data is not None:
+                self.decimal = data[2]
+            start = data[0] if data is not None else h + 1
+            self._set(lines, h, start)
+            return
+        first = next(k for k, line in enumerate(lines) if line.strip())
+        line = lines[first]
+        sep = forced if forced is not None else _best_sep(line)
+        if forced is None and line.count(sep) == 0 and len(line.split()) > 1:
+            sep = None  # maybe whitespace-separated; decided by the data below
+        width = len(_split(line, sep)) if sep is not None else 0
+        data = _data_start(lines, first + 1, sep, decimal) if sep else None
+        if (
+            data is not None
+            and not _numeric(_split(line, sep), data[2])
+            and all(
+                len(_split(lines[k], sep)) == width
+                and not lines[k].lstrip().startswith("#")
+                for k in range(first + 1, data[0])
+                if lines[k].strip()
             )
-        cells = next(csv.reader([line], delimiter=self.sep))
-        if all(_NUMBER.fullmatch(c) for c in cells):
-            raise LogError(
-                f"{path}: the first line is numbers, not a header of column names; "
-                "give the columns by number in a column map (from 1)"
+        ):
+            # the header on the first line, the data right after (or after rows of
+            # units): every layout the readers knew before
+            self.sep, self.decimal = sep, decimal or data[2]
+            self._set(lines, first, data[0])
+            return
+        found = _find_layout(lines, forced, decimal)
+        if found is None:
+            if sep is not None and _numeric(_split(line, sep), decimal or "."):
+                raise LogError(
+                    f"{path}: the first line is numbers, not a header of column "
+                    "names; give the columns by number in a column map (from 1)"
+                )
+            if sep is None or line.count(sep) == 0:
+                raise LogError(
+                    f"{path}: the first line has no ',', ';' or tab: not a CSV file "
+                    "with a header row"
+                )
+            # a header with no readable data below it (past rows of units): the
+            # careful reader names the first bad cell
+            self.sep, self.decimal = sep, decimal or "."
+            k = first + 1
+            while k < len(lines) and _units_row(lines[k], sep, width):
+                k += 1
+            self._set(lines, first, k)
+            return
+        start, self.sep, self.decimal, width = found
+        # the header: the top of the rows of names directly above the data (no cell
+        # a number; the rows under it are units), past comments between them
+        h = start - 1
+        while h >= 0 and not lines[h].strip():
+            h -= 1
+        block = []
+        while h >= 0 and lines[h].strip():
+            cells = _split(lines[h], self.sep)
+            if len(cells) != width and lines[h].lstrip().startswith("#"):
+                h -= 1  # a comment between header and data (a simulator's event)
+                continue
+            if len(cells) != width or any(_NUMBER.fullmatch(c) for c in cells):
+                break
+            block.append(h)
+            h -= 1
+        if block:
+            self._set(lines, block[-1], start)
+            return
+        head = _split(line, self.sep)
+        if (
+            len(head) == width
+            and not any(_NUMBER.fullmatch(c) for c in head)
+            and all(
+                len(_split(lines[k], self.sep)) == width
+                for k in range(first + 1, start)
+                if lines[k].strip()
             )
+        ):
+            # the header on the first line and rows of its width right below it
+            # that are not all numbers: bad data rows, which the careful reader names
+            k = first + 1
+            while k < start and _units_row(lines[k], self.sep, width):
+                k += 1
+            self._set(lines, first, k)
+            return
+        raise LogError(
+            f"{path}: no header row of {width} column names above the data "
+            f"(line {start + 1}); give the columns by number in a column map "
+            '(from 1), or the header\'s line as "header_row"'
+        )
+
+    def _set(self, lines: list[str], h: int, start: int) -> None:
+        cells = _split(lines[h], self.sep)
         names = [c.strip().lstrip("#").strip() for c in cells]
+        if names and len(names) > 1:
+            # 'Data: (Time, Altitude, ..., Voltage)': a label and a parenthesised list
+            m = re.match(r"^[A-Za-z ]*:\s*\((.*)$", names[0])
+            if m and names[-1].endswith(")"):
+                names[0], names[-1] = m.group(1).strip(), names[-1][:-1].strip()
         # a name written twice (AltOS: baro and GPS 'altitude') gets ' (2)', ' (3)'
         seen: dict[str, int] = {}
         self.names = []
         for n in names:
             seen[n] = seen.get(n, 0) + 1
             self.names.append(n if seen[n] == 1 else f"{n} ({seen[n]})")
-        self.skip = skipped
+        units = [""] * len(self.names)
+        for k in range(h + 1, start):
+            if lines[k].strip() and not lines[k].lstrip().startswith("#"):
+                row = _split(lines[k], self.sep)
+                units = [
+                    (u or row[j].strip().strip("()[]").strip()) if j < len(row) else u
+                    for j, u in enumerate(units)
+                ]
+        self.units = units
+        self.header_line = h + 1
+        self.skip = start
 
     def index(self, column: str) -> int:
         """0-based position of a column given by name or by number from 1."""
@@ -78,44 +206,229 @@ class Header:
             return lowered.index(column.lower())
         raise KeyError(column)
 
+    def split(self, line: str) -> list[str]:
+        """The cells of one data line."""
+        return _split(line, self.sep)
 
-def read_columns(header: Header, columns: list[int]) -> tuple[np.ndarray, list[str]]:
+
+def _first_lines(path: pathlib.Path) -> tuple[list[str], str]:
+    """The file's first lines (without line ends) and the encoding that reads them."""
+    for encoding in _ENCODINGS:
+        try:
+            with open(path, encoding=encoding, newline="") as f:
+                lines = []
+                for line in f:
+                    lines.append(line.rstrip("\r\n"))
+                    if len(lines) >= _SNIFF_LINES:
+                        break
+            if encoding != "utf-8-sig" and any("\x00" in line for line in lines):
+                raise LogError(f"{path}: not a UTF-8 text file")
+            return lines, encoding
+        except OSError as e:
+            raise LogError(f"{path}: cannot read the file ({e.strerror})") from None
+        except UnicodeDecodeError:
+            continue
+    raise LogError(f"{path}: not a UTF-8 text file")  # pragma: no cover: latin-1
+
+
+def _delimiter(delimiter: str | None, path) -> str | None:
+    names = {",": ",", ";": ";", "tab": "\t", "\t": "\t", "whitespace": " "}
+    if delimiter is None:
+        return None
+    if delimiter not in names:
+        raise LogError(
+            f"{path}: delimiter {delimiter!r}: give ',', ';', 'tab' or 'whitespace'"
+        )
+    return names[delimiter]
+
+
+def _best_sep(line: str) -> str:
+    return max(_SEPARATORS, key=line.count)
+
+
+def _split(line: str, sep: str | None) -> list[str]:
+    if sep == " " or sep is None:
+        return line.split()
+    return next(csv.reader([line], delimiter=sep))
+
+
+def _numeric(cells: list[str], decimal: str) -> bool:
+    """All cells numbers (or clock times) or empty, at least one not empty."""
+    cells = [c.strip() for c in cells]
+    if decimal == ",":
+        cells = [c.replace(",", ".") for c in cells]
+    return any(cells) and all(
+        not c or _NUMBER.fullmatch(c) or _CLOCK.fullmatch(c) for c in cells
+    )
+
+
+def _units_row(line: str, sep: str | None, width: int) -> bool:
+    """A row of units under the header: as many cells, each empty or a short word
+    (`(deg)`, `m/s^2`, `°C`), no number among them."""
+    cells = [c.strip() for c in _split(line, sep)]
+    return (
+        len(cells) == width
+        and any(cells)
+        and all(
+            not c
+            or (
+                len(c) <= 12
+                and not _NUMBER.fullmatch(c)
+                and re.search(r"[^\W\d_]|%", c) is not None
+            )
+            for c in cells
+        )
+    )
+
+
+def _data_start(lines, begin, sep, decimal):
+    """(line index, separator, decimal, width) of the data that start at or after
+    `begin` with this separator: the first of two rows of numbers with as many
+    cells, past at most two rows of units; None if other rows come first."""
+    rows = [
+        k
+        for k in range(begin, len(lines))
+        if lines[k].strip() and not lines[k].lstrip().startswith("#")
+    ]
+    decimals = [decimal] if decimal else ([".", ","] if sep != "," else ["."])
+    for n, k in enumerate(rows[:3]):
+        cells = _split(lines[k], sep)
+        dec = next((d for d in decimals if _numeric(cells, d)), None)
+        if dec is None:
+            if _units_row(lines[k], sep, len(cells)) and n < 2:
+                continue
+            return None
+        nxt = _split(lines[rows[n + 1]], sep) if n + 1 < len(rows) else cells
+        if len(nxt) == len(cells) and _numeric(nxt, dec):
+            return k, sep, dec, len(cells)
+        return None
+    return None
+
+
+def _find_layout(lines, forced, decimal):
+    """The first two rows of numbers, as (line index, separator, decimal, width):
+    the separator that splits them into the most cells."""
+    seps = [forced] if forced is not None else [",", ";", "\t", " "]
+    rows = [
+        k
+        for k, line in enumerate(lines)
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
+    for a, b in zip(rows, rows[1:], strict=False):
+        best = None
+        for sep in seps:
+            decimals = (
+                [decimal]
+                if decimal
+                else ([".", ","] if sep in (";", "\t", " ") else ["."])
+            )
+            ca, cb = _split(lines[a], sep), _split(lines[b], sep)
+            if len(ca) != len(cb) or len(ca) < 2:
+                continue
+            for dec in decimals:
+                if _numeric(ca, dec) and _numeric(cb, dec):
+                    if best is None or len(ca) > best[3]:
+                        best = (a, sep, dec, len(ca))
+                    break
+        if best is not None:
+            return best
+    return None
+
+
+def read_columns(
+    header: Header, columns: list[int], clocks: frozenset[int] = frozenset()
+) -> tuple[np.ndarray, list[str]]:
     """The float values of `columns` (0-based), shape `(rows, len(columns))`; empty
-    cells are nan. Returns the array and messages about rows dropped."""
+    cells are nan. Columns in `clocks` (time columns) may hold clock times
+    (`12:07:53.25`, `2024-04-20T12:07:53.25Z`), read as seconds (since midnight, or
+    since 1970 with a date). Returns the array and messages about rows dropped or
+    clock times read."""
     path = header.path
     columns = sorted(set(columns))
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # "input contained no data": checked after
             data = np.loadtxt(
-                path,
-                delimiter=header.sep,
+                path if header.decimal == "." else _points(header),
+                delimiter=None if header.sep == " " else header.sep,
                 skiprows=header.skip,
                 usecols=columns,
                 dtype=float,
-                comments=None,
+                comments="#",
+                quotechar='"',
                 ndmin=2,
-                encoding="utf-8-sig",
+                encoding=header.encoding,
             )
         return data, []
     except (ValueError, IndexError):
         pass
     except OSError as e:
         raise LogError(f"{path}: cannot read the file ({e.strerror})") from None
-    return _read_carefully(header, columns)
+    return _read_carefully(header, columns, clocks)
 
 
-def _read_carefully(header: Header, columns: list[int]):
+def _points(header: Header):
+    """The file's lines with the decimal comma as a point (the separator is not a
+    comma), for NumPy's reader."""
+    with open(header.path, encoding=header.encoding, newline="") as f:
+        for line in f:
+            yield line.replace(",", ".")
+
+
+def clock_seconds(cell: str) -> float | None:
+    """A clock time as seconds: `hh:mm:ss(.f)` since midnight; with a date
+    (`YYYY-MM-DD` and `T` or a space before it) since 1970-01-01 UTC, less a
+    `+hh:mm` offset. None if the cell is not one."""
+    m = _CLOCK.fullmatch(cell)
+    if m is None:
+        return None
+    year, month, day, hh, mm, ss, zone = m.groups()
+    seconds = int(hh) * 3600 + int(mm) * 60 + float(ss)
+    if year is not None:
+        try:
+            days = datetime.date(int(year), int(month), int(day)).toordinal()
+        except ValueError:
+            return None
+        seconds += (days - _EPOCH) * 86400
+    if zone and zone != "Z":
+        sign = -1 if zone[0] == "+" else 1
+        seconds += sign * (int(zone[1:3]) * 3600 + int(zone[-2:]) * 60)
+    return seconds
+
+
+def _decoded(f, header: Header):
+    """The lines of `f` (binary) as text; a line the file's encoding cannot read is
+    one error line."""
+    for r, raw in enumerate(f, start=1):
+        try:
+            yield raw.decode(header.encoding)
+        except UnicodeDecodeError:
+            raise LogError(
+                f"{header.path}: row {r}: not "
+                f"{_SPOKEN.get(header.encoding, header.encoding)} text like the rows "
+                "before it"
+            ) from None
+
+
+def _read_carefully(
+    header: Header, columns: list[int], clocks: frozenset[int] = frozenset()
+):
     """The slow path: every cell checked, the first bad one named; a trailing run of
     unreadable rows (a write cut short) dropped with a message."""
     path = header.path
     rows: list[list[float]] = []
     bad: list[tuple[int, str, str]] = []  # (row, column, value) of unreadable rows
+    clocked: set[int] = set()
     width = len(header.names)
-    with open(path, encoding="utf-8-sig", newline="") as f:
+    with open(path, "rb") as f:
         for _ in range(header.skip):
             f.readline()
-        for r, line in enumerate(csv.reader(f, delimiter=header.sep), start=1):
+        for r, text in enumerate(_decoded(f, header), start=1):
+            if text.lstrip().startswith("#"):
+                continue  # a comment (a simulator's event line)
+            line = header.split(text.rstrip("\r\n"))
+            if header.decimal == ",":
+                line = [c.replace(",", ".") for c in line]
             if not any(c.strip() for c in line):
                 continue
             problem = None
@@ -133,6 +446,9 @@ def _read_carefully(header: Header, columns: list[int]):
                         values.append(math.nan)
                     elif _NUMBER.fullmatch(cell):
                         values.append(float(cell))
+                    elif j in clocks and (seconds := clock_seconds(cell)) is not None:
+                        values.append(seconds)
+                        clocked.add(j)
                     else:
                         problem = (r, header.names[j], cell)
                         break
@@ -153,7 +469,10 @@ def _read_carefully(header: Header, columns: list[int]):
                 f"{path}: column {col!r}, row {r0}: {value!r} is not a number"
             )
         raise LogError(f"{path}: the file has a header but no data rows")
-    messages = []
+    messages = [
+        f"{path.name}: column {header.names[j]!r}: clock times read as seconds"
+        for j in sorted(clocked)
+    ]
     if bad:
         r0, col, value = bad[0]
         messages.append(

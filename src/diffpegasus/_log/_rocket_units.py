@@ -200,6 +200,51 @@ def check_altitude_unit(
     return factor
 
 
+def check_velocity_unit(
+    s: Series, t_lift: float, t_apogee: float, h_climb: float, messages: list[str]
+) -> bool:
+    """A vertical speed integrated from liftoff to apogee must climb the height the
+    altitude climbs there: 0.6-1.6 times it (a flight computer's Kalman speed
+    lags, a telemetry link drops samples); a ratio 3.28 times that (ft/s read as
+    m/s) is refused or, with no unit given, read as ft/s. A speed no unit explains
+    is dropped with a message (returns False): the fit does not use a flight
+    computer's speed, so its log is still read. Checked where the speed covers at
+    least 80 % of the climb and the climb is at least 50 m."""
+    inside = (s.t >= t_lift) & (s.t <= t_apogee)
+    climb = t_apogee - t_lift
+    if (
+        h_climb < 50.0
+        or np.count_nonzero(inside) < 10
+        or s.t[inside][-1] - s.t[inside][0] < 0.8 * climb
+    ):
+        return True
+    t, v = s.t[inside], s.v[inside]
+    climbed = float(np.sum(0.5 * (v[1:] + v[:-1]) * np.diff(t)))
+    ratio = climbed / h_climb
+    if 0.6 <= ratio <= 1.6:
+        return True
+    c = s.spec
+    raw = ratio / c.factor
+    better = [
+        (u, f) for u, f in (("m/s", 1.0), ("ft/s", 0.3048)) if 0.6 <= raw * f <= 1.6
+    ]
+    detail = (
+        f"{s.where}: integrated from liftoff to apogee it climbs {climbed:.0f} m, "
+        f"{ratio:.2f} times the altitude's {h_climb:.0f} m"
+    )
+    if not better:
+        messages.append(f"{detail}: no unit explains it, the channel is not used")
+        return False
+    if c.unit_from:
+        raise LogError(
+            f"{detail}; the column looks like {better[0][0]} "
+            + _fix_hint(f'"unit": "{better[0][0]}"')
+        )
+    s.v = s.v / c.factor * better[0][1]
+    messages.append(f"{detail}: no unit given, read as {better[0][0]}")
+    return True
+
+
 def check_imu(series: dict[str, Series], pad_of, messages: list[str]) -> None:
     """3-axis accelerometers must read |a| near 1 g on the pad, gyros less than 20
     deg/s (a still rocket; MEMS biases are a few deg/s): channels that do not are

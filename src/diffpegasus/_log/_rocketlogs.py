@@ -43,7 +43,7 @@ from ._rocket_clean import clean_stream, Series
 from ._rocket_events import Event as Event
 from ._rocket_flight import one_clock
 from ._rocket_maps import detect_streams, load_map, streams_from_map, StreamSpec
-from ._rocket_read import Header, read_columns
+from ._rocket_read import read_columns
 
 
 G0 = 9.80665
@@ -149,7 +149,11 @@ def read_rocket_log(
       `.json` / `.toml` file. For several files or several streams in one file it is
       `{"streams": [{"file": "logs/a.csv", "time": "ts", "altitude": ...}, ...]}`.
       An accelerometer's entry may say `"gravity": "included"` or `"removed"`, any
-      entry `"filtered": true`. Default: the `rocket.toml`'s `[log] column_map`
+      entry `"filtered": true`; a stream may say where its file's header is
+      (`"header_row"`, from 1), its separator (`"delimiter"`: `","`, `";"`,
+      `"tab"`, `"whitespace"`) and decimal mark (`"decimal"`: `"."`, `","`),
+      where they are not found from the file (a preamble, a units row, `;` with
+      decimal commas, spaces are). Default: the `rocket.toml`'s `[log] column_map`
       (a table, or the path of a map file), else the map next to the `rocket.toml`
       (`columns.json`), else a shipped one for the flight's folder, else the layout
       the files' headers show (AltOS, CATS, or column names with units in brackets
@@ -173,8 +177,8 @@ def read_rocket_log(
     streams = _streams(files, root, column_map, log_table, messages)
     series_by_stream: list[dict[str, Series]] = []
     for file in dict.fromkeys(s.file for s in streams):
-        header = Header(file)
         mine = [s for s in streams if s.file == file]
+        header = mine[0].header()
         wanted = sorted(
             {
                 header.index(c.column)
@@ -183,7 +187,10 @@ def read_rocket_log(
                 if not c.axis_auto and c.step is None
             }
         )
-        data, notes = read_columns(header, wanted)
+        clocks = frozenset(
+            header.index(s.time.column) for s in mine if s.time.step is None
+        )
+        data, notes = read_columns(header, wanted, clocks)
         messages += notes
         cols = {header.names[j]: k for k, j in enumerate(wanted)}
         for s in mine:
