@@ -30,26 +30,34 @@ def rk4_scan(field, x0, ts, dt, u=None):
     else:
         stage = field
 
-    c = jnp.array([0.0, 0.5, 0.5, 1.0])
-    b = jnp.array([1.0, 2.0, 2.0, 1.0])
-
     def step(x, inp):
         t, u0, um, u1 = inp
-        us = jnp.stack([u0, um, um, u1])
-
-        def one(i, carry):
-            k, acc = carry
-            k = stage(t + c[i] * dt, x + c[i] * dt * k, us[i])
-            return k, acc + b[i] * k
-
-        k0 = jnp.zeros_like(x)
-        _, acc = jax.lax.fori_loop(0, 4, one, (k0, k0))
-        x1 = x + dt / 6 * acc
+        x1 = rk4_step(stage, t, x, dt, jnp.stack([u0, um, um, u1]))
         return x1, x1
 
     inputs = (ts[:-1], u[:-1], 0.5 * (u[:-1] + u[1:]), u[1:])
     _, xs = jax.lax.scan(step, x0, inputs)
     return jnp.concatenate([x0[None], xs])
+
+
+def rk4_step(field, t, x, dt, us=None):
+    """One classical RK4 step of `dt` from `x` at `t`: `field(t, x)`, or
+    `field(t, x, u)` given `us` `(4, inputs)`, the inputs each stage sees. The four
+    stages are one loop body, so a compiled program holds one copy of `field`."""
+
+    def one(i, carry):
+        k, acc = carry
+        h = jnp.asarray(_C)[i] * dt
+        k = field(t + h, x + h * k) if us is None else field(t + h, x + h * k, us[i])
+        return k, acc + jnp.asarray(_B)[i] * k
+
+    zero = jnp.zeros_like(x)
+    _, acc = jax.lax.fori_loop(0, 4, one, (zero, zero))
+    return x + dt / 6 * acc
+
+
+_C = np.array([0.0, 0.5, 0.5, 1.0])  # the stages' times, in steps
+_B = np.array([1.0, 2.0, 2.0, 1.0])  # their weights, times 6
 
 
 @functools.cache

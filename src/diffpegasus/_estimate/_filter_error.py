@@ -48,6 +48,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from .._model import Model, Record
+from .._rk4 import rk4_step
 from ._engine import (
     _input_at,
     coloured_information,
@@ -139,19 +140,8 @@ def run_filter(model: Model, prob: FilterProblem, r, theta, k):
         y = model.g(t, x, _input_at(lay, r, t, delay), theta)
         nu = jnp.where(valid, z - y, 0.0)
         xc = x + _gain_at(sched, ks, i) @ nu
-
-        def stage(j, carry):
-            # RK4's stages as a loop: one copy of the model in the compiled
-            # program, not four (the same arithmetic, in the same order)
-            k, acc = carry
-            h = jnp.where(j == 0, 0.0, jnp.where(j == 3, dt, dt / 2))
-            k = field(t + h, xc + h * k)
-            return k, acc + jnp.where((j == 0) | (j == 3), 1.0, 2.0) * k
-
-        zero = jnp.zeros_like(xc)
-        _, acc = jax.lax.fori_loop(0, 4, stage, (zero, zero))
         # padding holds the state: propagating it could overflow into the tangents
-        x1 = jnp.where(valid, xc + dt / 6 * acc, x)
+        x1 = jnp.where(valid, rk4_step(field, t, xc, dt), x)
         return x1, (nu, y, x)
 
     idx = jnp.arange(lay.length)
