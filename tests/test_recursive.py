@@ -175,12 +175,12 @@ def test_hfb320_converges_within_one_short_period_cycle(which):
     p = dict(zip(reg.parameters, np.asarray(hist.theta[-1]), strict=True))
     period = _short_period_period(np.array([[p["Za"], 1.0], [p["Ma"], p["Mq"]]]))
     onset = rec.t[np.argmax(np.abs(np.diff(rec.inputs[:, 0])) > 1e-3)]
-    # the pitching-moment derivatives (least squares measured 0.21, 0.34, 0.55;
+    # the pitching-moment derivatives (least squares measured 0.21, 0.33, 0.55;
     # the recursive Fourier transform 0.09, 0.14, 0.55), which also has Za
-    # within its band after one cycle (0.25); least squares' Za after 1.5 cycles (measured z = 1.35 at one
-    # cycle, 0.32 at 1.5: not confounding with ZV, Z0 (correlations 0.30, -0.33)
+    # within its band after one cycle (0.25); least squares' Za after 1.5 cycles (measured z = 1.36 at one
+    # cycle, 0.31 at 1.5: not confounding with ZV, Z0 (correlations 0.30, -0.33)
     # but the az equation lacking the elevator's lift, which Za takes up during
-    # the doublet; with Zde * de in the model z = 0.51)
+    # the doublet; with Zde * de in the model z = 0.51, the earlier bound)
     sp = ["Za", "Ma", "Mq", "Mde"] if which == "rft" else ["Ma", "Mq", "Mde"]
     idx = [reg.parameters.index(n) for n in sp]
     report, z = _converged(hist, onset, period, reg.parameters)
