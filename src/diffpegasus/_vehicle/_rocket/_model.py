@@ -105,8 +105,8 @@ EFFECTS = (
 # The effects positive by their meaning, and what each is. At 0 or below the model
 # is no rocket: a burn stretched by 0 divides the thrust by zero (NaN), a pad at
 # 0 K has no speed of sound, a thrust, drag or reading scale of 0 or less turns its
-# force or channel off or round. No start may be there ([`unphysical`][]) and no
-# fit may step there ([`physical`][] in `observe`: the step is rejected and damped).
+# force or channel off or round. No start may be there (`unphysical`) and no
+# fit may step there (`physical` in `observe`: the step is rejected and damped).
 POSITIVE = {
     "burn_scale": "the burn time over the catalogue's",
     "thrust_scale": "the impulse over the catalogue's",
@@ -281,7 +281,7 @@ def airframe_mass(rocket: Rocket, mass_offset):
 
 def physical(flight: Flight, p):
     """Whether the parameters `p` (name -> value) describe a rocket (traced bool):
-    every [`POSITIVE`][] effect above 0 and the rocket without its motor heavier
+    every `POSITIVE` effect above 0 and the rocket without its motor heavier
     than 0 kg."""
     ok = jnp.all(jnp.stack([jnp.asarray(p[k]) > 0 for k in POSITIVE]))
     return ok & (airframe_mass(flight.rocket, p["mass_offset"]) > 0)
@@ -289,7 +289,7 @@ def physical(flight: Flight, p):
 
 def unphysical(flight: Flight, values: dict) -> str:
     """One line saying which of `values` (name -> number) is no rocket's, and
-    why ([`physical`][]'s rule); "" when all are."""
+    why (`physical`'s rule); "" when all are."""
     for k, meaning in POSITIVE.items():
         if not values[k] > 0:  # NaN too
             return f"{k} = {values[k]:g}: {meaning} must be above 0"
@@ -343,7 +343,8 @@ def observe(flight: Flight, t, x, u, p):
 def rocket_model(flight: Flight, outputs, start: dict, free) -> Model:
     """The [`Model`][] of `flight` with the measured `outputs` (a prefix-ordered
     subset of `("altitude", "accel", "gyro")`; `gyro` with an airframe only), start
-    values `start` (name -> value) and the estimated parameter names `free`."""
+    values `start` (name -> value) and the estimated parameter names `free`. A start
+    value no rocket has (`unphysical`) raises a `LogError` naming it."""
     outputs = tuple(outputs)
     if outputs != OUTPUTS[: len(outputs)]:
         raise ValueError(f"outputs must be a prefix of {OUTPUTS}, got {outputs}")
