@@ -1,7 +1,8 @@
 """A fit whose optimum lies past a bound: RocketPy's clean flight with its
 accelerometer's sign flipped and the accelerometer's scale estimated (its optimum
 near -1, past the bound at 0), single shooting from the problem's start, the day's
-air held. Prints where the fit stopped, its result and the estimates.
+air held. Prints where the fit stopped, its result (`nonfinite`, the line saying
+which effect stopped against its bound) and the estimates.
 
 `python experiments/rocket_bound_stop.py`
 """
