@@ -30,11 +30,13 @@ SIM = ROOT / "tests" / "data" / "rocket_sim"
 
 
 def sim_log(folder):
-    """The flight's `log.csv` read by the library's reader (its liftoff and apogee
-    events found from the data, as on any log)."""
-    from diffpegasus._log._rocketlogs import read_rocket_log
+    """The flight's log read through its `rocket.toml` by the public reader, as the
+    tests read it: the `[log]` column map and `[log.stated_events]` (RocketPy's
+    time zero, the motor's ignition, is the log's liftoff; its last row the
+    apogee)."""
+    import diffpegasus as dp
 
-    return read_rocket_log(pathlib.Path(folder) / "log.csv")
+    return dp.read_rocket_log(pathlib.Path(folder) / "rocket.toml")
 
 
 def main():

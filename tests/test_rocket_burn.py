@@ -142,3 +142,47 @@ def test_burn_scale_start_from_the_accelerometer():
     # goes with it (NDRT 2020's prediction had held its 0.97)
     moved = dataclasses.replace(problem, start=start)
     assert altitude_only(moved).start["burn_scale"] == 1.0
+
+
+def test_no_start_or_step_where_the_rocket_is_unphysical():
+    """A burn stretched by 0 divides the thrust by zero: before the bound, the
+    clean flight simulated from a burn scale of 0 had a NaN apogee and 2701 of its
+    2716 barometric altitudes NaN (a pad temperature of -5 K all of them, a drag
+    scale of -1 1055). Through the public API every positive effect at 0 or
+    below (and NaN), and a mass offset that leaves the airframe lighter than 0 kg
+    (8.2 kg without its motor: the rocket file's), is refused in one line naming
+    the value, by the simulation and the fit alike, before anything is compiled.
+    A fit's step there finds the model's outputs NaN, a cost the engine's
+    damping rejects (as any step that does not lower it); just inside, finite."""
+    import pytest
+
+    from diffpegasus import LogError
+
+    rocket = dr.read_rocket(SIM / "clean" / "rocket.toml")
+    problem = dr.prepare(rocket, read_rocket_log(SIM / "clean" / "rocket.toml"))
+    bad = {
+        "burn_scale": [0.0, -0.5, float("nan")],
+        "thrust_scale": [0.0],
+        "cd_scale": [-1.0],
+        "power_on_ratio": [0.0],
+        "accel_scale": [0.0],
+        "temperature": [-5.0],
+    }
+    for name, values in bad.items():
+        for value in values:
+            for run in (dr.simulate_flight, dr.fit_rocket):
+                with pytest.raises(LogError) as err:
+                    run(problem, start={name: value})
+                line = str(err.value)
+                assert "\n" not in line and f"{name} = {value:g}:" in line
+                assert "must be above 0" in line
+    with pytest.raises(LogError, match=r"mass_offset = -8\.3 kg .* above -8\.2 kg"):
+        dr.fit_rocket(problem, start={"mass_offset": -8.3})
+    model = dr.rocket_model(problem.flight, problem.outputs, problem.start, ())
+    x, u = jnp.asarray(problem.flight.initial_state()), jnp.ones(3)
+    outputs = jax.jit(model.g)
+    for stretch, finite in ((0.0, False), (-0.5, False), (1e-3, True), (1.0, True)):
+        theta = np.asarray(model.start)
+        theta[model.parameters.index("burn_scale")] = stretch
+        y = np.asarray(outputs(0.5, x, u, jnp.asarray(theta)))
+        assert np.all(np.isfinite(y)) if finite else np.all(np.isnan(y))

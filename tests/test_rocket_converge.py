@@ -104,8 +104,6 @@ def test_camoes_burn_scale_starts_at_the_burn_its_accelerometer_reads():
     for 4.42 s where its motor file burns 3.72 s (a ratio of 1.19, counted here in
     numpy from the log); the equation-error start reads the whole curve's stretch,
     1.24 (its fit: 1.252 +/- 0.001), where 1 had left the fit at 1.04."""
-    from diffpegasus._log._rocketlogs import read_rocket_log
-
     rocket = dr.read_rocket(CAMOES)
     problem = dr.prepare(rocket, read_rocket_log(CAMOES))
     rec = problem.record

@@ -563,7 +563,9 @@ def fit_rocket(
       the record keeps its length, so the fit shares the compiled program).
     - `drag`: `"knots"` (the knots estimated) or `"scale"` (the start curve held,
       one scale factor estimated: what a short log supports).
-    - `start`: start values by name, over the problem's.
+    - `start`: start values by name, over the problem's. A value no rocket has (a
+      positive effect at 0 or below, an airframe at 0 kg or less; see
+      `unphysical`) raises a `LogError` naming it.
     - `shooting_interval`: s between multiple-shooting nodes (one as long as the
       record: single shooting alone).
     - `hold_temperature`: hold the pad temperature and lapse rate even with an
@@ -623,7 +625,7 @@ def fit_rocket(
     # another basin (a simulated clean flight: 0.029 unconverged against 1.11
     # converged), and its result code says it did not converge
     label = min(tried, key=lambda k: flown[k])
-    result = tried[label]
+    result = against_bound(problem.flight, tried[label])
     if throw and not result.converged:
         raise RuntimeError(result.reason)
     from ._spread import structural_spread
@@ -638,6 +640,43 @@ def fit_rocket(
     if not spread or drag != "knots" or not np.isfinite(result.cost):
         return fitted
     return dataclasses.replace(fitted, spread=structural_spread(fitted))
+
+
+def against_bound(flight: Flight, result: Fit) -> Fit:
+    """`result`, or, where it converged against a bound (its Gauss-Newton step from
+    the point it stopped at leaves the rocket's physical region: every step past
+    the bound was rejected, see `_vehicle/_rocket/_model.py`), the same fit marked
+    `nonfinite` with one line naming the effect, where it stopped and where the
+    data would take it. A fit at an interior optimum has a step of nearly zero and
+    is returned unchanged."""
+    import equinox as eqx
+    import jax.numpy as jnp
+
+    from .._estimate._engine import lm_step, RESULTS
+    from .._vehicle._rocket._model import unphysical
+
+    lin = getattr(result, "linearisation", None)  # None: a fit by another solver
+    if lin is None or not result.converged:
+        return result
+    model = result.model
+    nx, p = len(model.states), len(model.parameters)
+    free = result.layout.free_columns(jnp.asarray(model.free), nx, p)
+    step = np.asarray(lm_step(lin.normal, lin.gradient, free, 0.0))
+    ns = result.nodes.size
+    here = dict(zip(model.parameters, result.params, strict=True))
+    there = dict(zip(model.parameters, result.params + step[ns : ns + p], strict=True))
+    why = unphysical(flight, there)
+    if not why or unphysical(flight, here):
+        return result
+    name = why.split(" ", 1)[0]
+    reason = (
+        f"{name} stopped against its bound at {here[name]:.3g}: the data would "
+        f"take it to {there[name]:.3g} ({why}); check the log's channels (a sign, "
+        "a unit) or hold it"
+    )
+    return eqx.tree_at(
+        lambda f: (f.result, f.reason), result, (RESULTS.nonfinite, reason)
+    )
 
 
 def flown_cost(problem: Problem, record, result) -> float:

@@ -65,6 +65,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from ..._errors import LogError
 from ..._model import Model
 from .._atmosphere import GAMMA_AIR, R_AIR
 from .._gravity import coriolis, gravity, normal_gravity
@@ -101,6 +102,19 @@ EFFECTS = (
     "cn_alpha_scale",
     "pitch_damping_scale",
 )
+# The effects positive by their meaning, and what each is. At 0 or below the model
+# is no rocket: a burn stretched by 0 divides the thrust by zero (NaN), a pad at
+# 0 K has no speed of sound, a thrust, drag or reading scale of 0 or less turns its
+# force or channel off or round. No start may be there (`unphysical`) and no
+# fit may step there (`physical` in `observe`: the step is rejected and damped).
+POSITIVE = {
+    "burn_scale": "the burn time over the catalogue's",
+    "thrust_scale": "the impulse over the catalogue's",
+    "cd_scale": "the drag curve's factor",
+    "power_on_ratio": "CD power on over power off",
+    "accel_scale": "the accelerometer's reading per m/s^2",
+    "temperature": "the pad's temperature (K)",
+}
 
 
 class Flight(eqx.Module):
@@ -259,6 +273,36 @@ class Flight(eqx.Module):
         return accel, axis, (q, rho, g, mach, reading, rate, spin)
 
 
+def airframe_mass(rocket: Rocket, mass_offset):
+    """kg, the rocket without its motor (casing and propellant): the rocket file's
+    dry mass less the motor's casing, plus `mass_offset`."""
+    return rocket.dry_mass - rocket.motor.dry_mass + mass_offset
+
+
+def physical(flight: Flight, p):
+    """Whether the parameters `p` (name -> value) describe a rocket (traced bool):
+    every `POSITIVE` effect above 0 and the rocket without its motor heavier
+    than 0 kg."""
+    ok = jnp.all(jnp.stack([jnp.asarray(p[k]) > 0 for k in POSITIVE]))
+    return ok & (airframe_mass(flight.rocket, p["mass_offset"]) > 0)
+
+
+def unphysical(flight: Flight, values: dict) -> str:
+    """One line saying which of `values` (name -> number) is no rocket's, and
+    why (`physical`'s rule); "" when all are."""
+    for k, meaning in POSITIVE.items():
+        if not values[k] > 0:  # NaN too
+            return f"{k} = {values[k]:g}: {meaning} must be above 0"
+    mass = airframe_mass(flight.rocket, values["mass_offset"])
+    if not mass > 0:
+        return (
+            f"mass_offset = {values['mass_offset']:g} kg leaves the rocket without its "
+            f"motor at {mass:g} kg: it must be above "
+            f"{-airframe_mass(flight.rocket, 0.0):g} kg"
+        )
+    return ""
+
+
 def rates(flight: Flight, t, x, u, p):
     """`dx/dt` `(6,)`: velocity and acceleration; `(12,)` with the attitude: the
     axis turning at the angular velocity, and the angular acceleration."""
@@ -290,13 +334,17 @@ def observe(flight: Flight, t, x, u, p):
     y = jnp.stack(
         [h + p["altitude_bias"], p["accel_scale"] * f + p["accel_bias"], gyro]
     )
+    # no rocket, no reading: a fit's step there has a NaN cost, which the engine
+    # rejects as it does any step that does not lower the cost
+    y = jnp.where(physical(flight, p), y, jnp.nan)
     return y[: u.shape[0] - 1] * u[1:]
 
 
 def rocket_model(flight: Flight, outputs, start: dict, free) -> Model:
     """The [`Model`][] of `flight` with the measured `outputs` (a prefix-ordered
     subset of `("altitude", "accel", "gyro")`; `gyro` with an airframe only), start
-    values `start` (name -> value) and the estimated parameter names `free`."""
+    values `start` (name -> value) and the estimated parameter names `free`. A start
+    value no rocket has (`unphysical`) raises a `LogError` naming it."""
     outputs = tuple(outputs)
     if outputs != OUTPUTS[: len(outputs)]:
         raise ValueError(f"outputs must be a prefix of {OUTPUTS}, got {outputs}")
@@ -306,6 +354,9 @@ def rocket_model(flight: Flight, outputs, start: dict, free) -> Model:
     missing = [n for n in names if n not in start]
     if missing:
         raise ValueError(f"no start value for {missing}")
+    why = unphysical(flight, start)
+    if why:
+        raise LogError(f"{flight.rocket.name}: start value {why}")
     rates_fn, observe_fn = _functions(flight)
     scale = (100.0, 100.0, 100.0, 10.0, 10.0, 10.0)
     if flight.rocket.airframe is not None:
