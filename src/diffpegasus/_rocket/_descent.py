@@ -137,16 +137,41 @@ def start_drag_areas(rocket, record, deploy, pad_pressure, temperature) -> dict:
     return out
 
 
-def start_openings(rocket, deploy) -> dict:
-    """s per stage: each canopy's opening time after its event to start from (and
-    the drogue's, held): the rocket file's `lag_s` where it gives one, else 0."""
+def start_openings(rocket, record, deploy) -> dict:
+    """s per stage: each canopy's opening time after its event to start from. The
+    drogue's is the rocket file's `lag_s` (0 without; held). A later stage's is
+    read from the log where it can be: the height lost over the `SETTLE` s left
+    out after the event (a line through the barometer's 2.5 s before the event's
+    last half second, and one through its 2 s after, each read at its end: an
+    ejection charge can disturb the reading around the event), fallen at the
+    earlier stage's rate until the canopy opened and at its own after
+    ([`fall_rates`][]): `(drop - v_own SETTLE) / (v_before - v_own)`, within 0 to
+    `SETTLE` s (a fit started from an opening inside the seconds left out, far
+    from the log's, can stop where the drag area takes the drop instead). Else the
+    file's `lag_s`, else 0."""
     from .._vehicle._rocket._descent import OPEN_NAMES
 
     lags = tuple(rocket.parachute_lags) + (None,) * len(deploy)
-    return {
+    out = {
         OPEN_NAMES[k]: 0.0 if lags[k] is None else float(lags[k])
         for k in range(len(deploy))
     }
+    t, h = record.t, record.measured[:, 0]
+    has = record.inputs[:, 1] > 0
+    rates = fall_rates(t, h, has, deploy)
+    for k in range(1, len(deploy)):
+        event, settled = deploy[k], deploy[k] + SETTLE
+        before = has & (t >= event - 3.0) & (t < event - 0.5)
+        after = has & (t >= settled) & (t < settled + 2.0)
+        v0, v1 = rates[k - 1], rates[k]
+        if before.sum() < 3 or after.sum() < 3 or not v0 > v1:  # nan too
+            continue
+        drop = np.polyval(np.polyfit(t[before], h[before], 1), event) - np.polyval(
+            np.polyfit(t[after], h[after], 1), settled
+        )
+        lag = (drop - v1 * SETTLE) / (v0 - v1)
+        out[OPEN_NAMES[k]] = float(np.clip(lag, 0.0, SETTLE))
+    return out
 
 
 def estimated_openings(descent) -> tuple[str, ...]:

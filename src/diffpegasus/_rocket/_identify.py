@@ -445,8 +445,8 @@ def prepare(
     default over the flight's Mach range) and the start values. `descent`: the
     record goes on through the descent under parachutes (the barometer alone; see
     `_rocket/_descent.py`), each stage's drag area a parameter estimated with the
-    drag, and the main's opening time after its event (the drogue's held; both
-    start at the rocket file's `lag_s`, else 0; see [`estimated_openings`][])
+    drag, and the main's opening time after its event (the drogue's held at the
+    rocket file's `lag_s`; see [`start_openings`][], [`estimated_openings`][])
     (the knots, motor time and thrust read from the ascent as without)."""
     from .._vehicle._atmosphere import isa
     from .._vehicle._rocket import pressure_altitude
@@ -498,7 +498,7 @@ def prepare(
         record = type(long)(long.t, inputs, long.measured, x0=record.x0, name=long.name)
         flight = Flight(rocket, knots, pressure, Descent(deploy))
         start.update(start_drag_areas(rocket, record, deploy, pressure, temperature))
-        start.update(start_openings(rocket, deploy))
+        start.update(start_openings(rocket, record, deploy))
     return Problem(rocket, flight, record, outputs, start)
 
 
