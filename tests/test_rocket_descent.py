@@ -109,15 +109,16 @@ def test_start_drag_areas_from_a_logs_fall_rates():
 def test_a_synthetic_descent_logs_drag_areas_are_recovered():
     """The model's own flight of the RocketPy fixture's rocket (its drag curve,
     catalogue thrust) under a drogue of 0.32 m^2 from 23 s and a main of 1.9 m^2
-    from 45 s, to 60 s, read at 20 Hz with 1 m of noise on the barometer and
-    0.5 m/s^2 on the accelerometer (ascent only), events giving both
-    deployments. Fitted with the descent from the rocket file's 0.25 and 2.5
-    m^2: each stage's CdS within three of its standard errors of the truth, and
-    those errors small (the drogue's about 0.2%, the main's about 2%: 15 s of
-    fall)."""
+    full 1.5 s after its event at 45 s, to 60 s, read at 20 Hz with 1 m of noise
+    on the barometer and 0.5 m/s^2 on the accelerometer (ascent only), events
+    giving both deployments. Fitted with the descent from the rocket file's 0.25
+    and 2.5 m^2 and the main's opening as the log reads it: each stage's CdS and
+    the main's opening within three of their standard errors of the truth, and
+    the drag areas' errors small (the drogue's about 0.1%, the main's about 0.4%;
+    measured 0.3198 ± 0.0003, 1.896 ± 0.007 and 1.482 ± 0.013 s)."""
     rocket = dr.read_rocket(FOLDER / "rocket.toml")
     t = np.arange(0.0, 60.0, 0.05)
-    truth = {"cds_drogue": 0.32, "cds_main": 1.9}
+    truth = {"cds_drogue": 0.32, "cds_main": 1.9, "open_main": 1.5}
     # a log to prepare the flight from: the fixture's own, cut at 60 s
     a = np.loadtxt(FOLDER / "log.csv", delimiter=",", skiprows=1)
     a = a[a[:, 0] < 60.0]
@@ -144,7 +145,7 @@ def test_a_synthetic_descent_logs_drag_areas_are_recovered():
     for name, value in truth.items():
         est, se = fit.estimate(name)
         assert abs(est - value) < 3 * se, (name, est, se)
-        assert se < 0.03 * value, (name, se)
+        assert se < 0.03 * value or name == "open_main", (name, se)
 
 
 def _log(t, baro, accel, events):
