@@ -8,10 +8,11 @@ diagnosis's first round (every candidate against the log's own bootstrap
 threshold) with and without the descent: the barometer lag's statistic,
 threshold and estimate.
 
-`python experiments/rocket_descent.py FOLDER_OR_TOML [...] [--no-diagnose]`: a
-folder holds a simulated flight (rocket.toml, log.csv with time, barometric
-altitude, axial specific force; scripts/make_rocket_fixtures.py --descent), a
-rocket.toml path a real flight (/work/shared/data/rockets layout), and
+`python experiments/rocket_descent.py FOLDER_OR_TOML [...] [--no-diagnose]
+[--hold-open] [--free-open-drogue]`: a folder holds a simulated flight (rocket.toml whose `[log]` names
+log.csv with time, barometric altitude, axial specific force, and states
+RocketPy's events; scripts/make_rocket_fixtures.py --descent), a rocket.toml path
+a real flight (the shared rockets layout), and
 `table:FOLDER:LAG` the model's own flight of a folder's rocket read through
 RocketPy's atmosphere-table error by height with a lag of LAG s
 ([`table_flight`][]). Writes
@@ -32,29 +33,13 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 OUT = ROOT / "experiments" / "results"
 
 
-def simulated_log(folder):
-    """A simulated flight's log.csv as a rocket log (no events but liftoff: the
-    apogee is the barometer's highest sample)."""
-    a = np.loadtxt(folder / "log.csv", delimiter=",", skiprows=1)
-
-    def channel(j):
-        return types.SimpleNamespace(t=a[:, 0], values=a[:, j], filtered=False)
-
-    return types.SimpleNamespace(
-        channels={"altitude": channel(1), "accel_axial": channel(2)},
-        events={"liftoff": types.SimpleNamespace(t=0.0)},
-        pad={},
-    )
-
-
 def load(arg):
+    import diffpegasus as dp
     import diffpegasus.rocket as dr
-    from diffpegasus._log._rocketlogs import read_rocket_log
 
     path = pathlib.Path(arg)
-    if path.is_dir():
-        return path.name, dr.read_rocket(path / "rocket.toml"), simulated_log(path)
-    return path.parent.name, dr.read_rocket(path), read_rocket_log(path)
+    toml = path / "rocket.toml" if path.is_dir() else path
+    return toml.parent.name, dr.read_rocket(toml), dp.read_rocket_log(toml)
 
 
 def lag_row(rows):
@@ -137,16 +122,24 @@ def main():
             name = f"table-{pathlib.Path(folder).name}-lag{lag}"
         else:
             name, rocket, log = load(arg)
+        name += "-held" if "--hold-open" in sys.argv else ""
+        name += "-drogue-free" if "--free-open-drogue" in sys.argv else ""
         row = {}
         t0 = time.process_time()
         problem = dr.prepare(rocket, log, descent=True)
-        fit = dr.fit_rocket(problem, throw=False, spread=False)
+        hold = ("open_main",) if "--hold-open" in sys.argv else ()
+        free = dr.default_free(problem)
+        if "--free-open-drogue" in sys.argv:
+            free += ("open_drogue",)
+        fit = dr.fit_rocket(problem, free=free, throw=False, spread=False, hold=hold)
         row["fit_cpu_s"] = time.process_time() - t0
         row["converged"] = bool(fit.fit.converged)
         row["stages"] = descent_table(problem, fit)
         row["record_s"] = float(problem.record.t[-1])
         row["free"] = list(dr.default_free(problem))
         row["baro_lag_fit_s"] = list(fit.estimate("baro_lag"))
+        if "open_drogue" in free:
+            row["open_drogue_fit_s"] = list(fit.estimate("open_drogue"))
         descent_figure(problem, fit, figs / f"{name}.png")
         print(name, json.dumps(row["stages"], indent=0), flush=True)
         if "--no-diagnose" not in sys.argv:
@@ -161,6 +154,10 @@ def main():
                     "cpu_s": time.process_time() - t0,
                 }
                 print(name, label, named, lag_row(rows), flush=True)
+        if "--no-diagnose" in sys.argv:  # an earlier run's diagnosis kept, marked
+            earlier = {k: v for k, v in out.get(name, {}).items() if "diagnose" in k}
+            if earlier:
+                row.update(earlier, diagnose_from_an_earlier_run=True)
         out[name] = row
         path.write_text(json.dumps(out, indent=1, default=float))
 

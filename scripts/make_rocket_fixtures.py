@@ -207,6 +207,15 @@ DESCENT = {
         chutes=CHUTES,
         duration=135.0,
     ),
+    # each canopy full a stated time after its event (RocketPy's `lag`): the drogue
+    # 1 s after apogee, the main 2.5 s after it is triggered at 300 m, within the
+    # 3 s the descent's fit leaves out after each event
+    "descent-open-c-s9-20hz": dict(
+        VALIDATION["curve-c-s5-20hz"],
+        seed=9,
+        chutes=((0.25, "apogee", 1.0), (2.5, 300.0, 2.5)),
+        duration=135.0,
+    ),
 }
 
 
@@ -273,8 +282,8 @@ def rocketpy_flight(spec):
         n=4, root_chord=0.2, tip_chord=0.07, span=0.1, position=0.21
     )
     rocket.set_rail_buttons(1.1, 0.3)
-    for k, (cds, trigger) in enumerate(spec.get("chutes", ())):
-        rocket.add_parachute(f"chute{k}", cd_s=cds, trigger=trigger, lag=0.0)
+    for k, (cds, trigger, *lag) in enumerate(spec.get("chutes", ())):
+        rocket.add_parachute(f"chute{k}", cd_s=cds, trigger=trigger, lag=sum(lag))
     fl = Flight(
         rocket=rocket,
         environment=env,
@@ -364,8 +373,22 @@ def flight(name, spec, out=OUT):
             if isinstance(trig, str)
             else f"trigger_altitude_agl_m = {trig}\n"
         )
-        for k, (cds, trig) in enumerate(spec.get("chutes", ()))
+        + (f"lag_s = {lag[0]}\n" if lag else "")
+        for k, (cds, trig, *lag) in enumerate(spec.get("chutes", ()))
     )
+    if "chutes" in spec:
+        # RocketPy's apogee and each parachute's trigger (its canopy full `lag_s`
+        # later); the log goes on past them
+        ends = "sampled through the descent to the flight's end"
+        stated = f"apogee_s = {float(fl.apogee_time):.3f}\n" + "".join(
+            f"{name}_s = {float(when):.3f}\n"
+            for name, (when, _) in zip(
+                ("drogue", "main"), fl.parachute_events, strict=True
+            )
+        )
+    else:
+        ends = "sampled to its apogee (the last row)"
+        stated = f"apogee_s = {fmt % t[-1]}\n"
     (folder / "rocket.toml").write_text(f"""\
 # A flight simulated by RocketPy {__import__("importlib.metadata").metadata.version("rocketpy")} (scripts/make_rocket_fixtures.py)
 name = "sim-{name}"
@@ -406,7 +429,7 @@ surface_temperature_K = {float(env.temperature(150.0)):.3f}
 
 [log]
 # RocketPy's export: its time from its start (the motor's ignition, which the fit's
-# motor time places), sampled to its apogee (the last row)
+# motor time places), {ends}
 file = "log.csv"
 
 [log.column_map]
@@ -416,8 +439,7 @@ accel_axial = {{ column = "accel_axial_m_s2", unit = "m/s^2", gravity = "include
 {gyro_map}
 [log.stated_events]
 liftoff_s = 0.0
-apogee_s = {fmt % t[-1]}
-
+{stated}
 [results]
 recorded_apogee_agl_m = {float(fl.apogee) - 150.0:.2f}
 

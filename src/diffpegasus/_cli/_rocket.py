@@ -162,7 +162,13 @@ def fit_command(
             f"+/- {d['cds_stderr_m2']:.3f} m^2"
             + ("" if file is None else f" (rocket file {file:.3f})")
             + f", falling {d['fall_rate_log_m_s']:.1f} m/s "
-            f"(model {d['fall_rate_model_m_s']:.1f})"
+            f"(model {d['fall_rate_model_m_s']:.1f}), full "
+            + (
+                f"{d['open_s']:.2f} +/- {d['open_stderr_s']:.2f} s"
+                if d["open_stderr_s"] > 0
+                else f"{d['open_s']:.2f} s (held)"
+            )
+            + " after its event"
         )
     if out is not None:
         typer.echo(f"  figures and summary.json in {out}")

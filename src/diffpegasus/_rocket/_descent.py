@@ -1,11 +1,11 @@
 """A rocket log's descent under parachutes: when each stage opened, where the record
-ends, the drag areas to start from, and what the fit says about them.
+ends, the drag areas and opening times to start from, and what the fit says about them.
 
 The record past apogee holds the barometer alone (the accelerometer and the gyros
 read the deployment shocks and the tumbling under the canopy, which the point mass
 does not model), and not for `SETTLE` s after each deployment (ejection charges
-pressurise the bay, and the canopy's inflation and the air it carries along are
-not modelled). It ends two seconds before the log's landing event, else where the
+pressurise the bay, and the canopy's filling and the air it carries along are not
+modelled; the time it takes to open is, a parameter). It ends two seconds before the log's landing event, else where the
 barometer first reads below `GROUND` m above the pad (a log lying on the ground is
 not falling), else at the log's end. Its grid step is `MAX_STEP` (20 Hz, each
 channel's samples averaged into it): a descent of minutes at a flight computer's
@@ -135,3 +135,49 @@ def start_drag_areas(rocket, record, deploy, pad_pressure, temperature) -> dict:
         rate = rates[k] if np.isfinite(rates[k]) else (20.0 if k == 0 else 6.0)
         out[name] = float(drag_area_for_rate(rocket.dry_mass, G0, rho, rate))
     return out
+
+
+def start_openings(rocket, record, deploy) -> dict:
+    """s per stage: each canopy's opening time after its event to start from. The
+    drogue's is the rocket file's `lag_s` (0 without; held). A later stage's is
+    read from the log where it can be: the height lost over the `SETTLE` s left
+    out after the event (a line through the barometer's 2.5 s before the event's
+    last half second, and one through its 2 s after, each read at its end: an
+    ejection charge can disturb the reading around the event), fallen at the
+    earlier stage's rate until the canopy opened and at its own after
+    ([`fall_rates`][]): `(drop - v_own SETTLE) / (v_before - v_own)`, within 0 to
+    `SETTLE` s (a fit started from an opening inside the seconds left out, far
+    from the log's, can stop where the drag area takes the drop instead). Else the
+    file's `lag_s`, else 0."""
+    from .._vehicle._rocket._descent import OPEN_NAMES
+
+    lags = tuple(rocket.parachute_lags) + (None,) * len(deploy)
+    out = {
+        OPEN_NAMES[k]: 0.0 if lags[k] is None else float(lags[k])
+        for k in range(len(deploy))
+    }
+    t, h = record.t, record.measured[:, 0]
+    has = record.inputs[:, 1] > 0
+    rates = fall_rates(t, h, has, deploy)
+    for k in range(1, len(deploy)):
+        event, settled = deploy[k], deploy[k] + SETTLE
+        before = has & (t >= event - 3.0) & (t < event - 0.5)
+        after = has & (t >= settled) & (t < settled + 2.0)
+        v0, v1 = rates[k - 1], rates[k]
+        if before.sum() < 3 or after.sum() < 3 or not v0 > v1:  # nan too
+            continue
+        drop = np.polyval(np.polyfit(t[before], h[before], 1), event) - np.polyval(
+            np.polyfit(t[after], h[after], 1), settled
+        )
+        lag = (drop - v1 * SETTLE) / (v0 - v1)
+        out[OPEN_NAMES[k]] = float(np.clip(lag, 0.0, SETTLE))
+    return out
+
+
+def estimated_openings(descent) -> tuple[str, ...]:
+    """The opening times a descent's fit estimates: the main's, whose lag the
+    rocket keeps falling at the drogue's rate (a second of it moves every later
+    height by the difference of the two fall rates, about 20 m); not the drogue's,
+    opening at apogee where the rocket moves at a few m/s (held at its start,
+    [`start_openings`][])."""
+    return descent.openings[1:]

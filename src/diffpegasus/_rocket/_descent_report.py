@@ -12,10 +12,13 @@ from ._identify import _flown, _observed
 
 
 def descent_table(problem, result) -> list[dict]:
-    """One row per stage: `stage`, `deploy_s`, `cds_m2` and its standard error
-    (the fit's), `cds_rocket_file_m2` (or `None`), `fall_rate_log_m_s` (the
-    barometer's, [`fall_rates`][]) and `fall_rate_model_m_s` (the fitted model's
-    over the same seconds)."""
+    """One row per stage: `stage`, `deploy_s` (its event), `cds_m2` (the drag
+    area's magnitude, which the model uses) and its standard error (the fit's),
+    `cds_rocket_file_m2` (or `None`), `open_s` (the canopy full this long after
+    the event) and its standard error (0: held), `open_rocket_file_s` (`lag_s`,
+    or `None`), `open_cds_correlation` (the fit's, `None` with the opening
+    held), `fall_rate_log_m_s` (the barometer's, [`fall_rates`][]) and
+    `fall_rate_model_m_s` (the fitted model's over the same seconds)."""
     descent = problem.flight.descent
     t, baro = descent_trajectory(problem, result)
     rec = problem.record
@@ -30,18 +33,34 @@ def descent_table(problem, result) -> list[dict]:
             if k < len(problem.rocket.parachutes)
             else None
         )
+        opening, open_se = result.estimate(descent.openings[k])
+        lags = problem.rocket.parachute_lags
         rows.append(
             {
                 "stage": name.removeprefix("cds_"),
                 "deploy_s": float(descent.deploy[k]),
-                "cds_m2": float(value),
+                "cds_m2": abs(float(value)),
                 "cds_stderr_m2": float(stderr),
                 "cds_rocket_file_m2": given,
+                "open_s": float(opening),
+                "open_stderr_s": float(open_se),
+                "open_rocket_file_s": lags[k] if k < len(lags) else None,
+                "open_cds_correlation": _correlation(result, name, descent, k),
                 "fall_rate_log_m_s": log_rates[k],
                 "fall_rate_model_m_s": model_rates[k],
             }
         )
     return rows
+
+
+def _correlation(result, name, descent, k):
+    """The fit's correlation of stage `k`'s opening time with its drag area
+    (`None` with the opening held)."""
+    names = result.fit.model.parameters
+    i, j = names.index(name), names.index(descent.openings[k])
+    if not result.fit.free[j]:
+        return None
+    return float(result.fit.correlation[i, j])
 
 
 def descent_trajectory(problem, result):
@@ -71,16 +90,21 @@ def descent_figure(problem, result, path) -> pathlib.Path:
     )
     ax.plot(rec.t[has], rec.measured[has, 0], ".", ms=2, label="log (barometer)")
     ax.plot(t, model, "-", lw=1.2, label="model")
-    for k, (name, when) in enumerate(
-        zip(problem.flight.descent.names, problem.flight.descent.deploy, strict=True)
-    ):
-        value, stderr = result.estimate(name)
+    for k, row in enumerate(descent_table(problem, result)):
+        when, full = row["deploy_s"], row["deploy_s"] + row["open_s"]
+        opening = (
+            f"{row['open_s']:.2f} +/- {row['open_stderr_s']:.2g} s"
+            if row["open_stderr_s"] > 0
+            else f"{row['open_s']:.2f} s (held)"
+        )
         label = (
-            f"{name.removeprefix('cds_')} at {when:.1f} s: "
-            f"CdS {value:.4g} +/- {stderr:.2g} m$^2$"
+            f"{row['stage']} at {when:.1f} s, full {opening} later: "
+            f"CdS {row['cds_m2']:.4g} +/- {row['cds_stderr_m2']:.2g} m$^2$"
         )
         for a in (ax, res):
             a.axvline(when, color=f"C{k + 2}", ls="--", lw=0.8)
+            if full != when:
+                a.axvline(full, color=f"C{k + 2}", ls=":", lw=0.8)
         ax.plot([], [], color=f"C{k + 2}", ls="--", lw=0.8, label=label)
     ax.set_ylabel("altitude above the pad (m)")
     ax.legend(loc="upper right", fontsize=8)

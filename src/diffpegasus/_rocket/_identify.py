@@ -445,7 +445,9 @@ def prepare(
     default over the flight's Mach range) and the start values. `descent`: the
     record goes on through the descent under parachutes (the barometer alone; see
     `_rocket/_descent.py`), each stage's drag area a parameter estimated with the
-    drag (the knots, motor time and thrust read from the ascent as without)."""
+    drag, and the main's opening time after its event (the drogue's held at the
+    rocket file's `lag_s`; see [`start_openings`][], [`estimated_openings`][])
+    (the knots, motor time and thrust read from the ascent as without)."""
     from .._vehicle._atmosphere import isa
     from .._vehicle._rocket import pressure_altitude
 
@@ -485,7 +487,7 @@ def prepare(
     start["burn_scale"] = measured_burn_scale(record, rocket, start["motor_time"])
     if descent:
         from .._vehicle._rocket._descent import Descent
-        from ._descent import descent_record, start_drag_areas
+        from ._descent import descent_record, start_drag_areas, start_openings
 
         long, outputs, deploy = descent_record(
             log, rocket, gyro=rocket.airframe is not None
@@ -496,6 +498,7 @@ def prepare(
         record = type(long)(long.t, inputs, long.measured, x0=record.x0, name=long.name)
         flight = Flight(rocket, knots, pressure, Descent(deploy))
         start.update(start_drag_areas(rocket, record, deploy, pressure, temperature))
+        start.update(start_openings(rocket, record, deploy))
     return Problem(rocket, flight, record, outputs, start)
 
 
@@ -606,7 +609,10 @@ def fit_rocket(
         elif not hold_temperature:
             extras += tuple(a for a in ACCEL_FREE if a not in free)
     if problem.flight.descent is not None:
-        extras += problem.flight.descent.names
+        from ._descent import estimated_openings
+
+        descent = problem.flight.descent
+        extras += descent.names + estimated_openings(descent)
     base = tuple(n for n in BASE_FREE + extras if n not in hold)
     scaled = ("cd_scale",) + base
     estimated = knots.names + base if drag == "knots" else scaled

@@ -22,7 +22,8 @@ read, every other key is kept for people:
               "T 299.96 K, ..." or era5_near_surface_temperature_K); optional
     [results] recorded_apogee_agl_m, preflight_simulated_apogee_agl_m (optional)
     [[parachutes]] cd_s_m2 (or cd_s_m2_design), trigger_altitude_agl_m (optional,
-              a main's deployment height), in deployment order; optional
+              a main's deployment height), lag_s (optional, s from the event to
+              the canopy full, as RocketPy's), in deployment order; optional
 
 Paths are relative to the file's folder.
 """
@@ -72,6 +73,8 @@ class Rocket(eqx.Module):
       there), or `None` (standard gravity, 9.80665 m/s^2 at sea level).
     - `parachutes`: `((CdS m^2 or None, deployment height m AGL or None), ...)`
       in the file's order (the drogue first), `()` without.
+    - `parachute_lags`: s from each stage's event to its canopy full (`lag_s`), or
+      `None` where the file gives none, in the same order.
     """
 
     name: str = eqx.field(static=True)
@@ -94,6 +97,7 @@ class Rocket(eqx.Module):
     airframe: Airframe | None = None
     airbrake_table: tuple | None = None
     parachutes: tuple = eqx.field(static=True, default=())
+    parachute_lags: tuple = eqx.field(static=True, default=())
 
     @property
     def loaded_mass(self) -> float:
@@ -294,6 +298,7 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
         else None,
         airbrake_table=_airbrake_table(folder, ae, path),
         parachutes=_parachutes(doc, path),
+        parachute_lags=_parachute_lags(doc, path),
     )
 
 
@@ -340,4 +345,22 @@ def _parachutes(doc, path) -> tuple:
                 f"{height:g} must be above the pad (> 0)"
             )
         out.append((cds, height))
+    return tuple(out)
+
+
+def _parachute_lags(doc, path) -> tuple:
+    """s per stage from `[[parachutes]]`' `lag_s` (`None` where not given); the
+    entries are checked by [`_parachutes`][] first."""
+    chutes = doc.get("parachutes", [])
+    if not isinstance(chutes, list):
+        return ()
+    out = []
+    for k, c in enumerate(chutes, 1):
+        lag = _optional(c, "lag_s")
+        if lag is not None and lag < 0:
+            raise LogError(
+                f"{path}: [[parachutes]] entry {k}: lag_s = {lag:g} must be >= 0 "
+                "(s from the event to the canopy full)"
+            )
+        out.append(lag)
     return tuple(out)

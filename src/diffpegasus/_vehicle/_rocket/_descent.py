@@ -1,16 +1,23 @@
 """The descent under parachutes: a point mass falling under each stage's drag area.
 
-From the first deployment (the drogue, at apogee) the rocket is a point mass of its
-burned-out mass under the open canopy's drag `-1/2 rho CdS |v_air| v_air` and
-gravity, drifting with the wind (`v_air` the velocity relative to the air); each
-later stage (the main) replaces the drag area from its deployment time. Its fall
-rate tends to the terminal velocity `sqrt(2 m g / (rho CdS))`. Canopy inflation
-and the added mass of the air it carries are not modelled (an opening transient of
-a second or two).
+From the first canopy's opening the rocket is a point mass of its burned-out mass
+under the canopy's drag `-1/2 rho CdS |v_air| v_air` and gravity, drifting with
+the wind (`v_air` the velocity relative to the air); each later stage (the main)
+replaces the drag area from its opening. A stage opens its opening time after its
+event (RocketPy's parachute `lag`, ejection to the canopy full): until then the
+rocket flies as before (the ascent's dynamics before the drogue, the drogue's drag
+before the main). The switch is a ramp `FILL` s wide centred on the opening (never
+before the event), so that the fit has a derivative for the opening time; the
+filling of a real canopy over a second or so and the added mass of the air it
+carries are not modelled. Its fall rate tends to the terminal velocity
+`sqrt(2 m g / (rho CdS))`.
 
 Parameters (name: unit, meaning): `cds_drogue`, `cds_main` (m^2): each stage's
 drag area, the drag coefficient times the reference area of the canopy (and the
-airframe tumbling under it).
+airframe tumbling under it); the drag uses its magnitude, so that a fit stepping
+through zero sees a free fall, not a drag pushing the rocket down that grows
+without bound. `open_drogue`, `open_main` (s): each stage's opening time after
+its event.
 """
 
 import equinox as eqx
@@ -18,14 +25,17 @@ import jax.numpy as jnp
 
 
 STAGE_NAMES = ("cds_drogue", "cds_main")
+OPEN_NAMES = ("open_drogue", "open_main")
+FILL = 0.2  # s: the opening's ramp (four steps of the descent's 20 Hz grid)
 
 
 class Descent(eqx.Module):
     """When each parachute stage opens.
 
-    **Fields:** `deploy`: s, log time each stage opens, `(stages,)` ascending (the
-    drogue's first; at most two stages). `names`: the stages' drag-area parameter
-    names (`cds_drogue`, then `cds_main`).
+    **Fields:** `deploy`: s, log time of each stage's event (its ejection), `(stages,)`
+    ascending (the drogue's first; at most two stages). `names`: the stages'
+    drag-area parameter names (`cds_drogue`, then `cds_main`); `openings`: their
+    opening-time parameter names (`open_drogue`, then `open_main`).
     """
 
     deploy: tuple[float, ...] = eqx.field(static=True)
@@ -40,15 +50,29 @@ class Descent(eqx.Module):
     def names(self) -> tuple[str, ...]:
         return STAGE_NAMES[: len(self.deploy)]
 
+    @property
+    def openings(self) -> tuple[str, ...]:
+        return OPEN_NAMES[: len(self.deploy)]
+
+    def opened(self, k, t, p):
+        """0-1: how far stage `k`'s canopy is open at log time `t` s: 0 before its
+        event, a ramp `FILL` s wide centred on the event plus its opening time
+        (parameter `open_<stage>`), then 1."""
+        centre = self.deploy[k] + p[OPEN_NAMES[k]]
+        ramp = jnp.clip((t - centre) / FILL + 0.5, 0.0, 1.0)
+        return jnp.where(t >= self.deploy[k], ramp, 0.0)
+
     def active(self, t):
-        """Whether the rocket is under a canopy at log time `t` s."""
+        """Whether the drogue's event has passed at log time `t` s (the record's
+        accelerometer and gyros end there)."""
         return t >= self.deploy[0]
 
     def drag_area(self, t, p):
-        """m^2: the open stage's drag area at log time `t` s (parameters `p`)."""
-        cds = p[self.names[0]]
-        for time, name in zip(self.deploy[1:], self.names[1:], strict=True):
-            cds = jnp.where(t >= time, p[name], cds)
+        """m^2: the drag area of the open stages at log time `t` s (parameters
+        `p`): the drogue's, blended into each later stage's as it opens."""
+        cds = jnp.abs(p[self.names[0]])
+        for k in range(1, len(self.deploy)):
+            cds = cds + self.opened(k, t, p) * (jnp.abs(p[self.names[k]]) - cds)
         return cds
 
 

@@ -52,7 +52,8 @@ Parameters (name: unit, meaning):
 
 With a [`Descent`][] (the record past apogee), from the first deployment the
 rocket falls under each parachute stage's drag area (parameters `cds_drogue`,
-`cds_main`, m^2; see `_descent`), the attitude frozen.
+`cds_main`, m^2, each from its opening time `open_drogue`, `open_main` s after
+its event; see `_descent`), the attitude frozen.
 
 Outputs: `altitude` (m), `accel` (m/s^2) and, with the attitude, `gyro`: the
 lateral body rate `sqrt(w_pitch^2 + w_yaw^2)` (rad/s; what two gyros across the
@@ -134,7 +135,8 @@ class Flight(eqx.Module):
     def parameter_names(self) -> tuple[str, ...]:
         """The model's parameters: the drag knots, the effects and the
         parachutes' drag areas (with a descent)."""
-        chutes = () if self.descent is None else self.descent.names
+        d = self.descent
+        chutes = () if d is None else d.names + d.openings
         return self.knots.names + EFFECTS + chutes
 
     def rail_axis(self):
@@ -267,9 +269,10 @@ class Flight(eqx.Module):
             )
             if r.latitude is not None:
                 chute = chute + coriolis(vel, r.latitude)
-            down = self.descent.active(t)
-            accel = jnp.where(down, chute, accel)
-            spin = jnp.where(down, 0.0, spin)
+            # before the drogue's canopy is full the rocket flies as before
+            full = self.descent.opened(0, t, p)
+            accel = jnp.where(full >= 1.0, chute, accel + full * (chute - accel))
+            spin = jnp.where(full > 0.0, 0.0, spin)
         return accel, axis, (q, rho, g, mach, reading, rate, spin)
 
 
