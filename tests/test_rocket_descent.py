@@ -315,7 +315,9 @@ def test_a_rocketpy_parachute_lag_is_recovered():
 
     toml = DATA / "rocket_descent" / "descent-open-c-s9-20hz" / "rocket.toml"
     problem = dr.prepare(dr.read_rocket(toml), dp.read_rocket_log(toml), descent=True)
-    assert problem.start["open_main"] == 2.5 and problem.start["open_drogue"] == 1.0
+    # the drogue's held at the file's lag, the main's started from the log's drop
+    assert problem.start["open_drogue"] == 1.0
+    assert abs(problem.start["open_main"] - 2.5) < 0.25, problem.start
     fit = dr.fit_rocket(problem, start={"open_main": 0.0}, throw=False, spread=False)
     assert fit.fit.converged
     cds, _ = fit.estimate("cds_main")
