@@ -221,3 +221,38 @@ def test_a_speed_no_unit_explains_is_dropped_not_fatal(tmp_path):
     assert any(
         "no unit explains it, the channel is not used" in m for m in log.messages
     )
+
+
+def test_decimal_commas_in_a_comma_file_are_refused_not_truncated(tmp_path):
+    """Unquoted decimal commas in a comma-separated file split every number in
+    two: the rows are wider than the header, and reading the header's columns
+    would take the altitude's integer part (0.95 m off at most, silently). One
+    line says why instead."""
+    rows = ["Time (ms),Altitude (m),Temperature (C)"] + [
+        f"{round(t * 1000)},{h:.1f},15".replace(".", ",")
+        for t, h in zip(TRUTH["t"], TRUTH["altitude"], strict=True)
+    ]
+    path = tmp_path / "flight.csv"
+    path.write_text("\n".join(rows) + "\n")
+    cmap = {"time": {"column": "Time (ms)", "unit": "ms"}, "altitude": "Altitude (m)"}
+    with pytest.raises(LogError, match=r"header \(line 1\) has 3 names, the data") as e:
+        read_rocket_log(path, cmap)
+    assert "\n" not in str(e.value)
+
+
+def test_decimal_commas_after_rows_of_whole_numbers(tmp_path):
+    """A ';' file whose first rows are whole numbers (a zeroed pad; a spreadsheet
+    writes 0 for 0,00): the decimal comma of the later rows decides, and every row
+    is read (it used to read the two rows and drop the rest as a cut-short write)."""
+    rows = ["Zeit [s];Hoehe [m]", "0;0", "0;0"] + [
+        f"{t:.2f};{h:.2f}".replace(".", ",")
+        for t, h in zip(TRUTH["t"][1:], TRUTH["altitude"][1:], strict=True)
+    ]
+    path = tmp_path / "flug.csv"
+    path.write_text("\n".join(rows) + "\n")
+    cmap = {"time": {"column": "Zeit [s]", "unit": "s"}, "altitude": "Hoehe [m]"}
+    log = read_rocket_log(path, cmap)
+    told = read_rocket_log(path, {**cmap, "decimal": ","})
+    np.testing.assert_array_equal(log["altitude"].values, told["altitude"].values)
+    # every row but the duplicate time 0 kept
+    assert log["altitude"].values.size >= len(rows) - 3

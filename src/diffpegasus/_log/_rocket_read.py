@@ -194,6 +194,17 @@ class Header:
         self.units = units
         self.header_line = h + 1
         self.skip = start
+        if start < len(lines):
+            row = _split(lines[start], self.sep)
+            extra = [c for c in row[len(self.names) :] if c.strip()]
+            if extra and _numeric(row, self.decimal):
+                raise LogError(
+                    f"{self.path}: the header (line {h + 1}) has {len(self.names)} "
+                    f"names, the data from line {start + 1} have {len(row)} cells "
+                    f"({lines[start].strip()[:60]!r}): a column without a name, "
+                    "or decimal commas in a comma-separated file, which cannot be "
+                    "told from its separators (export it with ';' or quoted cells)"
+                )
 
     def index(self, column: str) -> int:
         """0-based position of a column given by name or by number from 1."""
@@ -300,9 +311,23 @@ def _data_start(lines, begin, sep, decimal):
             return None
         nxt = _split(lines[rows[n + 1]], sep) if n + 1 < len(rows) else cells
         if len(nxt) == len(cells) and _numeric(nxt, dec):
+            if decimal is None:
+                dec = _later_decimal(lines, rows[n:], sep, dec)
             return k, sep, dec, len(cells)
         return None
     return None
+
+
+def _later_decimal(lines, rows, sep, dec):
+    """`","` where the rows after the first two of whole numbers (a zeroed pad, a
+    spreadsheet writing 0 for 0,00) read as numbers with a decimal comma alone."""
+    if dec != "." or sep == ",":
+        return dec
+    for k in rows[:_SNIFF_LINES]:
+        cells = _split(lines[k], sep)
+        if not _numeric(cells, ".") and _numeric(cells, ","):
+            return ","
+    return dec
 
 
 def _find_layout(lines, forced, decimal):
@@ -327,6 +352,10 @@ def _find_layout(lines, forced, decimal):
                 continue
             for dec in decimals:
                 if _numeric(ca, dec) and _numeric(cb, dec):
+                    if decimal is None:
+                        dec = _later_decimal(
+                            lines, [r for r in rows if r >= a], sep, dec
+                        )
                     if best is None or len(ca) > best[3]:
                         best = (a, sep, dec, len(ca))
                     break

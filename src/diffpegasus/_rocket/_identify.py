@@ -653,8 +653,9 @@ def against_bound(flight: Flight, result: Fit) -> Fit:
     the point it stopped at leaves the rocket's physical region: every step past
     the bound was rejected, see `_vehicle/_rocket/_model.py`), the same fit marked
     `nonfinite` with one line naming the effect, where it stopped and where the
-    data would take it. A fit at an interior optimum has a step of nearly zero and
-    is returned unchanged."""
+    data would take it, where it stopped within its standard error of the bound.
+    A fit at an interior optimum has a step of nearly zero, and one further from
+    the bound than its standard error is returned unchanged."""
     import equinox as eqx
     import jax.numpy as jnp
 
@@ -675,6 +676,18 @@ def against_bound(flight: Flight, result: Fit) -> Fit:
     if not why or unphysical(flight, here):
         return result
     name = why.split(" ", 1)[0]
+    # an ill-conditioned direction can carry the step of a fit well inside the
+    # region across the bound: it is a stop against the bound only where the
+    # parameter is within its standard error of it (the data cannot tell them)
+    i = model.parameters.index(name)
+    inside, outside = 0.0, 1.0
+    for _ in range(50):
+        mid = 0.5 * (inside + outside)
+        trial = dict(here, **{name: here[name] + mid * (there[name] - here[name])})
+        inside, outside = (inside, mid) if unphysical(flight, trial) else (mid, outside)
+    distance = abs(inside * (there[name] - here[name]))
+    if not distance < float(result.stderr_corrected[i]):
+        return result
     reason = (
         f"{name} stopped against its bound at {here[name]:.3g}: the data would "
         f"take it to {there[name]:.3g} ({why}); check the log's channels (a sign, "
