@@ -256,3 +256,26 @@ def test_decimal_commas_after_rows_of_whole_numbers(tmp_path):
     np.testing.assert_array_equal(log["altitude"].values, told["altitude"].values)
     # every row but the duplicate time 0 kept
     assert log["altitude"].values.size >= len(rows) - 3
+
+
+def test_header_row_past_the_sniffed_lines_and_a_clock_past_midnight(tmp_path):
+    """A preamble of 450 lines read with `header_row` (the sniffing reads 400),
+    and a time-of-day column whose flight passes midnight: one day added after
+    it, with a message, the times as from the clock that does not wrap."""
+    start = 23 * 3600 + 59 * 60 + 50.0  # 10 s before midnight
+    clock = [
+        f"{int(s // 3600) % 24:02d}:{int(s % 3600) // 60:02d}:{s % 60:06.3f}"
+        for s in start + TRUTH["t"]
+    ]
+    rows = [f"note {i}: something" for i in range(450)] + ["Time,Alt (m)"]
+    rows += [f"{c},{h:.3f}" for c, h in zip(clock, TRUTH["altitude"], strict=True)]
+    path = tmp_path / "flight.csv"
+    path.write_text("\n".join(rows) + "\n")
+    log = read_rocket_log(
+        path, {"header_row": 451, "time": "Time", "altitude": "Alt (m)"}
+    )
+    assert any("passes midnight" in m for m in log.messages)
+    t = log["altitude"].t
+    assert np.all(np.diff(t) > 0)
+    # the span of the flight kept (the clock's 1 ms rounding)
+    assert abs((t[-1] - t[0]) - (TRUTH["t"][-1] - TRUTH["t"][0])) < 2e-3

@@ -61,7 +61,13 @@ class Header:
     ):
         self.path = path
         self.units: list[str] = []
-        lines, self.encoding = _first_lines(path)
+        if header_row is not None and not (
+            isinstance(header_row, int) and header_row >= 1
+        ):
+            raise LogError(
+                f"{path}: header_row {header_row!r}: a line number, counted from 1"
+            )
+        lines, self.encoding = _first_lines(path, _SNIFF_LINES + (header_row or 0))
         if not any(line.strip() for line in lines):
             raise LogError(f"{path}: the file is empty")
         forced = _delimiter(delimiter, path)
@@ -222,15 +228,18 @@ class Header:
         return _split(line, self.sep)
 
 
-def _first_lines(path: pathlib.Path) -> tuple[list[str], str]:
-    """The file's first lines (without line ends) and the encoding that reads them."""
+def _first_lines(
+    path: pathlib.Path, count: int = _SNIFF_LINES
+) -> tuple[list[str], str]:
+    """The file's first `count` lines (without line ends) and the encoding that
+    reads them."""
     for encoding in _ENCODINGS:
         try:
             with open(path, encoding=encoding, newline="") as f:
                 lines = []
                 for line in f:
                     lines.append(line.rstrip("\r\n"))
-                    if len(lines) >= _SNIFF_LINES:
+                    if len(lines) >= count:
                         break
             if encoding != "utf-8-sig" and any("\x00" in line for line in lines):
                 raise LogError(f"{path}: not a UTF-8 text file")
@@ -508,4 +517,16 @@ def _read_carefully(
             f"{path.name}: dropped the last {len(bad)} row(s) from row {r0} on: "
             f"unreadable (column {col!r}: {value!r}), a write cut short"
         )
-    return np.asarray(rows, float).reshape(-1, len(columns)), messages
+    out = np.asarray(rows, float).reshape(-1, len(columns))
+    for j in sorted(clocked):
+        v = out[:, columns.index(j)]
+        if np.nanmax(v) < 86400.0:  # times of day without a date
+            # a log that runs past midnight: its clock starts again at 0
+            wraps = np.concatenate([[0], np.cumsum(np.diff(v) < -43200.0)])
+            if wraps[-1]:
+                v += 86400.0 * wraps
+                messages.append(
+                    f"{path.name}: column {header.names[j]!r}: the clock passes "
+                    "midnight; a day added to the times after it"
+                )
+    return out, messages
