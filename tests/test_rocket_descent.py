@@ -324,3 +324,22 @@ def test_a_rocketpy_parachute_lag_is_recovered():
     opening, se = fit.estimate("open_main")
     assert abs(abs(cds) - 2.5) < 0.1, cds
     assert abs(opening - 2.5) < 0.25 and se < 0.1, (opening, se)
+
+
+def test_a_held_opening_past_the_next_event_is_refused_in_one_line():
+    """A drogue's `lag_s` of 1000 (milliseconds written as seconds) would keep it
+    shut past the main's event, through the whole descent, silently: refused in one
+    line naming the entry, the lag and the event it passes."""
+    import dataclasses
+
+    import diffpegasus as dp
+    from diffpegasus._rocket._descent import descent_record, start_openings
+
+    toml = DATA / "rocket_descent/descent-open-c-s9-20hz/rocket.toml"
+    rocket = dr.read_rocket(toml)
+    record, _, deploy = descent_record(dp.read_rocket_log(toml), rocket)
+    late = dataclasses.replace(rocket, parachute_lags=(1000.0, 2.5))
+    with pytest.raises(dp.LogError, match=r"\[\[parachutes\]\] 1: lag_s = 1000 s") as e:
+        start_openings(late, record, deploy)
+    assert "next parachute's event" in str(e.value) and "\n" not in str(e.value)
+    assert start_openings(rocket, record, deploy)["open_drogue"] == 1.0

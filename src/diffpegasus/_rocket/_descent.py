@@ -157,6 +157,17 @@ def start_openings(rocket, record, deploy) -> dict:
         for k in range(len(deploy))
     }
     t, h = record.t, record.measured[:, 0]
+    for k in range(len(deploy)):
+        # a held opening past the next event or the log's end (ms for s?) would
+        # leave that canopy shut through the fit, silently
+        end = deploy[k + 1] if k + 1 < len(deploy) else float(t[-1])
+        if lags[k] is not None and deploy[k] + lags[k] >= end:
+            raise LogError(
+                f"[[parachutes]] {k + 1}: lag_s = {lags[k]:g} s opens the canopy at "
+                f"{deploy[k] + lags[k]:.2f} s, after "
+                + ("the next parachute's event" if k + 1 < len(deploy) else "the log")
+                + f" ({end:.2f} s): a lag in seconds, shorter than that"
+            )
     has = record.inputs[:, 1] > 0
     rates = fall_rates(t, h, has, deploy)
     for k in range(1, len(deploy)):
