@@ -279,3 +279,20 @@ def test_header_row_past_the_sniffed_lines_and_a_clock_past_midnight(tmp_path):
     assert np.all(np.diff(t) > 0)
     # the span of the flight kept (the clock's 1 ms rounding)
     assert abs((t[-1] - t[0]) - (TRUTH["t"][-1] - TRUTH["t"][0])) < 2e-3
+
+
+def test_a_spreadsheets_padded_preamble_is_skipped(tmp_path):
+    """A spreadsheet pads every row to the data's width: a title `Flight log,,`,
+    a blank row `,,` above the header. Neither is taken for the header."""
+    rows = ["Flight log,,", "Date,2024-04-20,", ",,", "Time (s),Alt (m),Accel (m/s2)"]
+    rows += [
+        f"{t:.3f},{h:.3f},{a:.3f}"
+        for t, h, a in zip(
+            TRUTH["t"], TRUTH["altitude"], TRUTH["accel_axial"], strict=True
+        )
+    ]
+    path = tmp_path / "flight.csv"
+    path.write_text("\n".join(rows) + "\n")
+    log = read_rocket_log(path)
+    assert {"altitude", "accel_axial"} <= set(log.channels)
+    assert log["altitude"].values.size >= len(TRUTH["t"]) - 3

@@ -137,16 +137,20 @@ class Header:
         # the header: the top of the rows of names directly above the data (no cell
         # a number; the rows under it are units), past comments between them
         h = start - 1
-        while h >= 0 and not lines[h].strip():
+        while h >= 0 and _blank(lines[h], self.sep):
             h -= 1
         block = []
-        while h >= 0 and lines[h].strip():
+        while h >= 0 and not _blank(lines[h], self.sep):
             cells = _split(lines[h], self.sep)
             if len(cells) != width and lines[h].lstrip().startswith("#"):
                 h -= 1  # a comment between header and data (a simulator's event)
                 continue
-            if len(cells) != width or any(_NUMBER.fullmatch(c) for c in cells):
-                break
+            if (
+                len(cells) != width
+                or any(_NUMBER.fullmatch(c) for c in cells)
+                or 2 * sum(not c.strip() for c in cells) > width
+            ):
+                break  # numbers, or a title padded with empty cells (a spreadsheet)
             block.append(h)
             h -= 1
         if block:
@@ -264,6 +268,11 @@ def _delimiter(delimiter: str | None, path) -> str | None:
 
 def _best_sep(line: str) -> str:
     return max(_SEPARATORS, key=line.count)
+
+
+def _blank(line: str, sep: str | None) -> bool:
+    """No text, or only empty cells (a spreadsheet pads blank rows: `,,,`)."""
+    return not line.strip() or not any(c.strip() for c in _split(line, sep))
 
 
 def _split(line: str, sep: str | None) -> list[str]:
