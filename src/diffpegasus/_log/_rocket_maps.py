@@ -319,7 +319,9 @@ def _read_options(stream: dict, where: str) -> dict:
     """A stream's `header_row`, `delimiter`, `decimal`, checked."""
     out = {k: stream[k] for k in _READ_KEYS if k in stream}
     row = out.get("header_row")
-    if row is not None and (isinstance(row, bool) or not isinstance(row, int)):
+    if row is not None and (
+        isinstance(row, bool) or not isinstance(row, int) or row < 1
+    ):
         raise LogError(f"{where}: header_row must be a line number from 1, got {row!r}")
     if "decimal" in out and out["decimal"] not in (".", ","):
         raise LogError(f'{where}: decimal must be "." or ",", got {out["decimal"]!r}')

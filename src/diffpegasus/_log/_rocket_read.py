@@ -61,12 +61,6 @@ class Header:
     ):
         self.path = path
         self.units: list[str] = []
-        if header_row is not None and not (
-            isinstance(header_row, int) and header_row >= 1
-        ):
-            raise LogError(
-                f"{path}: header_row {header_row!r}: a line number, counted from 1"
-            )
         lines, self.encoding = _first_lines(path, _SNIFF_LINES + (header_row or 0))
         if not any(line.strip() for line in lines):
             raise LogError(f"{path}: the file is empty")
