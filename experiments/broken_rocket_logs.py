@@ -14,10 +14,12 @@ import tempfile
 
 import numpy as np
 
+
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
 
+from tests.rocket_layouts import flight, LAYOUTS  # noqa: E402
+
 from diffpegasus import LogError, read_rocket_log  # noqa: E402
-from tests.rocket_layouts import LAYOUTS, flight  # noqa: E402
 
 
 TRUTH = flight()
@@ -211,7 +213,7 @@ def run(label, layout, fn, args, changes=None):
         except LogError as e:
             text = str(e).replace(str(path), path.name)
             return f"error: {text[:230]}"
-        except Exception as e:  # noqa: BLE001: what the probe is for
+        except Exception as e:  # noqa: BLE001 (what the probe is for)
             return f"TRACEBACK {type(e).__name__}: {str(e)[:150]}"
         said = " | ".join(m for m in log.messages if "unit" not in m)
         said = said.replace(str(path.parent) + "/", "")[:200]
@@ -221,7 +223,9 @@ def run(label, layout, fn, args, changes=None):
         offset = next(iter(log.time_offsets.values())) - t0
         truth = np.interp(c.t + offset, TRUTH["t"], TRUTH["altitude"])
         datum = 150.0 if layout == F else 0.0
-        err = np.max(np.abs(c.values + log.pad.get("altitude_offset", 0) - truth - datum))
+        err = np.max(
+            np.abs(c.values + log.pad.get("altitude_offset", 0) - truth - datum)
+        )
         return f"read {len(c.t)} rows, altitude off {err:.3g} m; {said}"
 
 
