@@ -153,7 +153,7 @@ REFUSED = [
         U,
         _edit(lambda x: x[:500] + [x[500] + x[501]] + x[502:]),
         r"row 499 has 9 cells, the header 5 \(an extra cell '\d+\.\d'\): two rows run "
-        "together",
+        r"together \(a line end lost\), or a decimal comma",
     ),
     (
         "two rows run together, semicolons",
@@ -162,11 +162,18 @@ REFUSED = [
         r"row 500 has 9 cells, the header 5 \(an extra cell '\d+,\d\d'\)",
     ),
     (
+        "two rows run together, whitespace",
+        "whitespace_logger",
+        _edit(lambda x: x[:300] + [x[300] + x[301]] + x[302:]),
+        r"row 298 has 13 cells, the header 7 \(an extra cell '0'\): two rows run "
+        r"together \(a line end lost\)$",
+    ),
+    (
         "an unquoted decimal comma in a comma file",
         U,
         _swap(300, _comma_in),
         r"row 299 has 6 cells, the header 5 \(an extra cell '-?\d+'\): two rows run "
-        "together, or a decimal comma",
+        r"together \(a line end lost\), or a decimal comma in a comma-separated file",
     ),
     (
         "quoted decimal commas in a comma file",

@@ -436,6 +436,7 @@ def _cp1252_note(header: Header) -> str:
 
 
 _NEWLINE = ord("\n")
+_BLANKS = np.frombuffer(b" \t\r\n\v\f", np.uint8)
 
 
 def _regular(header: Header) -> bool:
@@ -443,9 +444,7 @@ def _regular(header: Header) -> bool:
     reads the asked-for columns of a row with more cells without a word: a decimal
     comma in a comma-separated file, two rows run together), its decimal mark and
     no NUL byte; blank lines and comments aside. Read in blocks of 8 MiB."""
-    if header.sep == " ":
-        return True  # runs of blanks: the cells are counted by the careful reader
-    sep, width = ord(header.sep), len(header.names)
+    width = len(header.names)
     with open(header.path, "rb") as f:
         for _ in range(header.skip):
             f.readline()
@@ -463,9 +462,15 @@ def _regular(header: Header) -> bool:
                 return False  # a point where commas are the decimal mark
             raw = np.frombuffer(block, np.uint8)
             ends = np.flatnonzero(raw == _NEWLINE)
-            count = np.diff(
-                np.searchsorted(np.flatnonzero(raw == sep), ends), prepend=0
-            )
+            if header.sep == " ":
+                # cells separated by runs of blanks: count where each cell starts
+                blank = np.isin(raw, _BLANKS)
+                marks = np.flatnonzero(~blank & np.concatenate([[True], blank[:-1]]))
+                cells = np.diff(np.searchsorted(marks, ends), prepend=0)
+                count = cells - 1
+            else:
+                marks = np.flatnonzero(raw == ord(header.sep))
+                count = np.diff(np.searchsorted(marks, ends), prepend=0)
             starts = np.concatenate([[0], ends[:-1] + 1])
             for k in np.flatnonzero(count != width - 1):
                 line = block[starts[k] : ends[k]].strip()
@@ -563,8 +568,12 @@ def _problem(
         extra = next(c for c in raw[width:] if c.strip())
         return (
             f"row {r} has {len(line)} cells, the header {width} (an extra cell "
-            f"{_shown(extra)}): two rows run together, or a decimal comma in a "
-            "comma-separated file"
+            f"{_shown(extra)}): two rows run together (a line end lost)"
+            + (
+                ", or a decimal comma in a comma-separated file"
+                if header.sep == ","
+                else ""
+            )
         )
     if len(line) < width and len(line) <= max(columns):
         return (
