@@ -143,6 +143,20 @@ REFUSED = [
         r"row 599: NUL bytes \(a block the logger never wrote",
     ),
     (
+        "NUL bytes in the sniffed lines, Windows-1252",
+        X,
+        _swap(50, lambda s: "\x00" * 100 + s),
+        r"line 51: NUL bytes, in a file that is not UTF-8: not a text file, or a "
+        "block the logger never wrote",
+    ),
+    (
+        "a header of 200,000 characters",
+        U,
+        _swap(0, lambda s: s + "," + "x" * 200_000),
+        r"line 1: a line of 200,045 characters \('time,altitude,velocity,pressure,"
+        r"accelera\.\.\.'\), not a row of cells",
+    ),
+    (
         "an extremely long line",
         U,
         _swap(500, lambda s: s + "," + "9" * 2_000_000),

@@ -65,6 +65,20 @@ class Header:
         # only ASCII in the sniffed lines: a byte further on that is not UTF-8 makes
         # the file Windows-1252, as it would be had the byte come early
         self.ascii = all(line.isascii() for line in lines)
+        try:
+            self._sniff(lines, header_row, delimiter, decimal)
+        except csv.Error as e:
+            limit = csv.field_size_limit()
+            k = next((k for k, line in enumerate(lines) if len(line) > limit), None)
+            if k is None:  # pragma: no cover: the csv module's other errors
+                raise LogError(f"{path}: not a readable CSV file ({e})") from None
+            raise LogError(
+                f"{path}: line {k + 1}: a line of {len(lines[k]):,} characters "
+                f"({_shown(lines[k])}), not a row of cells ({e})"
+            ) from None
+
+    def _sniff(self, lines, header_row, delimiter, decimal) -> None:
+        path = self.path
         if not any(line.strip() for line in lines):
             raise LogError(f"{path}: the file is empty")
         forced = _delimiter(delimiter, path)
@@ -243,8 +257,13 @@ def _first_lines(
                     lines.append(line.rstrip("\r\n"))
                     if len(lines) >= count:
                         break
-            if encoding != "utf-8-sig" and any("\x00" in line for line in lines):
-                raise LogError(f"{path}: not a UTF-8 text file")
+            nul = next((k for k, line in enumerate(lines) if "\x00" in line), None)
+            if encoding != "utf-8-sig" and nul is not None:
+                raise LogError(
+                    f"{path}: line {nul + 1}: NUL bytes, in a file that is not UTF-8: "
+                    "not a text file, or a block the logger never wrote (the power "
+                    "lost, or a card fault)"
+                )
             if encoding != "utf-8-sig" and lines:
                 # a UTF-8 byte-order mark on a file whose text is not UTF-8
                 lines[0] = lines[0].removeprefix("\u00ef\u00bb\u00bf")
