@@ -69,6 +69,11 @@ def restarted(path, enc, end, head):
     _write(path, lines[:600] + lines[:head] + lines[600:], end, enc)
 
 
+def restarted_at_top(path, enc, end):
+    lines = _lines(path, enc)
+    _write(path, lines[:1] + lines, end, enc)
+
+
 def second_header(path, enc, end, new):
     lines = _lines(path, enc)
     _write(path, lines[:600] + new + lines[600:], end, enc)
@@ -172,6 +177,7 @@ CASES = [
         second_header,
         (["time,altitude,pressure", "(s),(ft),(mbar)"],),
     ),
+    ("header written twice at the top", U, restarted_at_top, ()),
     ("BOM (units row)", U, bom, ()),
     ("BOM (semicolons, cp1252)", X, bom, ()),
     ("BOM (clock times)", F, bom, ()),

@@ -209,6 +209,8 @@ class Header:
         for k in range(h + 1, start):
             if lines[k].strip() and not lines[k].lstrip().startswith("#"):
                 row = _split(lines[k], self.sep)
+                if [c.strip().lstrip("#").strip() for c in row] == names:
+                    continue  # the header written twice (a logger restarted)
                 units = [
                     (u or row[j].strip().strip("()[]").strip()) if j < len(row) else u
                     for j, u in enumerate(units)
