@@ -271,6 +271,15 @@ def test_bad_log_is_one_error_line(tmp_path, content, sidecar, fragment):
     assert "np.float64" not in line
 
 
+def test_qbar_in_psi_hint_states_the_ratio(tmp_path):
+    path = _write(tmp_path, _mutated(qbar=lambda x: x / 6894.757293168), None)
+    line = _assert_one_error(
+        runner.invoke(app, ["check", str(path)]), "qbar looks like psi"
+    )
+    # 1 psi = 6894.757 Pa: a qbar in psi reads 1/6894.757 = 0.000145 of 0.5 rho V^2
+    assert "value 3.46" in line and "is 0.000145 times 0.5 rho V^2" in line
+
+
 def test_the_clean_log_passes(tmp_path):
     path = _write(tmp_path, CLEAN, None)
     result = runner.invoke(app, ["check", str(path)])

@@ -112,9 +112,10 @@ def test_map_and_file_disagree_in_one_line(tmp_path):
         "openlog_arduino",
         accel_axial={"column": "accel_z_mg", "unit": "g", "gravity": "included"},
     )
-    # decimal commas said to be points: the first cell named
+    # decimal commas said to be points: the first cell named, the mark hinted
     one_line(
-        r"flug\.csv: column 'Zeit \[s\]', row 1: '0,00' is not a number",
+        r"flug\.csv: column 'Zeit \[s\]', row 1: '0,00' has a decimal comma; "
+        r'give .*"decimal": ","',
         "excel_semicolon",
         decimal=".",
     )

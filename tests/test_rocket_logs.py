@@ -359,6 +359,26 @@ def test_pressure_in_hpa(tmp_path):
     assert _file_time(log, "apogee") == pytest.approx(truth.T_APOGEE, abs=0.15)
 
 
+def test_pressure_in_psi(tmp_path):
+    """14.7 psi on the pad: the hint names psi (6894.76 Pa each), and the map's
+    "psi" reads the pad at 101325 Pa."""
+    src = (FIXTURES / "cats" / "baro.csv").read_text().splitlines()
+    path = tmp_path / "baro.csv"
+    rows = [src[0]] + [
+        ",".join([*x.split(",")[:3], f"{float(x.split(',')[3]) / 6894.757:.4f}"])
+        for x in src[1:]
+    ]
+    path.write_text("\n".join(rows) + "\n")
+    with pytest.raises(LogError, match=r"pad pressure 14\.69.* looks like psi"):
+        read_rocket_log(path)
+    log = read_rocket_log(
+        path, {"time": "ts", "pressure": {"column": "P", "unit": "psi"}}
+    )
+    # 4 decimals of psi: 0.7 Pa
+    assert log.pad["pressure"] == pytest.approx(101325.0, abs=100)
+    assert _file_time(log, "apogee") == pytest.approx(truth.T_APOGEE, abs=0.15)
+
+
 def test_column_map_mistakes_name_the_column(tmp_path):
     path = _copy(tmp_path)
     with pytest.raises(

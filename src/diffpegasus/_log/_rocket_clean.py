@@ -180,8 +180,8 @@ def clean_stream(
     if back.size:
         i = int(back[0]) + 1
         raise LogError(
-            f"{where_t}, row {rows[i]}: time {t[i]:.6g} s is before the previous "
-            f"row's {t[i - 1]:.6g} s (a log must run forward; split it into one "
+            f"{where_t}, row {rows[i]}: time {t[i]:.15g} s is before the previous "
+            f"row's {t[i - 1]:.15g} s (a log must run forward; split it into one "
             "file per flight)"
         )
     span = float(t[-1] - t[0])

@@ -62,6 +62,23 @@ class Header:
         self.path = path
         self.units: list[str] = []
         lines, self.encoding = _first_lines(path, _SNIFF_LINES + (header_row or 0))
+        # only ASCII in the sniffed lines: a byte further on that is not UTF-8 makes
+        # the file Windows-1252, as it would be had the byte come early
+        self.ascii = all(line.isascii() for line in lines)
+        try:
+            self._sniff(lines, header_row, delimiter, decimal)
+        except csv.Error as e:
+            limit = csv.field_size_limit()
+            k = next((k for k, line in enumerate(lines) if len(line) > limit), None)
+            if k is None:  # pragma: no cover: the csv module's other errors
+                raise LogError(f"{path}: not a readable CSV file ({e})") from None
+            raise LogError(
+                f"{path}: line {k + 1}: a line of {len(lines[k]):,} characters "
+                f"({_shown(lines[k])}), not a row of cells ({e})"
+            ) from None
+
+    def _sniff(self, lines, header_row, delimiter, decimal) -> None:
+        path = self.path
         if not any(line.strip() for line in lines):
             raise LogError(f"{path}: the file is empty")
         forced = _delimiter(delimiter, path)
@@ -184,6 +201,7 @@ class Header:
         # a name written twice (AltOS: baro and GPS 'altitude') gets ' (2)', ' (3)'
         seen: dict[str, int] = {}
         self.names = []
+        self.raw_names = names
         for n in names:
             seen[n] = seen.get(n, 0) + 1
             self.names.append(n if seen[n] == 1 else f"{n} ({seen[n]})")
@@ -191,6 +209,8 @@ class Header:
         for k in range(h + 1, start):
             if lines[k].strip() and not lines[k].lstrip().startswith("#"):
                 row = _split(lines[k], self.sep)
+                if [c.strip().lstrip("#").strip() for c in row] == names:
+                    continue  # the header written twice (a logger restarted)
                 units = [
                     (u or row[j].strip().strip("()[]").strip()) if j < len(row) else u
                     for j, u in enumerate(units)
@@ -239,8 +259,16 @@ def _first_lines(
                     lines.append(line.rstrip("\r\n"))
                     if len(lines) >= count:
                         break
-            if encoding != "utf-8-sig" and any("\x00" in line for line in lines):
-                raise LogError(f"{path}: not a UTF-8 text file")
+            nul = next((k for k, line in enumerate(lines) if "\x00" in line), None)
+            if encoding != "utf-8-sig" and nul is not None:
+                raise LogError(
+                    f"{path}: line {nul + 1}: NUL bytes, in a file that is not UTF-8: "
+                    "not a text file, or a block the logger never wrote (the power "
+                    "lost, or a card fault)"
+                )
+            if encoding != "utf-8-sig" and lines:
+                # a UTF-8 byte-order mark on a file whose text is not UTF-8
+                lines[0] = lines[0].removeprefix("\u00ef\u00bb\u00bf")
             return lines, encoding
         except OSError as e:
             raise LogError(f"{path}: cannot read the file ({e.strerror})") from None
@@ -386,6 +414,11 @@ def read_columns(
     clock times read."""
     path = header.path
     columns = sorted(set(columns))
+    notes: list[str] = []
+    if header.decimal == "," and header.sep == ",":
+        # decimal commas in quoted cells: only the careful reader splits them right
+        data, more = _read_carefully(header, columns, clocks)
+        return data, notes + more
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # "input contained no data": checked after
@@ -400,12 +433,72 @@ def read_columns(
                 ndmin=2,
                 encoding=header.encoding,
             )
-        return data, []
+        if len(data) and _regular(header):
+            return data, notes
+    except UnicodeDecodeError:
+        if header.encoding == "utf-8-sig" and header.ascii:
+            notes.append(_cp1252_note(header))
+            data, more = read_columns(header, columns, clocks)
+            return data, notes + more
     except (ValueError, IndexError):
         pass
     except OSError as e:
         raise LogError(f"{path}: cannot read the file ({e.strerror})") from None
-    return _read_carefully(header, columns, clocks)
+    data, more = _read_carefully(header, columns, clocks)
+    return data, notes + more
+
+
+def _cp1252_note(header: Header) -> str:
+    header.encoding = "cp1252"
+    return (
+        f"{header.path.name}: read as Windows-1252 text (a byte past the first "
+        f"{_SNIFF_LINES} lines is not UTF-8)"
+    )
+
+
+_NEWLINE = ord("\n")
+_BLANKS = np.frombuffer(b" \t\r\n\v\f", np.uint8)
+
+
+def _regular(header: Header) -> bool:
+    """Whether every data line has the header's number of separators (NumPy's reader
+    reads the asked-for columns of a row with more cells without a word: a decimal
+    comma in a comma-separated file, two rows run together), its decimal mark and
+    no NUL byte; blank lines and comments aside. Read in blocks of 8 MiB."""
+    width = len(header.names)
+    with open(header.path, "rb") as f:
+        for _ in range(header.skip):
+            f.readline()
+        rest = b""
+        while True:
+            chunk = f.read(8 * 2**20)
+            block = rest + chunk
+            if not chunk:
+                block += b"\n"
+            cut = block.rfind(b"\n") + 1
+            block, rest = block[:cut], block[cut:]
+            if b'"' in block or b"\x00" in block:
+                return False
+            if header.decimal == "," and b"." in block:
+                return False  # a point where commas are the decimal mark
+            raw = np.frombuffer(block, np.uint8)
+            ends = np.flatnonzero(raw == _NEWLINE)
+            if header.sep == " ":
+                # cells separated by runs of blanks: count where each cell starts
+                blank = np.isin(raw, _BLANKS)
+                marks = np.flatnonzero(~blank & np.concatenate([[True], blank[:-1]]))
+                cells = np.diff(np.searchsorted(marks, ends), prepend=0)
+                count = cells - 1
+            else:
+                marks = np.flatnonzero(raw == ord(header.sep))
+                count = np.diff(np.searchsorted(marks, ends), prepend=0)
+            starts = np.concatenate([[0], ends[:-1] + 1])
+            for k in np.flatnonzero(count != width - 1):
+                line = block[starts[k] : ends[k]].strip()
+                if line and not line.startswith(b"#"):
+                    return False
+            if not chunk:
+                return True
 
 
 def _points(header: Header):
@@ -437,18 +530,100 @@ def clock_seconds(cell: str) -> float | None:
     return seconds
 
 
-def _decoded(f, header: Header):
+def _decoded(f, header: Header, notes: list[str]):
     """The lines of `f` (binary) as text; a line the file's encoding cannot read is
-    one error line."""
+    one error line (read as Windows-1252 if the file's first lines were ASCII)."""
     for r, raw in enumerate(f, start=1):
         try:
             yield raw.decode(header.encoding)
         except UnicodeDecodeError:
+            if header.encoding == "utf-8-sig" and header.ascii:
+                notes.append(_cp1252_note(header))
+                yield raw.decode("cp1252")
+                continue
             raise LogError(
                 f"{header.path}: row {r}: not "
                 f"{_SPOKEN.get(header.encoding, header.encoding)} text like the rows "
                 "before it"
             ) from None
+
+
+# A number written with a decimal comma ("-2,5", "1,5e3").
+_DECIMAL_COMMA = re.compile(r"\s*[+-]?\d*,\d+(?:[eE][+-]?\d+)?\s*", re.ASCII)
+_SHOWN = 40  # characters of a bad cell or row shown in a message
+
+
+def _shown(text: str) -> str:
+    text = text.strip()
+    return repr(text if len(text) <= _SHOWN else text[:_SHOWN] + "...")
+
+
+def _problem(
+    header: Header,
+    r: int,
+    text: str,
+    line: list[str],
+    raw: list[str],
+    columns: list[int],
+    clocks: frozenset[int],
+):
+    """Why data row `r` (its `line` of cells, decimal marks made points, and the
+    `raw` cells) cannot be read, as the text after the file's name; None if it can
+    (then `line` is read)."""
+    width = len(header.names)
+    if [c.strip().lstrip("#").strip() for c in raw] == header.raw_names:
+        return (
+            f"row {r} repeats the header (line {header.header_line}): the logger "
+            "restarted; split the file there, one file per run"
+        )
+    filled = [c.strip() for c in raw if c.strip()]
+    if len(filled) > 1 and not any(
+        _NUMBER.fullmatch(c) or _CLOCK.fullmatch(c) or _DECIMAL_COMMA.fullmatch(c)
+        for c in filled
+    ):
+        return (
+            f"row {r} is words, not numbers ({_shown(text)}): another header (the "
+            "logger restarted with other columns?); split the file there"
+        )
+    if len(line) > width and any(c.strip() for c in line[width:]):
+        extra = next(c for c in raw[width:] if c.strip())
+        return (
+            f"row {r} has {len(line)} cells, the header {width} (an extra cell "
+            f"{_shown(extra)}): two rows run together (a line end lost)"
+            + (
+                ", or a decimal comma in a comma-separated file"
+                if header.sep == ","
+                else ""
+            )
+        )
+    if len(line) < width and len(line) <= max(columns):
+        return (
+            f"row {r} has {len(line)} cells, the header {width}: it ends before "
+            f"column {header.names[len(line)]!r}"
+        )
+    if header.decimal == ",":
+        for j in columns:
+            if "." in raw[j] and not (j in clocks and _CLOCK.fullmatch(raw[j])):
+                return (
+                    f"column {header.names[j]!r}, row {r}: {_shown(raw[j])} has a "
+                    "decimal point in a file whose numbers have decimal commas (a "
+                    "thousands separator, or rows from another program?); write "
+                    "every number with the one decimal mark"
+                )
+    for j in columns:
+        cell = line[j].strip()
+        if not cell or _NUMBER.fullmatch(cell):
+            continue
+        if j in clocks and clock_seconds(cell) is not None:
+            continue
+        where = f"column {header.names[j]!r}, row {r}: {_shown(raw[j])}"
+        if header.decimal == "." and _DECIMAL_COMMA.fullmatch(cell):
+            return (
+                f"{where} has a decimal comma; give the file's stream "
+                '"decimal": "," in the column map, or export it with decimal points'
+            )
+        return f"{where} is not a number"
+    return None
 
 
 def _read_carefully(
@@ -458,67 +633,72 @@ def _read_carefully(
     unreadable rows (a write cut short) dropped with a message."""
     path = header.path
     rows: list[list[float]] = []
-    bad: list[tuple[int, str, str]] = []  # (row, column, value) of unreadable rows
+    numbers: list[int] = []  # each read row's number
+    bad: list[tuple[int, str]] = []  # (row, why) of unreadable rows
     clocked: set[int] = set()
-    width = len(header.names)
+    notes: list[str] = []
     with open(path, "rb") as f:
         for _ in range(header.skip):
             f.readline()
-        for r, text in enumerate(_decoded(f, header), start=1):
+        for r, text in enumerate(_decoded(f, header, notes), start=1):
             if text.lstrip().startswith("#"):
                 continue  # a comment (a simulator's event line)
-            line = header.split(text.rstrip("\r\n"))
-            if header.decimal == ",":
-                line = [c.replace(",", ".") for c in line]
-            if not any(c.strip() for c in line):
-                continue
-            problem = None
-            values = []
-            if len(line) < width and len(line) <= max(columns):
+            text = text.rstrip("\r\n")
+            if "\x00" in text:
                 problem = (
-                    r,
-                    header.names[min(len(line), width - 1)],
-                    "(row ends early)",
+                    f"row {r}: NUL bytes (a block the logger never wrote: the power "
+                    "lost, or a card fault)"
+                )
+                bad.append((r, problem))
+                continue
+            try:
+                raw = header.split(text)
+            except csv.Error as e:
+                problem = (
+                    f"row {r}: a line of {len(text):,} characters ({_shown(text)}), "
+                    f"not a row of cells ({e})"
                 )
             else:
-                for j in columns:
-                    cell = line[j].strip()
-                    if not cell:
-                        values.append(math.nan)
-                    elif _NUMBER.fullmatch(cell):
-                        values.append(float(cell))
-                    elif j in clocks and (seconds := clock_seconds(cell)) is not None:
-                        values.append(seconds)
-                        clocked.add(j)
-                    else:
-                        problem = (r, header.names[j], cell)
-                        break
+                line = (
+                    [c.replace(",", ".") for c in raw] if header.decimal == "," else raw
+                )
+                if not any(c.strip() for c in line):
+                    continue
+                problem = _problem(header, r, text, line, raw, columns, clocks)
             if problem is None and bad:
                 # an unreadable row followed by readable ones: not a cut-off end
-                r0, col, value = bad[0]
-                raise LogError(
-                    f"{path}: column {col!r}, row {r0}: {value!r} is not a number"
-                )
+                raise LogError(f"{path}: {bad[0][1]}")
             if problem is not None:
-                bad.append(problem)
-            else:
-                rows.append(values)
+                bad.append((r, problem))
+                continue
+            values = []
+            for j in columns:
+                cell = line[j].strip()
+                if not cell:
+                    values.append(math.nan)
+                elif _NUMBER.fullmatch(cell):
+                    values.append(float(cell))
+                else:
+                    values.append(clock_seconds(cell))
+                    clocked.add(j)
+            rows.append(values)
+            numbers.append(r)
     if not rows:
         if bad:
-            r0, col, value = bad[0]
-            raise LogError(
-                f"{path}: column {col!r}, row {r0}: {value!r} is not a number"
-            )
-        raise LogError(f"{path}: the file has a header but no data rows")
-    messages = [
+            raise LogError(f"{path}: {bad[0][1]}")
+        units = " and units" if header.skip > header.header_line else ""
+        raise LogError(
+            f"{path}: the file has a header{units} (line {header.header_line}) but "
+            "no data rows"
+        )
+    messages = notes + [
         f"{path.name}: column {header.names[j]!r}: clock times read as seconds"
         for j in sorted(clocked)
     ]
     if bad:
-        r0, col, value = bad[0]
         messages.append(
-            f"{path.name}: dropped the last {len(bad)} row(s) from row {r0} on: "
-            f"unreadable (column {col!r}: {value!r}), a write cut short"
+            f"{path.name}: dropped the last {len(bad)} row(s) from row {bad[0][0]} "
+            f"on, a write cut short: {bad[0][1]}"
         )
     out = np.asarray(rows, float).reshape(-1, len(columns))
     for j in sorted(clocked):
@@ -532,4 +712,13 @@ def _read_carefully(
                     f"{path.name}: column {header.names[j]!r}: the clock passes "
                     "midnight; a day added to the times after it"
                 )
+        jump = np.flatnonzero(np.abs(np.diff(v)) >= 43200.0)
+        if jump.size:
+            k = int(jump[0]) + 1
+            raise LogError(
+                f"{path}: column {header.names[j]!r}, row {numbers[k]}: the clock "
+                f"jumps {(v[k] - v[k - 1]) / 3600:+.1f} h from row {numbers[k - 1]} "
+                "(a date or clock reset mid-flight); a flight's log runs minutes, "
+                "correct the times or split the file there"
+            )
     return out, messages

@@ -11,6 +11,7 @@ import json
 import numpy as np
 
 from .._errors import LogError
+from ._columns import UNITS
 from ._rocket_clean import Series
 from ._rocket_events import G0
 
@@ -127,7 +128,7 @@ def check_accel_axial(
 
 def check_pressure(s: Series, pad: np.ndarray, messages: list[str]) -> None:
     """Static pressure on the pad must lie between 30 and 110 kPa (from 9 km up to
-    below sea level); hPa and kPa are recognised by where the reading lands."""
+    below sea level); hPa, kPa and psi are recognised by where the reading lands."""
     sel = pad if pad.size else np.arange(min(5, len(s.v)))
     p = float(np.median(s.v[sel]))
     if 30e3 <= p <= 110e3:
@@ -135,7 +136,12 @@ def check_pressure(s: Series, pad: np.ndarray, messages: list[str]) -> None:
     raw = p / s.spec.factor
     fits = [
         (unit, factor)
-        for unit, factor in (("Pa", 1.0), ("hPa", 100.0), ("kPa", 1e3))
+        for unit, factor in (
+            ("Pa", 1.0),
+            ("hPa", 100.0),
+            ("kPa", 1e3),
+            ("psi", UNITS["psi"]),  # 4.4-16 psi: no overlap with the others
+        )
         if 30e3 <= raw * factor <= 110e3
     ]
     row = s.rows[sel[len(sel) // 2]]
