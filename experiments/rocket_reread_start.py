@@ -10,13 +10,15 @@ liftoff and apogee, as the benchmark reads it now) or `csv` (its `log.csv` alone
 the events searched for in the data, as the benchmark read it before), then
 `-free` (the burn's length estimated, as the fit does now) or `-held` (held at 1:
 the fit without the burn scale). The start is the flight's estimates in
-benchmarks/results/rocket_validation_table.json, or in START_JSON (this script's
-output; START_WAY's estimates, the burn's length left out). Prints per way the
+benchmarks/results/rocket_validation_table.json, or in START_JSON: a run of the
+benchmark (the flight's estimates; NAME then ends in the JSON's name) or this
+script's output (START_WAY's estimates; NAME then ends `_from_START_WAY`), the
+burn's length left out. Prints per way the
 record's span, the planted CD inside the noise's 95% band and the band with the
 sensors' spread (of 20 Mach points from 0.15 to 0.95 of the top, as the benchmark
 counts them), each band's mean half-width in % of CD, det(R), the wind's
 correlations and the estimates; writes experiments/results/rocket_reread_NAME.json
-(NAME the flight's folder; `_from_START_WAY` when started from START_JSON).
+(NAME the flight's folder).
 """
 
 import json
@@ -43,11 +45,12 @@ def main():
     name = folder.name
     if len(sys.argv) > 3:
         earlier = json.loads(pathlib.Path(sys.argv[3]).read_text())
-        way = sys.argv[4] if len(sys.argv) > 4 else next(iter(earlier))
+        way = sys.argv[4] if len(sys.argv) > 4 else folder.name
         start = {
             n: v for n, (v, _) in earlier[way]["estimates"].items() if n != "burn_scale"
         }
-        name += f"_from_{way}"
+        name += f"_{pathlib.Path(sys.argv[3]).stem}" if way == folder.name else ""
+        name += f"_from_{way}" if way != folder.name else ""
     rocket = dr.read_rocket(folder / "rocket.toml")
     mach_true, cd_true = rocket.team_drag_off
     out = {}
