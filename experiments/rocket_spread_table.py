@@ -5,7 +5,8 @@ Run: `python experiments/rocket_spread_table.py JSON [JSON ...] [--before JSON
 ...]`: one row per flight (planted CD inside the noise's 95% band and inside the
 band with the sensors' spread, each band's mean half-width in % of CD, the Birge
 ratio), then the totals. With `--before` (one earlier run per JSON, in the same
-order), that run's band with the spread beside it, flight by flight.
+order; several comma-separated, read as one), that run's band with the spread
+beside it, flight by flight.
 """
 
 import json
@@ -33,7 +34,9 @@ def main():
     print(rule)
     for k, path in enumerate(after):
         rows = json.loads(pathlib.Path(path).read_text())
-        old = json.loads(pathlib.Path(before[k]).read_text()) if before else {}
+        old = {}
+        for b in before[k].split(",") if before else ():
+            old.update(json.loads(pathlib.Path(b).read_text()))
         total = [0, 0, 0, 0]
         for name, r in rows.items():
             if not isinstance(r, dict):
