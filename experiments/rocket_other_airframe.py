@@ -18,6 +18,8 @@ src on PYTHONPATH):
 
     python experiments/rocket_other_airframe.py fly DIR [NAME ...]
     python experiments/rocket_other_airframe.py run DIR [NAME ...]
+    python experiments/rocket_other_airframe.py run DIR --diagnose-only NAME ...
+    python experiments/rocket_other_airframe.py table JSON ...
 
 `run` calls `diffpegasus rocket fit FOLDER/rocket.toml --out ... --json` and
 `diffpegasus rocket diagnose FOLDER/rocket.toml --json` on each flight and writes
@@ -117,6 +119,14 @@ FLIGHTS = {
     "calisto-wind6-s45": dict(BASE, wind=(0.0, -6.0), seed=45),
     "small-clean-s46": dict(BASE, drag=SMALL_DRAG, airframe="small", seed=46),
 }
+# the same flights, seeds and noise through the exact standard-atmosphere pressure
+# instead of RocketPy's table (the fixtures' `smooth_pressure`): are the barometer's
+# alarms on the clean flights the table's?
+SMOOTH = {
+    f"{name}-smooth": dict(FLIGHTS[name], smooth_pressure=True)
+    for name in ("calisto-clean-s41", "calisto-clean-s42-20hz", "calisto-lag01-s44")
+}
+FLIGHTS.update(SMOOTH)
 
 SITES = {
     "calisto": dict(
@@ -139,6 +149,7 @@ SITES = {
 
 
 def environment(spec, site):
+    from make_rocket_fixtures import _isa_pressure
     from rocketpy import Environment
 
     env = Environment(
@@ -147,9 +158,15 @@ def environment(spec, site):
         elevation=site["elevation"],
     )
     u, v = spec["wind"]
+    pressure = None
+    if spec.get("smooth_pressure"):
+        # the exact troposphere every 10 m (RocketPy's own: a spline through points
+        # 808 m apart)
+        heights = np.arange(-100.0, 10000.0, 10.0)
+        pressure = np.column_stack([heights, [_isa_pressure(h) for h in heights]])
     env.set_atmospheric_model(
         type="custom_atmosphere",
-        pressure=None,
+        pressure=pressure,
         temperature=None,
         wind_u=[(0, u), (10000, u)],
         wind_v=[(0, v), (10000, v)],
@@ -427,7 +444,7 @@ def coverage(summary, folder, top):
     return rows
 
 
-def run(flights, names, out_name):
+def run(flights, names, out_name, fit_too=True):
     results = {}
     path = ROOT / "experiments" / "results" / f"{out_name}.json"
     if path.exists():
@@ -437,7 +454,11 @@ def run(flights, names, out_name):
         doc = tomllib.loads((folder / "rocket.toml").read_text())
         truth = doc["truth"]
         figures = flights / f"{name}-fit"
-        fit = cli("rocket", "fit", str(folder / "rocket.toml"), "--out", str(figures))
+        fit = (
+            cli("rocket", "fit", str(folder / "rocket.toml"), "--out", str(figures))
+            if fit_too
+            else dict(error="not run", seconds=0.0)
+        )
         diag = cli("rocket", "diagnose", str(folder / "rocket.toml"))
         row = dict(planted=truth, fit_cli=fit, diagnose_cli=diag)
         summary_path = figures / "summary.json"
@@ -477,19 +498,88 @@ def run(flights, names, out_name):
         )
 
 
+def planted_text(truth):
+    """The planted effects of a flight's `[truth]` in words."""
+    parts = []
+    if truth["thrust_scale"] != 1.0:
+        parts.append(f"thrust scale {truth['thrust_scale']}")
+    if truth["baro_lag_s"]:
+        parts.append(f"barometer lag {truth['baro_lag_s']} s")
+    if truth["static_error"]:
+        parts.append(f"static-pressure error {truth['static_error']}")
+    wind = np.hypot(truth["wind_east_m_s"], truth["wind_north_m_s"])
+    if wind:
+        parts.append(f"wind {wind:g} m/s")
+    return ", ".join(parts) or "nothing"
+
+
+def right(truth, named):
+    """Is diagnose's answer right: every planted effect named, nothing else?"""
+    expected = []
+    if truth["thrust_scale"] != 1.0:
+        expected.append("thrust scale")
+    if truth["baro_lag_s"]:
+        expected.append("barometer lag")
+    if truth["static_error"]:
+        expected.append("static-pressure error")
+    if truth["wind_east_m_s"] or truth["wind_north_m_s"]:
+        expected.append("wind")
+    found = [e for e in expected if any(e in n for n in named)]
+    extra = [n for n in named if not any(e in n for e in expected)]
+    if found == expected and not extra:
+        return "yes"
+    if found:
+        return "partly: also " + ", ".join(extra) if extra else "partly"
+    return "no"
+
+
+def table(paths):
+    """The markdown table of one or more `run` JSONs."""
+    rows = [
+        "| flight | planted | named | right? | CD knots inside the 95% band "
+        "(noise's band alone) | apogee: reconstructed - log's (- geometric) m |",
+        "|---|---|---|---|---|---|",
+    ]
+    for path in paths:
+        for name, r in json.loads(pathlib.Path(path).read_text()).items():
+            truth = r["planted"]
+            diag = r["diagnose_cli"]
+            named = diag.get("named")
+            named_text = "error" if named is None else ", ".join(named) or "nothing"
+            if "knots" in r:
+                inside = f"{r['inside']} of {r['points']} ({r['inside_noise']})"
+                apogee = (
+                    f"{r['apogee_error_m']:+.1f} "
+                    f"({r['apogee_reconstructed_m'] - r['apogee_true_m']:+.1f})"
+                )
+            else:
+                inside = apogee = "-"
+            rows.append(
+                f"| {name} | {planted_text(truth)} | {named_text} | "
+                f"{'-' if named is None else right(truth, named)} | {inside} | "
+                f"{apogee} |"
+            )
+    print("\n".join(rows))
+
+
 def main():
     args = sys.argv[1:]
+    if args[:1] == ["table"]:
+        table(args[1:])
+        return
     out_name = "rocket_other_airframe"
     if "--out" in args:
         i = args.index("--out")
         out_name = args[i + 1]
         del args[i : i + 2]
+    fit_too = "--diagnose-only" not in args
+    args = [a for a in args if a != "--diagnose-only"]
     mode, folder, *names = args
     names = names or list(FLIGHTS)
     if mode == "fly":
         fly(pathlib.Path(folder), names)
     elif mode == "run":
-        run(pathlib.Path(folder), names, out_name)
+        run(pathlib.Path(folder), names, out_name, fit_too)
     else:
         raise SystemExit(f"unknown mode {mode!r}: fly or run")
 
