@@ -19,6 +19,7 @@ src on PYTHONPATH):
     python experiments/rocket_other_airframe.py fly DIR [NAME ...]
     python experiments/rocket_other_airframe.py run DIR [NAME ...]
     python experiments/rocket_other_airframe.py run DIR --diagnose-only NAME ...
+    python experiments/rocket_other_airframe.py own FOLDER ... [--lag S] --out NAME
     python experiments/rocket_other_airframe.py table JSON ...
 
 `run` calls `diffpegasus rocket fit FOLDER/rocket.toml --out ... --json` and
@@ -536,7 +537,7 @@ def right(truth, named):
 def table(paths):
     """The markdown table of one or more `run` JSONs."""
     rows = [
-        "| flight | planted | named | right? | CD knots inside the 95% band "
+        "| flight | planted | named: score (threshold) | right? | CD knots inside the 95% band "
         "(noise's band alone) | apogee: reconstructed - log's (- geometric) m |",
         "|---|---|---|---|---|---|",
     ]
@@ -545,7 +546,17 @@ def table(paths):
             truth = r["planted"]
             diag = r["diagnose_cli"]
             named = diag.get("named")
-            named_text = "error" if named is None else ", ".join(named) or "nothing"
+            scores = [
+                f"{t['statistic']:.0f} ({t['threshold']:.1f})"
+                for t in diag.get("tests", [])
+                if t["significant"]
+            ]
+            named_text = (
+                "error"
+                if named is None
+                else "; ".join(f"{n}: {s}" for n, s in zip(named, scores, strict=True))
+                or "nothing"
+            )
             if "knots" in r:
                 inside = f"{r['inside']} of {r['points']} ({r['inside_noise']})"
                 apogee = (
@@ -562,6 +573,66 @@ def table(paths):
     print("\n".join(rows))
 
 
+def own(folders, out_name, lag=0.0):
+    """The model's own flight of each flight's rocket (its planted drag curve, the
+    catalogue thrust, the log's times; no wind, no sensor effect) with the log's
+    noise levels (its `[truth]`, seed 11), written as its log and diagnosed: does
+    the model's barometer alone make an alarm on this airframe? With `lag` (s) its
+    barometer's pressure goes through the fixtures' first-order lag (the same
+    discrete filter as scripts/make_rocket_fixtures.py's `flight`)."""
+    import shutil
+
+    import diffpegasus.rocket as dr
+    from diffpegasus import read_rocket_log
+
+    results = {}
+    for folder in map(pathlib.Path, folders):
+        toml = folder / "rocket.toml"
+        truth = tomllib.loads(toml.read_text())["truth"]
+        problem = dr.prepare(dr.read_rocket(toml), read_rocket_log(toml))
+        flown = dr.simulate_flight(
+            problem, start={"thrust_scale": 1.0, "motor_time": 0.0}
+        )
+        n = len(problem.record.t)
+        rng = np.random.default_rng(11)
+        baro = np.array(flown.baro[:n])
+        if lag > 0:
+            # standard-atmosphere pressure of the reading (the pad at its elevation),
+            # filtered as the fixtures' barometer is, and back to altitude
+            pad = tomllib.loads(toml.read_text())["launch"]["elevation_m"]
+            p = 101325.0 * (1 - (baro + pad) / 44330.77) ** (1 / 0.190263)
+            k = np.exp(-float(problem.record.dt) / lag)
+            for i in range(1, n):
+                p[i] = k * p[i - 1] + (1 - k) * p[i]
+            baro = 44330.77 * (1 - (p / 101325.0) ** 0.190263) - pad
+        baro = baro + rng.normal(0.0, truth["noise_altitude_m"], n)
+        accel = flown.accel[:n] + rng.normal(0.0, truth["noise_accel_m_s2"], n)
+        copy = folder.parent / (f"{folder.name}-own" + (f"-lag{lag:g}" if lag else ""))
+        shutil.copytree(folder, copy, dirs_exist_ok=True)
+        np.savetxt(
+            copy / "log.csv",
+            np.column_stack([problem.record.t, baro, accel]),
+            delimiter=",",
+            header="time_s,altitude_m,accel_axial_m_s2",
+            comments="",
+            fmt="%.4f",
+        )
+        results[copy.name] = dict(
+            planted=dict(
+                truth,
+                baro_lag_s=lag,
+                static_error=0.0,
+                thrust_scale=1.0,
+                wind_east_m_s=0.0,
+                wind_north_m_s=0.0,
+            ),
+            diagnose_cli=cli("rocket", "diagnose", str(copy / "rocket.toml")),
+        )
+        print(copy.name, results[copy.name]["diagnose_cli"].get("named"), flush=True)
+    path = ROOT / "experiments" / "results" / f"{out_name}.json"
+    path.write_text(json.dumps(results, indent=1, default=str) + "\n")
+
+
 def main():
     args = sys.argv[1:]
     if args[:1] == ["table"]:
@@ -574,7 +645,15 @@ def main():
         del args[i : i + 2]
     fit_too = "--diagnose-only" not in args
     args = [a for a in args if a != "--diagnose-only"]
+    lag = 0.0
+    if "--lag" in args:
+        i = args.index("--lag")
+        lag = float(args[i + 1])
+        del args[i : i + 2]
     mode, folder, *names = args
+    if mode == "own":
+        own([folder, *names], out_name, lag)
+        return
     names = names or list(FLIGHTS)
     if mode == "fly":
         fly(pathlib.Path(folder), names)
