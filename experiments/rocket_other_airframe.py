@@ -1,5 +1,5 @@
 """Rockets unlike the fixtures' one, flown in RocketPy, fitted and diagnosed through
-the command line as a user would.
+the command line as a user would (docs/rockets/simulated.md, Another airframe).
 
 The airframe is RocketPy's documented example "Calisto" (its getting-started
 rocket: 127 mm body, 14.426 kg without motor, von Karman nose, four trapezoidal fins
@@ -8,13 +8,15 @@ with 0.5 deg of cant, a boat tail, rail buttons at 45 deg) on a Cesaroni Pro75 M
 America (1400 m) off a 5.2 m rail at 85 deg heading north. The numbers are written
 out below from RocketPy's documentation; the drag curve is one planted here (shaped
 like a subsonic rocket's: not RocketPy's file). The thrust curve is written for our
-side as a RASP `.eng` file. `small` is a second, smaller rocket (54 mm, a J motor).
+side as a RASP `.eng` file. `small-*` fly a second, smaller rocket (54 mm, a J
+motor, a 3 m rail heading east). `*-smooth` are flights through the exact
+standard-atmosphere pressure instead of RocketPy's table.
 
 Each flight's folder (`rocket.toml`, `motor.eng`, `drag.csv`, `log.csv`) is written by
 scripts/make_rocket_fixtures.py's `flight`, as the fixtures are.
 
-Run (RocketPy's environment for `fly`, ours for `run`; both with this repository's
-src on PYTHONPATH):
+Run (RocketPy's environment for `fly`, ours for the rest; both with this
+repository's src on PYTHONPATH):
 
     python experiments/rocket_other_airframe.py fly DIR [NAME ...]
     python experiments/rocket_other_airframe.py run DIR [NAME ...]
@@ -23,11 +25,13 @@ src on PYTHONPATH):
     python experiments/rocket_other_airframe.py table JSON ...
 
 `run` calls `diffpegasus rocket fit FOLDER/rocket.toml --out ... --json` and
-`diffpegasus rocket diagnose FOLDER/rocket.toml --json` on each flight and writes
-experiments/results/rocket_other_airframe.json (`--out NAME` for another name): the
-planted CD (drag.csv) against the fit's 95% band at each knot of `summary.json`'s
+`diffpegasus rocket diagnose FOLDER/rocket.toml --json` on each flight and adds them
+to experiments/results/rocket_other_airframe.json (`--out NAME` for another name):
+the planted CD (drag.csv) against the fit's 95% band at each knot of `summary.json`'s
 table inside the flight's Mach range (with the sensors' spread, and the noise's
-alone), the reconstructed apogee against the log's, and what diagnose names.
+alone), the reconstructed apogee against the log's, and what diagnose names. `own`
+diagnoses the model's own flight of each FOLDER's rocket with its noise (optionally
+the fixtures' barometer lag filter on it); `table` prints the page's table.
 """
 
 import json
@@ -120,12 +124,26 @@ FLIGHTS = {
     "calisto-wind6-s45": dict(BASE, wind=(0.0, -6.0), seed=45),
     "small-clean-s46": dict(BASE, drag=SMALL_DRAG, airframe="small", seed=46),
 }
+SMALL = dict(BASE, drag=SMALL_DRAG, airframe="small")
+FLIGHTS.update(
+    {
+        "small-thrust095-s47-20hz": dict(SMALL, scale=0.95, seed=47, rate=20.0),
+        "small-lag01-s48": dict(SMALL, lag=0.1, seed=48),
+        # a cross wind from the north (the rail heads east)
+        "small-wind6-s49": dict(SMALL, wind=(0.0, -6.0), seed=49),
+    }
+)
 # the same flights, seeds and noise through the exact standard-atmosphere pressure
 # instead of RocketPy's table (the fixtures' `smooth_pressure`): are the barometer's
 # alarms on the clean flights the table's?
 SMOOTH = {
     f"{name}-smooth": dict(FLIGHTS[name], smooth_pressure=True)
-    for name in ("calisto-clean-s41", "calisto-clean-s42-20hz", "calisto-lag01-s44")
+    for name in (
+        "calisto-clean-s41",
+        "calisto-clean-s42-20hz",
+        "calisto-lag01-s44",
+        "calisto-thrust095-s43",
+    )
 }
 FLIGHTS.update(SMOOTH)
 
@@ -508,9 +526,12 @@ def planted_text(truth):
         parts.append(f"barometer lag {truth['baro_lag_s']} s")
     if truth["static_error"]:
         parts.append(f"static-pressure error {truth['static_error']}")
-    wind = np.hypot(truth["wind_east_m_s"], truth["wind_north_m_s"])
-    if wind:
-        parts.append(f"wind {wind:g} m/s")
+    u, v = truth["wind_east_m_s"], truth["wind_north_m_s"]
+    if u or v:
+        # the direction it blows from, as a compass point
+        frm = np.degrees(np.arctan2(-u, -v)) % 360
+        point = ("N", "NE", "E", "SE", "S", "SW", "W", "NW")[round(frm / 45) % 8]
+        parts.append(f"wind {np.hypot(u, v):g} m/s from {point}")
     return ", ".join(parts) or "nothing"
 
 
@@ -585,7 +606,8 @@ def own(folders, out_name, lag=0.0):
     import diffpegasus.rocket as dr
     from diffpegasus import read_rocket_log
 
-    results = {}
+    path = ROOT / "experiments" / "results" / f"{out_name}.json"
+    results = json.loads(path.read_text()) if path.exists() else {}
     for folder in map(pathlib.Path, folders):
         toml = folder / "rocket.toml"
         truth = tomllib.loads(toml.read_text())["truth"]
@@ -629,7 +651,6 @@ def own(folders, out_name, lag=0.0):
             diagnose_cli=cli("rocket", "diagnose", str(copy / "rocket.toml")),
         )
         print(copy.name, results[copy.name]["diagnose_cli"].get("named"), flush=True)
-    path = ROOT / "experiments" / "results" / f"{out_name}.json"
     path.write_text(json.dumps(results, indent=1, default=str) + "\n")
 
 
