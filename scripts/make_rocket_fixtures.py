@@ -300,11 +300,57 @@ def rocketpy_flight(spec):
     return env, rocket, fl
 
 
-def flight(name, spec, out=OUT):
+# the fixtures' pad (RocketPy's site and rail in `rocketpy_flight`, the rocket.toml's
+# [launch]) and its facts for the rocket.toml ([rocket], [geometry], [motor])
+SITE = dict(latitude=39.39, elevation=150, rail_length=12, inclination=84, heading=133)
+FACTS = f"""\
+[rocket]
+mass_without_motor_kg = 8.2
+radius_m = 0.052
+I11_kgm2 = 4.4
+center_of_mass_without_motor_m = 1.2
+rail_buttons_m = [1.1, 0.3]
+
+[geometry]
+nose = {{ kind = "vonKarman", length_m = 0.52, position_m = 2.72 }}
+fins = {{ n = 4, span_m = 0.1, root_chord_m = 0.2, tip_chord_m = 0.07, position_m = 0.21 }}
+motor_center_of_mass_m = 0.25
+nozzle_position_m = 0.0
+motor_inertia_kgm2 = {MOTOR_INERTIA}
+
+[motor]
+thrust_file = "motor.csv"
+propellant_initial_mass_kg = 1.9
+dry_mass_kg = 1.6
+"""
+
+
+def write_motor(folder):
+    """The fixtures' catalogue thrust curve as `motor.csv` (s, N)."""
+    np.savetxt(folder / "motor.csv", THRUST, delimiter=",", fmt="%.4f")
+
+
+def flight(
+    name,
+    spec,
+    out=OUT,
+    build=rocketpy_flight,
+    facts=FACTS,
+    motor=write_motor,
+    site=SITE,
+    source="scripts/make_rocket_fixtures.py",
+):
+    """Fly `spec` in RocketPy and write its folder `out/name` (`rocket.toml`, the
+    motor's file, `drag.csv`, `log.csv`). By default the fixtures' rocket; another
+    airframe gives `build(spec) -> (env, rocket, flight)`, its rocket.toml sections
+    `facts` ([rocket], [geometry], [motor]), `motor(folder)` writing the motor's
+    file, its pad `site` (latitude deg, elevation m, rail length m, inclination and
+    heading deg, as `build` flies them) and the script named in the file's header."""
     folder = out / name
     folder.mkdir(parents=True, exist_ok=True)
-    np.savetxt(folder / "motor.csv", THRUST, delimiter=",", fmt="%.4f")
-    env, rocket, fl = rocketpy_flight(spec)
+    motor(folder)
+    env, rocket, fl = build(spec)
+    elevation = site["elevation"]
     u, v = spec["wind"]
     mach = np.round(np.arange(0.0, 1.2001, 0.01), 2)
     flown_cd = np.array([float(rocket.power_off_drag(m)) for m in mach])
@@ -330,7 +376,7 @@ def flight(name, spec, out=OUT):
         for i in range(1, len(p_read)):
             p_read[i] = k * p_read[i - 1] + (1 - k) * p_read[i]
     h_std = 44330.77 * (1 - (p_read / 101325.0) ** 0.190263)
-    pad = 44330.77 * (1 - (env.pressure(150.0) / 101325.0) ** 0.190263)
+    pad = 44330.77 * (1 - (env.pressure(elevation) / 101325.0) ** 0.190263)
     alt = h_std - pad + rng.normal(0, spec["noise"][0], len(t))
     # specific force along the body axis: body z from the attitude quaternion
     acc = np.array([[fl.ax(s), fl.ay(s), fl.az(s)] for s in t])
@@ -390,42 +436,24 @@ def flight(name, spec, out=OUT):
         ends = "sampled to its apogee (the last row)"
         stated = f"apogee_s = {fmt % t[-1]}\n"
     (folder / "rocket.toml").write_text(f"""\
-# A flight simulated by RocketPy {__import__("importlib.metadata").metadata.version("rocketpy")} (scripts/make_rocket_fixtures.py)
+# A flight simulated by RocketPy {__import__("importlib.metadata").metadata.version("rocketpy")} ({source})
 name = "sim-{name}"
 coordinate_system = "tail_to_nose"
 
-[rocket]
-mass_without_motor_kg = 8.2
-radius_m = 0.052
-I11_kgm2 = 4.4
-center_of_mass_without_motor_m = 1.2
-rail_buttons_m = [1.1, 0.3]
-
-[geometry]
-nose = {{ kind = "vonKarman", length_m = 0.52, position_m = 2.72 }}
-fins = {{ n = 4, span_m = 0.1, root_chord_m = 0.2, tip_chord_m = 0.07, position_m = 0.21 }}
-motor_center_of_mass_m = 0.25
-nozzle_position_m = 0.0
-motor_inertia_kgm2 = {MOTOR_INERTIA}
-
-[motor]
-thrust_file = "motor.csv"
-propellant_initial_mass_kg = 1.9
-dry_mass_kg = 1.6
-
+{facts}
 [aero]
 power_off_drag_file = "drag.csv"
 power_on_drag_file = "drag.csv"
 
 [launch]
-latitude_deg = 39.39
-elevation_m = 150
-rail_length_m = 12
-inclination_deg = 84
-heading_deg = 133
+latitude_deg = {site["latitude"]}
+elevation_m = {elevation}
+rail_length_m = {site["rail_length"]}
+inclination_deg = {site["inclination"]}
+heading_deg = {site["heading"]}
 
 [atmosphere]
-surface_temperature_K = {float(env.temperature(150.0)):.3f}
+surface_temperature_K = {float(env.temperature(elevation)):.3f}
 
 [log]
 # RocketPy's export: its time from its start (the motor's ignition, which the fit's
@@ -441,7 +469,7 @@ accel_axial = {{ column = "accel_axial_m_s2", unit = "m/s^2", gravity = "include
 liftoff_s = 0.0
 {stated}
 [results]
-recorded_apogee_agl_m = {float(fl.apogee) - 150.0:.2f}
+recorded_apogee_agl_m = {float(fl.apogee) - elevation:.2f}
 
 [truth]
 thrust_scale = {spec["scale"]}
@@ -451,10 +479,10 @@ baro_lag_s = {spec["lag"]}
 static_error = {spec["static"]}
 noise_altitude_m = {spec["noise"][0]}
 noise_accel_m_s2 = {spec["noise"][1]}
-apogee_geometric_agl_m = {float(fl.apogee) - 150.0:.3f}
+apogee_geometric_agl_m = {float(fl.apogee) - elevation:.3f}
 max_mach = {float(fl.max_mach_number):.4f}
 {chutes}""")
-    print(name, "apogee", fl.apogee - 150.0, "max Mach", fl.max_mach_number)
+    print(name, "apogee", fl.apogee - elevation, "max Mach", fl.max_mach_number)
 
 
 if __name__ == "__main__":

@@ -120,6 +120,14 @@ KNOWN_FAILING: dict[str, str] = {
         "accelerometer scale of 1.0015 is named (25.4 against 14.0; "
         "experiments/rocket_descent.py table:...)"
     ),
+    "tests/test_rocket_baro.py::test_first_order_barometer_lag_is_named_alone": (
+        "the model's own flight of the clean rocket with a 0.1 s first-order lag "
+        "on its barometer's pressure names the lag and then a static-pressure "
+        "error it does not have (104.7 against 9.7, round 2): the model's lag is "
+        "a delay, the reading tau times the climb rate low, which a first-order "
+        "filter is to first order in tau only; the same on RocketPy's Calisto and "
+        "a small rocket (docs/rockets/simulated.md, Another airframe)"
+    ),
     "tests/test_fem_pegasus.py::test_diagnose_names_turbulence_on_a_turbulent_"
     "launch_vehicle_flight": (
         "the filter does not explain this record: with the coloured gust state "

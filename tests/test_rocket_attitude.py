@@ -72,6 +72,54 @@ def test_barrowman_against_rocketpy_for_the_fixture_rocket():
         assert abs(frame.center_of_pressure(mach) - cp) < 1e-5
 
 
+CALISTO = """\
+coordinate_system = "tail_to_nose"
+
+[rocket]
+mass_without_motor_kg = 14.426
+radius_m = 0.0635
+I11_kgm2 = 6.321
+center_of_mass_without_motor_m = 0.0
+
+[geometry]
+nose = { kind = "vonKarman", length_m = 0.55829, position_m = 1.278 }
+fins = { n = 4, span_m = 0.11, root_chord_m = 0.12, tip_chord_m = 0.06, position_m = -1.04956 }
+tail = { top_radius_m = 0.0635, bottom_radius_m = 0.0435, length_m = 0.06, position_m = -1.194656 }
+motor_center_of_mass_m = -0.8884
+
+[motor]
+thrust_file = "motor.eng"
+propellant_initial_mass_kg = 2.9559
+dry_mass_kg = 1.815
+
+[launch]
+elevation_m = 1400
+rail_length_m = 5.2
+inclination_deg = 85
+heading_deg = 0
+"""
+
+
+def test_barrowman_against_rocketpy_for_calisto(tmp_path):
+    """RocketPy's documented example rocket (Calisto: another body, nose and fins
+    than the fixtures', below the rocket's centre of mass without motor, and a boat
+    tail), as experiments/rocket_other_airframe.py writes it: RocketPy 1.13's
+    `total_lift_coeff_der` and `cp_position` for that geometry, 7.211108, 7.703326,
+    8.206127 per rad; -0.499426, -0.537773, -0.572194 m at Mach 0, 0.6, 0.8."""
+    (tmp_path / "motor.eng").write_text(
+        "M1670 75 757 0 3.101 5.231 CTI\n0.1 2000\n3.0 1650\n3.9 0\n"
+    )
+    (tmp_path / "rocket.toml").write_text(CALISTO)
+    frame = dr.read_rocket(tmp_path / "rocket.toml", attitude=True).airframe
+    for mach, cna, cp in (
+        (0.0, 7.211108, -0.499426),
+        (0.6, 7.703326, -0.537773),
+        (0.8, 8.206127, -0.572194),
+    ):
+        assert abs(float(jnp.sum(frame.cn_alpha(mach))) - cna) < 1e-5
+        assert abs(frame.center_of_pressure(mach) - cp) < 1e-5
+
+
 def test_restoring_and_damping_moments_against_their_scalar_formulas():
     """Off the rail at 200 m/s, burned out, the axis 2 deg off the velocity: the
     angular acceleration is `q S sum(CNa_i l_i) sin(a) / I` turning the axis towards
