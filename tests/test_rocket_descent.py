@@ -343,3 +343,36 @@ def test_a_held_opening_past_the_next_event_is_refused_in_one_line():
         start_openings(late, record, deploy)
     assert "next parachute's event" in str(e.value) and "\n" not in str(e.value)
     assert start_openings(rocket, record, deploy)["open_drogue"] == 1.0
+
+
+def test_an_opening_time_below_0_is_refused_and_never_stepped_to():
+    """A canopy full before its event fired is no parachute's (at an opening below
+    -0.1 s, half the ramp, the model's canopy is full at its event whatever the
+    opening: the cost is flat in it). Through the public API an opening time below
+    0 (and NaN), the drogue's or the main's, is refused in one line naming it, by
+    the simulation and the fit alike, before anything is compiled; 0, a canopy
+    full at once, is allowed. A fit's step below 0 finds the model's outputs NaN,
+    which the engine rejects; at 0 and just above, finite."""
+    import diffpegasus as dp
+
+    toml = FOLDER / "rocket.toml"
+    problem = dr.prepare(dr.read_rocket(toml), dp.read_rocket_log(toml), descent=True)
+    for name, value in (("open_main", -0.5), ("open_main", float("nan"))) + (
+        ("open_drogue", -1e-3),
+    ):
+        for run in (dr.simulate_flight, dr.fit_rocket):
+            with pytest.raises(dp.LogError) as err:
+                run(problem, start={name: value})
+            line = str(err.value)
+            assert "\n" not in line and f"{name} = {value:g}:" in line
+            assert "opening time after its event (s) must be 0 or above" in line
+    model = dr.rocket_model(
+        problem.flight, problem.outputs, dict(problem.start, open_main=0.0), ()
+    )
+    x, u = jnp.asarray(problem.flight.initial_state()), jnp.ones(3)
+    outputs = jax.jit(model.g)
+    for opening, finite in ((-1e-3, False), (-2.0, False), (0.0, True), (1e-3, True)):
+        theta = np.asarray(model.start)
+        theta[model.parameters.index("open_main")] = opening
+        y = np.asarray(outputs(0.5, x, u, jnp.asarray(theta)))
+        assert np.all(np.isfinite(y)) if finite else np.all(np.isnan(y))
