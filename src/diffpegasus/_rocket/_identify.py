@@ -567,8 +567,8 @@ def fit_rocket(
     - `drag`: `"knots"` (the knots estimated) or `"scale"` (the start curve held,
       one scale factor estimated: what a short log supports).
     - `start`: start values by name, over the problem's. A value no rocket has (a
-      positive effect at 0 or below, an airframe at 0 kg or less; see
-      `unphysical`) raises a `LogError` naming it.
+      positive effect at 0 or below, an airframe at 0 kg or less, a parachute's
+      opening time below 0; see `unphysical`) raises a `LogError` naming it.
     - `shooting_interval`: s between multiple-shooting nodes (one as long as the
       record: single shooting alone).
     - `hold_temperature`: hold the pad temperature and lapse rate even with an
