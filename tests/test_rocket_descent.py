@@ -376,3 +376,27 @@ def test_an_opening_time_below_0_is_refused_and_never_stepped_to():
         theta[model.parameters.index("open_main")] = opening
         y = np.asarray(outputs(0.5, x, u, jnp.asarray(theta)))
         assert np.all(np.isfinite(y)) if finite else np.all(np.isnan(y))
+
+
+def test_an_estimated_opening_starts_inside_its_bound():
+    """RocketPy's main full 2.5 s after its trigger, its event stated 3.5 s after
+    the trigger: the log reads the canopy full before the event (the reading below
+    0). The main's opening starts at 0.05 s, inside the bound, not on it: from 0,
+    where the data would take it below, every step of the fit was rejected and it
+    stopped with every parameter at its start (single shooting: det(R) 5.5e4,
+    `python experiments/rocket_open_bound.py --single` before the floor). The
+    drogue's, held, stays at the file's 1 s."""
+    import dataclasses
+
+    import diffpegasus as dp
+    from diffpegasus._rocket._descent import descent_record, start_openings
+
+    toml = DATA / "rocket_descent/descent-open-c-s9-20hz/rocket.toml"
+    rocket, log = dr.read_rocket(toml), dp.read_rocket_log(toml)
+    event = log.events["main"]
+    log.events["main"] = dataclasses.replace(event, t=event.t + 3.5)
+    record, _, deploy = descent_record(log, rocket)
+    assert start_openings(rocket, record, deploy) == {
+        "open_drogue": 1.0,
+        "open_main": 0.05,
+    }
