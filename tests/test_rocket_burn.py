@@ -1,6 +1,7 @@
 """The motor's burn time (`burn_scale`): the thrust curve stretched in time at the
 same impulse, on closed-form curves, its gradient against finite differences, and
-the rule deciding when a fit estimates it."""
+the rule deciding when a fit estimates it; the bounds of the effects positive by
+their meaning, which no start or step may cross, and a fit stopped against one."""
 
 import dataclasses
 import pathlib
@@ -9,6 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+import diffpegasus as dp
 from diffpegasus import read_rocket_log, rocket as dr
 from diffpegasus._vehicle._rocket._motor import motor_at
 
@@ -186,3 +188,45 @@ def test_no_start_or_step_where_the_rocket_is_unphysical():
         theta[model.parameters.index("burn_scale")] = stretch
         y = np.asarray(outputs(0.5, x, u, jnp.asarray(theta)))
         assert np.all(np.isfinite(y)) if finite else np.all(np.isnan(y))
+
+
+def test_a_fit_stopped_against_a_bound_is_reported_naming_the_effect():
+    """The clean RocketPy flight's first 6 s (boost and early coast), its
+    accelerometer's sign flipped: its scale's optimum is near -1, past the bound at
+    0 that no step may cross. The fit (single shooting; the drag's scale, the
+    thrust scale, the accelerometer's offset and scale estimated, the motor's
+    start and burn and the day's air held) stops against the bound (measured at
+    1.3e-8, the data taking it to -1.02) and is reported `nonfinite`, one line
+    naming the effect. The same fit of the log as read is not flagged: it
+    converges, its scale near 1 (measured 1.0156 +/- 0.0058)."""
+    rocket = dr.read_rocket(SIM / "clean" / "rocket.toml")
+    problem = dr.prepare(rocket, read_rocket_log(SIM / "clean" / "rocket.toml"))
+    rec = problem.record
+    m = rec.t <= 6.0
+
+    def fitted(sign):
+        measured = rec.measured[m].copy()
+        measured[:, 1] *= sign
+        short = type(rec)(rec.t[m], rec.inputs[m], measured, x0=rec.x0)
+        return dr.fit_rocket(
+            dataclasses.replace(problem, record=short),
+            free=("accel_scale",),
+            drag="scale",
+            hold=("motor_time", "burn_scale"),
+            hold_temperature=True,
+            shooting_interval=10.0,  # one segment: the record is 6.3 s long
+            spread=False,
+            throw=False,
+        )
+
+    flipped = fitted(-1.0)
+    assert flipped.fit.result == dp.RESULTS.nonfinite and not flipped.fit.converged
+    line = flipped.fit.reason
+    assert "\n" not in line and line.startswith("accel_scale stopped against its bound")
+    assert "accel_scale = -" in line and "must be above 0" in line
+    value, _ = flipped.estimate("accel_scale")
+    assert 0.0 < value < 1e-3
+    ordinary = fitted(1.0)
+    assert ordinary.fit.converged and ordinary.fit.reason == ""
+    value, stderr = ordinary.estimate("accel_scale")
+    assert abs(value - 1.0) < 0.03 and stderr < 0.01  # measured 1.0156 +/- 0.0058

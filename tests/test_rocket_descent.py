@@ -343,3 +343,60 @@ def test_a_held_opening_past_the_next_event_is_refused_in_one_line():
         start_openings(late, record, deploy)
     assert "next parachute's event" in str(e.value) and "\n" not in str(e.value)
     assert start_openings(rocket, record, deploy)["open_drogue"] == 1.0
+
+
+def test_an_opening_time_below_0_is_refused_and_never_stepped_to():
+    """A canopy full before its event fired is no parachute's (at an opening below
+    -0.1 s, half the ramp, the model's canopy is full at its event whatever the
+    opening: the cost is flat in it). Through the public API an opening time below
+    0 (and NaN), the drogue's or the main's, is refused in one line naming it, by
+    the simulation and the fit alike, before anything is compiled; 0, a canopy
+    full at once, is allowed. A fit's step below 0 finds the model's outputs NaN,
+    which the engine rejects; at 0 and just above, finite."""
+    import diffpegasus as dp
+
+    toml = FOLDER / "rocket.toml"
+    problem = dr.prepare(dr.read_rocket(toml), dp.read_rocket_log(toml), descent=True)
+    for name, value in (("open_main", -0.5), ("open_main", float("nan"))) + (
+        ("open_drogue", -1e-3),
+    ):
+        for run in (dr.simulate_flight, dr.fit_rocket):
+            with pytest.raises(dp.LogError) as err:
+                run(problem, start={name: value})
+            line = str(err.value)
+            assert "\n" not in line and f"{name} = {value:g}:" in line
+            assert "opening time after its event (s) must be 0 or above" in line
+    model = dr.rocket_model(
+        problem.flight, problem.outputs, dict(problem.start, open_main=0.0), ()
+    )
+    x, u = jnp.asarray(problem.flight.initial_state()), jnp.ones(3)
+    outputs = jax.jit(model.g)
+    for opening, finite in ((-1e-3, False), (-2.0, False), (0.0, True), (1e-3, True)):
+        theta = np.asarray(model.start)
+        theta[model.parameters.index("open_main")] = opening
+        y = np.asarray(outputs(0.5, x, u, jnp.asarray(theta)))
+        assert np.all(np.isfinite(y)) if finite else np.all(np.isnan(y))
+
+
+def test_an_estimated_opening_starts_inside_its_bound():
+    """RocketPy's main full 2.5 s after its trigger, its event stated 3.5 s after
+    the trigger: the log reads the canopy full before the event (the reading below
+    0). The main's opening starts at 0.05 s, inside the bound, not on it: from 0,
+    where the data would take it below, every step of the fit was rejected and it
+    stopped with every parameter at its start (single shooting: det(R) 5.5e4,
+    `python experiments/rocket_open_bound.py --single` before the floor). The
+    drogue's, held, stays at the file's 1 s."""
+    import dataclasses
+
+    import diffpegasus as dp
+    from diffpegasus._rocket._descent import descent_record, start_openings
+
+    toml = DATA / "rocket_descent/descent-open-c-s9-20hz/rocket.toml"
+    rocket, log = dr.read_rocket(toml), dp.read_rocket_log(toml)
+    event = log.events["main"]
+    log.events["main"] = dataclasses.replace(event, t=event.t + 3.5)
+    record, _, deploy = descent_record(log, rocket)
+    assert start_openings(rocket, record, deploy) == {
+        "open_drogue": 1.0,
+        "open_main": 0.05,
+    }

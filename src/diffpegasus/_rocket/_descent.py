@@ -22,6 +22,11 @@ from ._data import apogee_time, ascent_record, baro_channel, MAX_STEP
 GROUND = 30.0  # m above the pad: below this the record ends
 LANDING_MARGIN = 2.0  # s before a landing event
 SETTLE = 3.0  # s after a deployment before a stage's fall rate is read
+# s: the least opening time an estimated one starts from (one step of the 20 Hz
+# grid). The bound at 0 rejects every step that takes it below: from 0 itself,
+# where the data would take it below, every step the damping shortens still does,
+# and the fit stops where it started, every parameter at its start.
+OPEN_FLOOR = 0.05
 
 
 def deployments(log, rocket) -> tuple[float, ...]:
@@ -148,7 +153,8 @@ def start_openings(rocket, record, deploy) -> dict:
     ([`fall_rates`][]): `(drop - v_own SETTLE) / (v_before - v_own)`, within 0 to
     `SETTLE` s (a fit started from an opening inside the seconds left out, far
     from the log's, can stop where the drag area takes the drop instead). Else the
-    file's `lag_s`, else 0."""
+    file's `lag_s`, else 0. A later stage's (estimated, [`estimated_openings`][])
+    starts at `OPEN_FLOOR` at least: inside the bound at 0, not on it."""
     from .._vehicle._rocket._descent import OPEN_NAMES
 
     lags = tuple(rocket.parachute_lags) + (None,) * len(deploy)
@@ -182,6 +188,8 @@ def start_openings(rocket, record, deploy) -> dict:
         )
         lag = (drop - v1 * SETTLE) / (v0 - v1)
         out[OPEN_NAMES[k]] = float(np.clip(lag, 0.0, SETTLE))
+    for k in range(1, len(deploy)):
+        out[OPEN_NAMES[k]] = max(out[OPEN_NAMES[k]], OPEN_FLOOR)
     return out
 
 

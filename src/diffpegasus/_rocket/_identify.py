@@ -567,8 +567,8 @@ def fit_rocket(
     - `drag`: `"knots"` (the knots estimated) or `"scale"` (the start curve held,
       one scale factor estimated: what a short log supports).
     - `start`: start values by name, over the problem's. A value no rocket has (a
-      positive effect at 0 or below, an airframe at 0 kg or less; see
-      `unphysical`) raises a `LogError` naming it.
+      positive effect at 0 or below, an airframe at 0 kg or less, a parachute's
+      opening time below 0; see `unphysical`) raises a `LogError` naming it.
     - `shooting_interval`: s between multiple-shooting nodes (one as long as the
       record: single shooting alone).
     - `hold_temperature`: hold the pad temperature and lapse rate even with an
@@ -629,8 +629,13 @@ def fit_rocket(
     # the lowest det(R) flown from the pad, converged or not: a fit still creeping
     # down a valley when its budget ran out lies below one that converged in
     # another basin (a simulated clean flight: 0.029 unconverged against 1.11
-    # converged), and its result code says it did not converge
-    label = min(tried, key=lambda k: flown[k])
+    # converged), and its result code says it did not converge. At a tie the
+    # converged one: single shooting from a multiple-shooting fit stopped against a
+    # bound moves nothing (every step crosses it), and the multiple-shooting fit
+    # before it, the same parameters, ends singular where its nodes take up what the
+    # bounded parameter moves (a main's opening within the seconds left out after
+    # its event), so that the stop against the bound went unreported
+    label = min(tried, key=lambda k: (flown[k], not tried[k].converged))
     result = against_bound(problem.flight, tried[label])
     if throw and not result.converged:
         raise RuntimeError(result.reason)

@@ -17,7 +17,7 @@ drag area, the drag coefficient times the reference area of the canopy (and the
 airframe tumbling under it); the drag uses its magnitude, so that a fit stepping
 through zero sees a free fall, not a drag pushing the rocket down that grows
 without bound. `open_drogue`, `open_main` (s): each stage's opening time after
-its event.
+its event, 0 or above (`NONNEGATIVE` in `_model`: no start below 0, no fit's step).
 """
 
 import equinox as eqx

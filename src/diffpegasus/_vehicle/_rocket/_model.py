@@ -116,6 +116,16 @@ POSITIVE = {
     "accel_scale": "the accelerometer's reading per m/s^2",
     "temperature": "the pad's temperature (K)",
 }
+# The parachutes' opening times after their events (with a descent), 0 or above: a
+# canopy full at its event is physical (it opens at once), one full before its
+# event fired is not: the ramp is cut at the event, so below 0 the opening moves
+# only what is left of the ramp, and below -FILL/2 nothing (the canopy full at its
+# event, the cost flat in it). No start below 0 and no step there, as the
+# `POSITIVE` effects.
+NONNEGATIVE = {
+    "open_drogue": "the drogue's opening time after its event (s)",
+    "open_main": "the main's opening time after its event (s)",
+}
 
 
 class Flight(eqx.Module):
@@ -282,11 +292,19 @@ def airframe_mass(rocket: Rocket, mass_offset):
     return rocket.dry_mass - rocket.motor.dry_mass + mass_offset
 
 
+def _openings(flight: Flight) -> tuple[str, ...]:
+    """The `NONNEGATIVE` parameters `flight` has: its parachutes' opening times."""
+    return () if flight.descent is None else flight.descent.openings
+
+
 def physical(flight: Flight, p):
     """Whether the parameters `p` (name -> value) describe a rocket (traced bool):
-    every `POSITIVE` effect above 0 and the rocket without its motor heavier
+    every `POSITIVE` effect above 0, every parachute's opening time (with a
+    descent; `NONNEGATIVE`) 0 or above and the rocket without its motor heavier
     than 0 kg."""
-    ok = jnp.all(jnp.stack([jnp.asarray(p[k]) > 0 for k in POSITIVE]))
+    ok = [jnp.asarray(p[k]) > 0 for k in POSITIVE]
+    ok += [jnp.asarray(p[k]) >= 0 for k in _openings(flight)]
+    ok = jnp.all(jnp.stack(ok))
     return ok & (airframe_mass(flight.rocket, p["mass_offset"]) > 0)
 
 
@@ -296,6 +314,9 @@ def unphysical(flight: Flight, values: dict) -> str:
     for k, meaning in POSITIVE.items():
         if not values[k] > 0:  # NaN too
             return f"{k} = {values[k]:g}: {meaning} must be above 0"
+    for k in _openings(flight):
+        if not values[k] >= 0:  # NaN too
+            return f"{k} = {values[k]:g}: {NONNEGATIVE[k]} must be 0 or above"
     mass = airframe_mass(flight.rocket, values["mass_offset"])
     if not mass > 0:
         return (
