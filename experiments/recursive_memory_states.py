@@ -150,6 +150,7 @@ def main():
         "check_times_s": checks,
         "parameters": analyse(est, states, truth, regs[0].parameters, checks),
         "weighted_chi_square": weighted_chi_square(),
+        "block_counts": block_score_counts(est, h, y, o, theta0, truth),
     }
     (args.out / "summary.json").write_text(json.dumps(summary, indent=1))
     if args.keep_states:
@@ -197,6 +198,59 @@ def weighted_chi_square(ratios=(0.3, 0.5, 0.6, 0.77, 0.9), draws=200_000, seed=0
     return out
 
 
+def block_score_counts(est, h, y, o, theta0, truth, sizes=(32, 64, 128)):
+    """Satterthwaite's count of blocks two ways, per block length and check
+    (600, 1000, 1250, 1500 samples absorbed): from the spread over the flights
+    of the block scores at the truth, projected on each parameter (`var_f (P
+    U_b)_a`), and from the information (`(P C_b P)_aa`, the estimator's way),
+    with each sample's score `a_i - G_i theta` and information `G_i` as the
+    estimator weighs and filters them (taken from its normal equations)."""
+    lam = est.forgetting
+
+    def one(a):
+        def step(s, x):
+            s2 = est.update(s, *x)
+            return s2, (s2.rhs - lam * s.rhs, s2.info - lam * s.info)
+
+        _, out = jax.lax.scan(step, est.init(theta0), a)
+        return out
+
+    ai, gi = (np.asarray(v) for v in jax.jit(lambda a: jax.lax.map(one, a))((h, y, o)))
+    nf, n, p = ai.shape
+    res = []
+    for size in sizes:
+        for k in (600, 1000, 1250, 1500):
+            if k > n:
+                continue
+            w = lam ** (k - 1 - np.arange(k))
+            sc = ai[:, :k] - np.einsum("fkab,b->fka", gi[:, :k], truth)
+            blk = np.arange(k) // size
+            u = np.stack(
+                [np.einsum("k,fka->fa", w[blk == b], sc[:, blk == b])
+                 for b in range(blk.max() + 1)], 1
+            )  # fmt: skip
+            c = np.stack(
+                [np.einsum("k,fkab->fab", w[blk == b] ** 2, gi[:, :k][:, blk == b])
+                 for b in range(blk.max() + 1)], 1
+            )  # fmt: skip
+            pm = np.linalg.inv(np.einsum("k,fkab->fab", w, gi[:, :k]))
+            var_b = np.einsum("fab,fnb->fna", pm, u).var(0)
+            c_info = np.einsum("fab,fnbc,fca->fna", pm, c, pm)
+            res.append(
+                {
+                    "block": size,
+                    "samples": k,
+                    "count_from_scores": (
+                        var_b.sum(0) ** 2 / (var_b**2).sum(0)
+                    ).tolist(),
+                    "count_from_information": (c_info.sum(1) ** 2 / (c_info**2).sum(1))
+                    .mean(0)
+                    .tolist(),
+                }
+            )
+    return res
+
+
 def analyse(est, states, truth, names, checks):
     """The summary (see the module docstring) from the states `(flights, checks)`."""
     nf, nc = states.count.shape
@@ -217,12 +271,14 @@ def analyse(est, states, truth, names, checks):
             e.halfwidth,
             est._variance(state, pm, j),
             blocks[j],
+            jax.vmap(lambda lev: est._variance(state, pm, lev))(jnp.arange(est.levels)),
         )
 
-    theta, sdc, dof, hw, vj, blocks = (
+    theta, sdc, dof, hw, vj, blocks, ladder = (
         np.asarray(a).reshape(nf, nc, -1)
         for a in jax.jit(lambda s: jax.lax.map(parts, s))(flat)
     )
+    ladder = ladder.reshape(nf, nc, est.levels, -1)
     err = theta - truth
     rng = np.random.default_rng(1)
     perms = [rng.permutation(nf) for _ in range(200)]
@@ -240,6 +296,19 @@ def analyse(est, states, truth, names, checks):
             "coverage_bounds_shuffled": shuffled.tolist(),
             "scatter_over_rms_bound": (
                 err[..., a].std(0) / np.sqrt(np.mean(sdc[..., a] ** 2, 0))
+            ).tolist(),
+            "scatter_over_rms_longest_blocks": (
+                err[..., a].std(0) / np.sqrt(np.mean(vj[..., a], 0))
+            ).tolist(),
+            "extrapolated_fraction": np.mean(
+                np.abs(sdc[..., a] ** 2 - vj[..., a]) > 1e-12 * vj[..., a], 0
+            ).tolist(),
+            "correlation_squared_error_bound": [
+                float(np.corrcoef(err[:, c, a] ** 2, sdc[:, c, a] ** 2)[0, 1])
+                for c in range(nc)
+            ],
+            "ladder_over_scatter_squared": (
+                ladder[..., a].mean(0) / err[..., a].var(0)[:, None]
             ).tolist(),
             "dof_mean": dof[..., a].mean(0).tolist(),
             "blocks_mean": blocks[..., a].mean(0).tolist(),
