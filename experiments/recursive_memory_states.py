@@ -15,7 +15,12 @@ taken apart on them, per parameter and check:
 - a weighted sum of one-degree chi-squares with geometric weights (the
   forgetting's shape): Satterthwaite's count, the `nu` of its 10% quantile, and
   the coverage of a Student-t band at Satterthwaite's count for an independent
-  Gaussian error (200 000 draws).
+  Gaussian error (200 000 draws);
+- in-sample, the coverage of the Student-t band with each flight's `dof` scaled
+  by the check's lower-tail `nu` over the mean `dof` (what a count of the lower
+  tail could reach; tuned on these flights, not a method);
+- the block counts from the block scores at the truth against those from the
+  information, and the ladder's mean bound over the scatter's square.
 
 Run: `python experiments/recursive_memory_states.py [--memory 10 | --memory 0]
 [--rate 100] [--noise-scale 2] ... --out DIR`; writes
@@ -311,6 +316,23 @@ def analyse(est, states, truth, names, checks):
                 ladder[..., a].mean(0) / err[..., a].var(0)[:, None]
             ).tolist(),
             "dof_mean": dof[..., a].mean(0).tolist(),
+            # in-sample: each flight's dof scaled by the check's lower-tail nu
+            # over the mean dof (what a count of the lower tail could reach)
+            "coverage_student_t_lower_tail_dof": [
+                float(
+                    np.mean(
+                        np.abs(err[:, c, a])
+                        <= scipy.stats.t.ppf(
+                            0.975,
+                            dof[:, c, a]
+                            * nu_lower_tail(sdc[:, c, a] ** 2)
+                            / dof[:, c, a].mean(),
+                        )
+                        * sdc[:, c, a]
+                    )
+                )
+                for c in range(nc)
+            ],
             "blocks_mean": blocks[..., a].mean(0).tolist(),
             "nu_lower_tail_bound": [
                 nu_lower_tail(sdc[:, c, a] ** 2) for c in range(nc)
