@@ -696,3 +696,49 @@ def test_fourier_bound_follows_a_rising_residual_spectrum():
     )
     # measured 97.7%, 96.3% (flat-spectrum loss 100%, 96.3%)
     assert np.all((cover >= 0.92) & (cover <= 0.99)), cover
+
+
+def _share_dense(lam, size, count, seen=512):
+    """The extrapolated bound's share of the blocks, the quadratic form built
+    pair by pair in NumPy: the fine blocks of `size / 8` (newest partial first)
+    with their weights `g` and variances `v` under the forgetting, each level's
+    (8, 2, 1 fine blocks) centred sum of squares over its expected share,
+    combined `V(b) + (V(b/4) - V(b/8)) / 4`; Satterthwaite's count over the
+    effective number of blocks of `size`."""
+    fine = max(size // 8, 1)
+    partial, full = count % fine, count // fine
+    ages = [np.arange(partial)] + [
+        partial + m * fine + np.arange(fine) for m in range(min(full, seen))
+    ]
+    ages += [np.zeros(0)] * (seen + 1 - len(ages))
+    g = np.array([np.sum(lam**a) for a in ages])
+    v = np.array([np.sum(lam ** (2 * a)) for a in ages])
+    pos = count // fine - np.arange(len(g))
+    form = np.zeros((len(g), len(g)))
+    for group, coef in ((8, 1.0), (2, 0.25), (1, -0.25)):
+        same = (pos[:, None] // group) == (pos[None, :] // group)
+        gg, vg = same @ g, same @ v
+        share = g @ gg / g.sum() ** 2
+        scale = 1 - 2 * g @ vg / (g.sum() * v.sum()) + share
+        form += coef * (same - (gg[:, None] + gg[None, :]) / g.sum() + share) / scale
+        if group == 8:
+            blocks = v.sum() ** 2 / (v @ vg)
+    s = form * v[None, :]
+    return np.trace(s) ** 2 / np.trace(s @ s) / blocks
+
+
+@pytest.mark.parametrize(
+    "lam, size, count",
+    [(1.0, 256, 1500), (1.0, 64, 389), (0.998, 64, 1500), (0.998, 32, 1251),
+     (0.999, 512, 3001), (0.998, 8, 37), (0.99, 16, 700)],
+)  # fmt: skip
+def test_extrapolated_share_is_the_dense_form_written_here(lam, size, count):
+    # (the estimator extrapolates only from three blocks of `size` on: with
+    # fewer than one, the longest level's centred form is zero and both are
+    # undefined)
+    from diffpegasus._estimate import _recursive as rc
+
+    got = float(rc._extrapolated_share(lam, size, jnp.asarray(count)))
+    # the group sums against the 513 x 513 form: agree to rounding (measured
+    # 1e-15 relative)
+    np.testing.assert_allclose(got, _share_dense(lam, size, count), rtol=1e-10)

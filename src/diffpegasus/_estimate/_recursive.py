@@ -38,7 +38,8 @@ least three (effectively, counted from how the information is spread over them),
 extrapolated in one over the block length from the ladder's blocks of a quarter and
 an eighth of that length (a block misses the correlation across its ends), and
 the 95% band (`halfwidth`) the Student-t quantile at their number times the share
-Satterthwaite's count of that extrapolated bound keeps (`_extrapolated_share`).
+Satterthwaite's count of that extrapolated bound keeps (`_extrapolated_share`,
+summed over the groups of blocks: segment sums, not the pairs of blocks).
 For the
 recursive Fourier transform the state equations' two end terms (the
 differenced state's transform telescopes to its ends) are estimated with the
@@ -424,22 +425,44 @@ def _extrapolated_share(lam, size, count):
     pos = count // fine - jnp.arange(len(g))  # the newest (partial) first
     total_g = jnp.maximum(g.sum(), 1e-300)
     total_v = jnp.maximum(v.sum(), 1e-300)
-    form = 0.0
+    # The form is A_ij = sum_k a_k (E_k,ij - (gs_k,i + gs_k,j) / G + share_k),
+    # E_k the indicator of fine blocks i, j in the same group of grouping k and
+    # gs_k,i the weight of i's group: a group-diagonal part B = sum_k a_k E_k
+    # plus e_i + e_j. Its traces against S = diag(v) are sums over the groups
+    # (segment sums, O(blocks)), not over the 513 x 513 pairs: the groupings
+    # nest (a group of 2 lies in one of 8), so E_k E_l is the finer one's E.
+    groups = [group for group, _ in _EXTRAPOLATION]
+    nseg = len(g) // min(groups) + 2
+
+    def group_sum(x, group):
+        ids = pos // group - (pos[-1] // group)
+        return jax.ops.segment_sum(x, ids, num_segments=nseg)[ids]
+
+    a, e, diag = [], 0.0, 0.0
     for group, coef in _EXTRAPOLATION:
-        same = (pos[:, None] // group) == (pos[None, :] // group)
-        # each fine block's group's weight and variance, elementwise (see the
-        # note in _centering_loss)
-        g_group = jnp.sum(jnp.where(same, g[None, :], 0.0), axis=1)
-        v_group = jnp.sum(jnp.where(same, v[None, :], 0.0), axis=1)
+        g_group = group_sum(g, group)
         share = jnp.sum(g * g_group) / total_g**2
-        scale = 1.0 - 2.0 * jnp.sum(g * v_group) / (total_g * total_v) + share
-        centered = same - (g_group[:, None] + g_group[None, :]) / total_g + share
-        form = form + coef * centered / jnp.maximum(scale, 1e-300)
+        scale = 1.0 - 2.0 * jnp.sum(g * group_sum(v, group)) / (total_g * total_v)
+        scale = scale + share
+        ak = coef / jnp.maximum(scale, 1e-300)
+        a.append(ak)
+        e = e + ak * (0.5 * share - g_group / total_g)
+        diag = diag + ak
         if group == _EXTRAPOLATION[0][0]:
-            blocks = total_v**2 / jnp.maximum(jnp.sum(v * v_group), 1e-300)
-    nu = jnp.sum(jnp.diag(form) * v) ** 2 / jnp.maximum(
-        jnp.sum(form**2 * v[:, None] * v[None, :]), 1e-300
+            blocks = total_v**2 / jnp.maximum(jnp.sum(v * group_sum(v, group)), 1e-300)
+    trace = jnp.sum((diag + 2.0 * e) * v)
+    # sum_ij B_ij^2 v_i v_j, sum_ij B_ij e_i v_i v_j, sum_ij (e_i + e_j)^2 v_i v_j
+    bb = sum(
+        a[k] * a[m] * jnp.sum(v * group_sum(v, min(groups[k], groups[m])))
+        for k in range(len(groups))
+        for m in range(len(groups))
     )
+    be = sum(
+        ak * jnp.sum(e * v * group_sum(v, grp))
+        for ak, grp in zip(a, groups, strict=True)
+    )
+    ee = 2.0 * jnp.sum(e**2 * v) * jnp.sum(v) + 2.0 * jnp.sum(e * v) ** 2
+    nu = trace**2 / jnp.maximum(bb + 4.0 * be + ee, 1e-300)
     return nu / blocks
 
 
