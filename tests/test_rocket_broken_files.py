@@ -46,6 +46,17 @@ def _bytes(fn):
     return damage
 
 
+def _byte_in(k, byte):
+    """A byte put into line `k` (from 0) after its 20th byte."""
+
+    def put(b):
+        lines = b.split(b"\n")
+        lines[k] = lines[k][:20] + byte + lines[k][20:]
+        return b"\n".join(lines)
+
+    return _bytes(put)
+
+
 def _swap(k, fn):
     return _edit(lambda lines: lines[:k] + [fn(lines[k])] + lines[k + 1 :])
 
@@ -190,6 +201,18 @@ REFUSED = [
         r"together \(a line end lost\), or a decimal comma in a comma-separated file",
     ),
     (
+        "a byte neither UTF-8 nor Windows-1252 past line 400, clock times",
+        F,
+        _byte_in(600, b"\x81"),
+        r"row 599: byte 0x81 is neither UTF-8 nor Windows-1252 text",
+    ),
+    (
+        "a byte neither UTF-8 nor Windows-1252 past line 400",
+        U,
+        _byte_in(600, b"\x9d"),
+        r"row 599: byte 0x9d is neither UTF-8 nor Windows-1252 text",
+    ),
+    (
         "quoted decimal commas in a comma file",
         X,
         _edit(_quoted),
@@ -280,6 +303,27 @@ READ = [
         U,
         _late_cp1252,
         r"track\.csv: read as Windows-1252 text \(a byte past the first 400 lines",
+        {},
+    ),
+    (
+        "every row ends with its separator",
+        U,
+        _edit(lambda x: [s + "," for s in x]),
+        None,
+        {},
+    ),
+    (
+        "every data row ends with a separator, the header not",
+        U,
+        _edit(lambda x: x[:2] + [s + "," for s in x[2:]]),
+        None,
+        {},
+    ),
+    (
+        "every cell quoted",
+        U,
+        _edit(lambda x: [",".join(f'"{c}"' for c in s.split(",")) for s in x]),
+        None,
         {},
     ),
     (

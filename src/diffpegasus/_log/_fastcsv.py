@@ -20,12 +20,18 @@ _BLOCK_BYTES = 8 * 2**20
 _NEWLINE, _COMMA = ord("\n"), ord(",")
 
 
+def marks_per_line(marks: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """How many of the sorted byte offsets `marks` (separators, say) fall on each line
+    of a block whose lines end at the sorted offsets `ends`; shape `ends.shape`."""
+    return np.diff(np.searchsorted(marks, ends), prepend=0)
+
+
 def _regular_lines(block: bytes, width: int) -> int | None:
     """How many lines `block` (whole lines, each ending in a newline) has, or `None`
     if one of them does not have `width` cells."""
     raw = np.frombuffer(block, np.uint8)
     ends = np.flatnonzero(raw == _NEWLINE)
-    per_line = np.diff(np.searchsorted(np.flatnonzero(raw == _COMMA), ends), prepend=0)
+    per_line = marks_per_line(np.flatnonzero(raw == _COMMA), ends)
     if np.any(per_line != width - 1):
         return None  # a ragged row or a blank line (NumPy would read past them)
     return len(ends)

@@ -18,6 +18,7 @@ import warnings
 import numpy as np
 
 from .._errors import LogError
+from ._fastcsv import marks_per_line
 
 
 # ASCII decimal with optional exponent, nan, inf (what a flight computer writes);
@@ -420,21 +421,22 @@ def read_columns(
         data, more = _read_carefully(header, columns, clocks)
         return data, notes + more
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # "input contained no data": checked after
-            data = np.loadtxt(
-                path if header.decimal == "." else _points(header),
-                delimiter=None if header.sep == " " else header.sep,
-                skiprows=header.skip,
-                usecols=columns,
-                dtype=float,
-                comments="#",
-                quotechar='"',
-                ndmin=2,
-                encoding=header.encoding,
-            )
-        if len(data) and _regular(header):
-            return data, notes
+        if _regular(header):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # "input contained no data": below
+                data = np.loadtxt(
+                    path if header.decimal == "." else _points(header),
+                    delimiter=None if header.sep == " " else header.sep,
+                    skiprows=header.skip,
+                    usecols=columns,
+                    dtype=float,
+                    comments="#",
+                    quotechar='"',
+                    ndmin=2,
+                    encoding=header.encoding,
+                )
+            if len(data):
+                return data, notes
     except UnicodeDecodeError:
         if header.encoding == "utf-8-sig" and header.ascii:
             notes.append(_cp1252_note(header))
@@ -461,10 +463,12 @@ _BLANKS = np.frombuffer(b" \t\r\n\v\f", np.uint8)
 
 
 def _regular(header: Header) -> bool:
-    """Whether every data line has the header's number of separators (NumPy's reader
+    """Whether every data line has the header's number of cells (NumPy's reader
     reads the asked-for columns of a row with more cells without a word: a decimal
     comma in a comma-separated file, two rows run together), its decimal mark and
-    no NUL byte; blank lines and comments aside. Read in blocks of 8 MiB."""
+    no NUL byte; blank lines and comments aside. Empty cells past the header's width
+    (a logger that ends every row with its separator) and separators inside quoted
+    cells do not count. Read in blocks of 8 MiB."""
     width = len(header.names)
     with open(header.path, "rb") as f:
         for _ in range(header.skip):
@@ -477,28 +481,56 @@ def _regular(header: Header) -> bool:
                 block += b"\n"
             cut = block.rfind(b"\n") + 1
             block, rest = block[:cut], block[cut:]
-            if b'"' in block or b"\x00" in block:
+            if b"\x00" in block:
                 return False
             if header.decimal == "," and b"." in block:
                 return False  # a point where commas are the decimal mark
-            raw = np.frombuffer(block, np.uint8)
-            ends = np.flatnonzero(raw == _NEWLINE)
-            if header.sep == " ":
-                # cells separated by runs of blanks: count where each cell starts
-                blank = np.isin(raw, _BLANKS)
-                marks = np.flatnonzero(~blank & np.concatenate([[True], blank[:-1]]))
-                cells = np.diff(np.searchsorted(marks, ends), prepend=0)
-                count = cells - 1
-            else:
-                marks = np.flatnonzero(raw == ord(header.sep))
-                count = np.diff(np.searchsorted(marks, ends), prepend=0)
+            shape = _fits(block, header.sep, width)
+            if shape is None:
+                return False
+            ends, fits = shape
             starts = np.concatenate([[0], ends[:-1] + 1])
-            for k in np.flatnonzero(count != width - 1):
+            for k in np.flatnonzero(~fits):
                 line = block[starts[k] : ends[k]].strip()
                 if line and not line.startswith(b"#"):
                     return False
             if not chunk:
                 return True
+
+
+_QUOTE = ord('"')
+
+
+def _fits(block: bytes, sep: str, width: int):
+    """Each line's end offset in `block` (whole lines) and whether it has `width`
+    cells; a line with more whose extra cells are all empty fits. None where a line's
+    quotes are unbalanced."""
+    raw = np.frombuffer(block, np.uint8)
+    ends = np.flatnonzero(raw == _NEWLINE)
+    if sep == " ":
+        # cells separated by runs of blanks: count where each cell starts
+        blank = np.isin(raw, _BLANKS)
+        marks = np.flatnonzero(~blank & np.concatenate([[True], blank[:-1]]))
+        return ends, marks_per_line(marks, ends) == width
+    is_sep = raw == ord(sep)
+    if b'"' in block:
+        quote = raw == _QUOTE
+        if np.any(marks_per_line(np.flatnonzero(quote), ends) % 2):
+            return None
+        is_sep &= np.cumsum(quote) % 2 == 0  # outside quoted cells
+    marks = np.flatnonzero(is_sep)
+    cells = marks_per_line(marks, ends) + 1
+    wide = cells > width
+    if not np.any(wide):
+        return ends, cells == width
+    # the separators after a line's last byte that holds anything end empty cells
+    content = np.flatnonzero(~np.isin(raw, _BLANKS) & ~is_sep)
+    last = np.searchsorted(content, ends) - 1
+    starts = np.concatenate([[0], ends[:-1] + 1])
+    last_at = np.where(last >= 0, content[np.maximum(last, 0)], -1)
+    last_at = np.maximum(last_at, starts - 1)  # a line of separators only
+    trailing = np.searchsorted(marks, ends) - np.searchsorted(marks, last_at, "right")
+    return ends, (cells == width) | (wide & (cells - trailing <= width))
 
 
 def _points(header: Header):
@@ -535,17 +567,26 @@ def _decoded(f, header: Header, notes: list[str]):
     one error line (read as Windows-1252 if the file's first lines were ASCII)."""
     for r, raw in enumerate(f, start=1):
         try:
-            yield raw.decode(header.encoding)
+            text = raw.decode(header.encoding)
         except UnicodeDecodeError:
             if header.encoding == "utf-8-sig" and header.ascii:
                 notes.append(_cp1252_note(header))
-                yield raw.decode("cp1252")
-                continue
-            raise LogError(
-                f"{header.path}: row {r}: not "
-                f"{_SPOKEN.get(header.encoding, header.encoding)} text like the rows "
-                "before it"
-            ) from None
+            try:
+                text = raw.decode(header.encoding)
+            except UnicodeDecodeError as e:
+                raise LogError(_undecodable(header, r, raw, e)) from None
+        yield text
+
+
+def _undecodable(header: Header, r: int, raw: bytes, e: UnicodeDecodeError) -> str:
+    """The error line for row `r`'s bytes `raw` that the file's encoding cannot read."""
+    byte = f"byte 0x{raw[e.start]:02x}"
+    if header.ascii:  # the encoding was this reader's guess from ASCII lines
+        return f"{header.path}: row {r}: {byte} is neither UTF-8 nor Windows-1252 text"
+    spoken = _SPOKEN.get(header.encoding, header.encoding)
+    return (
+        f"{header.path}: row {r}: {byte} is not {spoken} text like the rows before it"
+    )
 
 
 # A number written with a decimal comma ("-2,5", "1,5e3").
