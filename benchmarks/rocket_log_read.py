@@ -6,7 +6,9 @@ the CPU seconds are what the read costs; the package's import is timed apart.
 
 Two synthetic flights of 1,000,000 rows each, written once into a temporary folder:
 an AltOS export (the 69 columns of a TeleMetrum file, 4 kHz, 250 s, about 350 MB)
-and a three-column altimeter CSV (time, altitude in ft, acceleration in g, 4 kHz).
+and a three-column altimeter CSV (time, altitude in ft, acceleration in g, 4 kHz);
+and two variants exporters write: the AltOS export with every row ending in its
+separator, the altimeter CSV with every cell quoted.
 
     python benchmarks/rocket_log_read.py   # writes benchmarks/results/rocket_log_read.json
 """
@@ -62,7 +64,7 @@ def trajectory(t):
     return h, a
 
 
-def write_logs(folder: pathlib.Path) -> tuple[pathlib.Path, pathlib.Path]:
+def write_logs(folder: pathlib.Path) -> tuple[pathlib.Path, ...]:
     rng = np.random.default_rng(0)
     t = -1.0 + np.arange(ROWS) / RATE
     h, a = trajectory(t)
@@ -97,7 +99,17 @@ def write_logs(folder: pathlib.Path) -> tuple[pathlib.Path, pathlib.Path]:
                 f"{ti:.5f},{hi / 0.3048:.2f},{ai / G0:.4f}\n"
                 for ti, hi, ai in zip(t[sl], h_noisy[sl], a_noisy[sl], strict=False)
             )
-    return altos, alt
+    # two common exports that a separator count could send down a slow path: every
+    # row ending with its separator, and every cell quoted
+    trailing = folder / "altos_trailing_separator.csv"
+    with open(altos) as f, open(trailing, "w") as g:
+        g.writelines(line[:-1] + ",\n" for line in f)
+    quoted = folder / "altimeter_quoted.csv"
+    with open(alt) as f, open(quoted, "w") as g:
+        g.writelines(
+            ",".join(f'"{c}"' for c in line[:-1].split(",")) + "\n" for line in f
+        )
+    return altos, alt, trailing, quoted
 
 
 CHILD = r"""

@@ -154,6 +154,28 @@ REFUSED = [
         r"row 599: NUL bytes \(a block the logger never wrote",
     ),
     (
+        # rows count from 1 for the first data row, a comment line not among them,
+        # as in the messages about the values (time backwards, below)
+        "NUL bytes after a comment line",
+        U,
+        _edit(
+            lambda x: [
+                *x[:300],
+                "# apogee",
+                *x[300:601],
+                "\x00" * 64 + x[601],
+                *x[602:],
+            ]
+        ),
+        r"row 600: NUL bytes",
+    ),
+    (
+        "time backwards after a comment line",
+        U,
+        _edit(lambda x: [*x[:300], "# apogee", *x[300:601], "-5" + x[601], *x[602:]]),
+        r"column 'time', row 600: time -5",
+    ),
+    (
         "NUL bytes in the sniffed lines, Windows-1252",
         X,
         _swap(50, lambda s: "\x00" * 100 + s),

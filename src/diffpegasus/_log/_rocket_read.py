@@ -562,20 +562,17 @@ def clock_seconds(cell: str) -> float | None:
     return seconds
 
 
-def _decoded(f, header: Header, notes: list[str]):
-    """The lines of `f` (binary) as text; a line the file's encoding cannot read is
-    one error line (read as Windows-1252 if the file's first lines were ASCII)."""
-    for r, raw in enumerate(f, start=1):
-        try:
-            text = raw.decode(header.encoding)
-        except UnicodeDecodeError:
-            if header.encoding == "utf-8-sig" and header.ascii:
-                notes.append(_cp1252_note(header))
-            try:
-                text = raw.decode(header.encoding)
-            except UnicodeDecodeError as e:
-                raise LogError(_undecodable(header, r, raw, e)) from None
-        yield text
+def _decoded(raw: bytes, header: Header, notes: list[str]) -> str:
+    """A line's bytes as text in the file's encoding; Windows-1252 from here on if
+    the file's first lines were ASCII and these are not UTF-8 (with a note). Raises
+    `UnicodeDecodeError` for bytes neither reads."""
+    try:
+        return raw.decode(header.encoding)
+    except UnicodeDecodeError:
+        if not (header.encoding == "utf-8-sig" and header.ascii):
+            raise
+    notes.append(_cp1252_note(header))
+    return raw.decode(header.encoding)
 
 
 def _undecodable(header: Header, r: int, raw: bytes, e: UnicodeDecodeError) -> str:
@@ -681,11 +678,17 @@ def _read_carefully(
     with open(path, "rb") as f:
         for _ in range(header.skip):
             f.readline()
-        for r, text in enumerate(_decoded(f, header, notes), start=1):
+        r = 0  # rows counted from 1 for the first data row, comments and blanks aside
+        for data in f:
+            try:
+                text = _decoded(data, header, notes)
+            except UnicodeDecodeError as e:
+                raise LogError(_undecodable(header, r + 1, data, e)) from None
             if text.lstrip().startswith("#"):
                 continue  # a comment (a simulator's event line)
             text = text.rstrip("\r\n")
             if "\x00" in text:
+                r += 1
                 problem = (
                     f"row {r}: NUL bytes (a block the logger never wrote: the power "
                     "lost, or a card fault)"
@@ -695,6 +698,7 @@ def _read_carefully(
             try:
                 raw = header.split(text)
             except csv.Error as e:
+                r += 1
                 problem = (
                     f"row {r}: a line of {len(text):,} characters ({_shown(text)}), "
                     f"not a row of cells ({e})"
@@ -705,6 +709,7 @@ def _read_carefully(
                 )
                 if not any(c.strip() for c in line):
                     continue
+                r += 1
                 problem = _problem(header, r, text, line, raw, columns, clocks)
             if problem is None and bad:
                 # an unreadable row followed by readable ones: not a cut-off end
