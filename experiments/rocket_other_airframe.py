@@ -496,7 +496,7 @@ def run(flights, names, out_name, fit_too=True):
             row["apogee_true_m"] = truth["apogee_geometric_agl_m"]
             row["converged"] = summary["converged"]
             row["estimates"] = summary["estimates"]
-            row["summary"] = summary
+            # the whole summary is `fit_cli` (the CLI's --json, with its seconds)
         results[name] = row
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(results, indent=1, default=str) + "\n")
@@ -603,6 +603,8 @@ def own(folders, out_name, lag=0.0):
     discrete filter as scripts/make_rocket_fixtures.py's `flight`)."""
     import shutil
 
+    from make_rocket_fixtures import lagged_baro
+
     import diffpegasus.rocket as dr
     from diffpegasus import read_rocket_log
 
@@ -622,11 +624,7 @@ def own(folders, out_name, lag=0.0):
             # standard-atmosphere pressure of the reading (the pad at its elevation),
             # filtered as the fixtures' barometer is, and back to altitude
             pad = tomllib.loads(toml.read_text())["launch"]["elevation_m"]
-            p = 101325.0 * (1 - (baro + pad) / 44330.77) ** (1 / 0.190263)
-            k = np.exp(-float(problem.record.dt) / lag)
-            for i in range(1, n):
-                p[i] = k * p[i - 1] + (1 - k) * p[i]
-            baro = 44330.77 * (1 - (p / 101325.0) ** 0.190263) - pad
+            baro = lagged_baro(baro, pad, float(problem.record.dt), lag)
         baro = baro + rng.normal(0.0, truth["noise_altitude_m"], n)
         accel = flown.accel[:n] + rng.normal(0.0, truth["noise_accel_m_s2"], n)
         copy = folder.parent / (f"{folder.name}-own" + (f"-lag{lag:g}" if lag else ""))

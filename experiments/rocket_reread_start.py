@@ -18,7 +18,8 @@ record's span, the planted CD inside the noise's 95% band and the band with the
 sensors' spread (of 20 Mach points from 0.15 to 0.95 of the top, as the benchmark
 counts them), each band's mean half-width in % of CD, det(R), the wind's
 correlations and the estimates; writes experiments/results/rocket_reread_NAME.json
-(NAME the flight's folder).
+(NAME the flight's folder, then `_` and START_JSON's name or `_from_START_WAY`
+as above). A flight not in the table (a held-out one) needs START_JSON.
 """
 
 import json
@@ -39,11 +40,14 @@ def main():
 
     folder = pathlib.Path(sys.argv[1])
     ways = sys.argv[2].split(",")
-    table = ROOT / "benchmarks" / "results" / "rocket_validation_table.json"
-    kept = json.loads(table.read_text())[folder.name]
-    start = {n: v for n, (v, _) in kept["estimates"].items()}
     name = folder.name
-    if len(sys.argv) > 3:
+    if len(sys.argv) <= 3:
+        table = ROOT / "benchmarks" / "results" / "rocket_validation_table.json"
+        kept = json.loads(table.read_text()).get(folder.name)
+        if kept is None:
+            sys.exit(f"{folder.name} is not in {table.name}: give START_JSON")
+        start = {n: v for n, (v, _) in kept["estimates"].items()}
+    else:
         earlier = json.loads(pathlib.Path(sys.argv[3]).read_text())
         way = sys.argv[4] if len(sys.argv) > 4 else folder.name
         start = {

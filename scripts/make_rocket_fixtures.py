@@ -225,6 +225,36 @@ def _isa_pressure(h):
     return 101325.0 * (1 - 0.0065 * hg / 288.15) ** (9.80665 / (287.05287 * 0.0065))
 
 
+def baro_altitude(p):
+    """m, a flight computer's standard-atmosphere altitude of pressure `p` (Pa; any
+    shape): the fixtures' barometer conversion."""
+    return 44330.77 * (1 - (p / 101325.0) ** 0.190263)
+
+
+def baro_pressure(h):
+    """Pa, the inverse of `baro_altitude` at altitude `h` (m; any shape)."""
+    return 101325.0 * (1 - h / 44330.77) ** (1 / 0.190263)
+
+
+def first_order_lag(x, dt, tau):
+    """`x` (shape (n,), sampled every `dt` s) through a first-order lag of time
+    constant `tau` s, exact for a piecewise-constant input; a new array."""
+    y = np.array(x, dtype=float)
+    k = np.exp(-dt / tau)
+    for i in range(1, len(y)):
+        y[i] = k * y[i - 1] + (1 - k) * y[i]
+    return y
+
+
+def lagged_baro(baro, pad, dt, tau):
+    """A barometric altitude (m above the pad, shape (n,), every `dt` s) read
+    through the fixtures' barometer lag: its standard-atmosphere pressure (the pad
+    at elevation `pad` m) through `first_order_lag` of `tau` s, and back to metres
+    above the pad."""
+    p = first_order_lag(baro_pressure(np.asarray(baro) + pad), dt, tau)
+    return baro_altitude(p) - pad
+
+
 # the loaded motor's lateral inertia about its centre of mass: the casing's 0.05
 # and the propellant as RocketPy's GenericMotor takes it, a cylinder of the
 # chamber's radius 0.0375 m and height 0.5 m
@@ -238,7 +268,9 @@ def rocketpy_flight(spec):
 
     flown = THRUST.copy()
     flown[:, 1] *= spec["scale"]
-    env = Environment(latitude=39.39, longitude=-8.29, elevation=150)
+    env = Environment(
+        latitude=SITE["latitude"], longitude=-8.29, elevation=SITE["elevation"]
+    )
     u, v = spec["wind"]
     pressure = None
     if spec.get("smooth_pressure"):
@@ -287,9 +319,9 @@ def rocketpy_flight(spec):
     fl = Flight(
         rocket=rocket,
         environment=env,
-        rail_length=12,
-        inclination=84,
-        heading=133,
+        rail_length=SITE["rail_length"],
+        inclination=SITE["inclination"],
+        heading=SITE["heading"],
         terminate_on_apogee="chutes" not in spec,
         max_time=spec.get("duration", 600.0),
         # with overshooting time steps RocketPy 1.13 never checks a second
@@ -371,12 +403,10 @@ def flight(
     speed = np.array([fl.free_stream_speed(s) for s in t])
     rho = np.array([env.density(h) for h in z])
     p_read = p + spec["static"] * 0.5 * rho * speed**2
-    if spec["lag"] > 0:  # first-order lag, exact for a piecewise-constant input
-        k = np.exp(-dt / spec["lag"])
-        for i in range(1, len(p_read)):
-            p_read[i] = k * p_read[i - 1] + (1 - k) * p_read[i]
-    h_std = 44330.77 * (1 - (p_read / 101325.0) ** 0.190263)
-    pad = 44330.77 * (1 - (env.pressure(elevation) / 101325.0) ** 0.190263)
+    if spec["lag"] > 0:
+        p_read = first_order_lag(p_read, dt, spec["lag"])
+    h_std = baro_altitude(p_read)
+    pad = baro_altitude(env.pressure(elevation))
     alt = h_std - pad + rng.normal(0, spec["noise"][0], len(t))
     # specific force along the body axis: body z from the attitude quaternion
     acc = np.array([[fl.ax(s), fl.ay(s), fl.az(s)] for s in t])

@@ -12,6 +12,8 @@ two apart (docs/rockets/simulated.md, Diagnose), and the descent under parachute
 
 import pathlib
 import shutil
+import sys
+import tomllib
 
 import numpy as np
 import pytest
@@ -21,6 +23,10 @@ from diffpegasus import read_rocket_log
 
 
 DATA = pathlib.Path(__file__).parent / "data"
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "scripts"))
+from make_rocket_fixtures import lagged_baro  # noqa: E402
+
+
 # RocketPy's clean flight `curve-c-s5-20hz` (scripts/make_rocket_fixtures.py
 # --validation): no wind, thrust, lag or static error planted; its barometer reads
 # RocketPy's standard-atmosphere table
@@ -103,12 +109,9 @@ def test_first_order_barometer_lag_is_named_alone(tmp_path):
     problem = dr.prepare(dr.read_rocket(toml), read_rocket_log(toml))
     flown = dr.simulate_flight(problem, start={"thrust_scale": 1.0, "motor_time": 0.0})
     n = len(problem.record.t)
-    # the reading's standard-atmosphere pressure (the pad at 150 m), filtered
-    pressure = 101325.0 * (1 - (flown.baro[:n] + 150.0) / 44330.77) ** (1 / 0.190263)
-    k = np.exp(-float(problem.record.dt) / 0.1)
-    for i in range(1, n):
-        pressure[i] = k * pressure[i - 1] + (1 - k) * pressure[i]
-    baro = 44330.77 * (1 - (pressure / 101325.0) ** 0.190263) - 150.0
+    # the reading's standard-atmosphere pressure (the pad at its elevation), filtered
+    pad = tomllib.loads(toml.read_text())["launch"]["elevation_m"]
+    baro = lagged_baro(flown.baro[:n], pad, float(problem.record.dt), 0.1)
     rng = np.random.default_rng(12)
     np.savetxt(
         folder / "log.csv",
