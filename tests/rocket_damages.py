@@ -105,11 +105,31 @@ REFUSED = [
     (
         "clock time backwards",
         F,
-        _swap(600, lambda s: s.replace("04:20:", "04:19:", 1)),
-        # 04:19:64.96 after 04:20:64.94 (the writer counts seconds past 59): the
-        # seconds since 1970 shown in full, not as 1.61889e+09 twice
+        _swap(600, lambda s: s.replace("T04:21:", "T04:20:", 1)),
+        # 04:20:04.96 after 04:21:04.94: the seconds since 1970 shown in full, not
+        # as 1.61889e+09 twice
         r"column 'time', row 599: time 1618892404\.96 s is before the previous "
         r"row's 1618892464\.94 s",
+    ),
+    (
+        "a time of day with 77 seconds",
+        F,
+        _swap(600, lambda s: s.replace("T04:21:04.960", "T04:20:77.000", 1)),
+        r"column 'time', row 599: '2021-04-20T04:20:77\.000Z' is not a time of day",
+    ),
+    (
+        "a time in seconds that jumps a day",
+        U,
+        edit(
+            lambda x: (
+                x[:600]
+                + [
+                    f"{float(s.split(',')[0]) + 86400:.2f}," + s.split(",", 1)[1]
+                    for s in x[600:]
+                ]
+            )
+        ),
+        r"column 'time', row 599: the time jumps \+24\.0 h from row 598",
     ),
     (
         "clock date jumps a day",

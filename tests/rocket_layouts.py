@@ -234,13 +234,19 @@ def units_row(folder, f):
 FLYSIGHT_START = 1618892453.0  # 2021-04-20T04:20:53Z, s since 1970
 
 
+def _clock(s):
+    """`s` seconds past 04:20 as a time of day, `04:21:05.250`, to the millisecond."""
+    ms = round(s * 1000)
+    return f"04:{20 + ms // 60000:02d}:{ms % 60000 / 1000:06.3f}"
+
+
 def flysight_track(folder, f):
     lines = [
         "time,lat,lon,hMSL,velN,velE,velD,hAcc,vAcc,sAcc,gpsFix,numSV",
         ",(deg),(deg),(m),(m/s),(m/s),(m/s),(m),(m),(m/s),,",
     ]
     lines += [
-        f"2021-04-20T04:20:{53.0 + t:06.3f}Z,33.6568828,-117.7466357,"
+        f"2021-04-20T{_clock(53.0 + t)}Z,33.6568828,-117.7466357,"
         f"{ELEVATION + h:.3f},0.10,0.20,{-v:.2f},2.1,3.4,0.25,3,11"
         for t, h, v in zip(f["t"], f["altitude"], f["velocity"], strict=True)
     ]

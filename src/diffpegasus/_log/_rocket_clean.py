@@ -185,6 +185,16 @@ def clean_stream(
             "file per flight)"
         )
     span = float(t[-1] - t[0])
+    gaps = np.diff(t)
+    k = int(np.argmax(gaps)) if gaps.size else 0
+    if gaps.size and gaps[k] >= 43200.0 and span - gaps[k] <= 2e4:
+        # one jump of half a day or more in what is otherwise a flight's seconds:
+        # a date or a clock reset, not milliseconds
+        raise LogError(
+            f"{where_t}, row {rows[k + 1]}: the time jumps {gaps[k] / 3600:+.1f} h "
+            f"from row {rows[k]} (a date or clock reset mid-flight); a flight's log "
+            "runs minutes, correct the times or split the file there"
+        )
     if span > 2e4:
         if spec.time.unit_from:
             raise LogError(

@@ -545,11 +545,13 @@ def _points(header: Header):
 def clock_seconds(cell: str) -> float | None:
     """A clock time as seconds: `hh:mm:ss(.f)` since midnight; with a date
     (`YYYY-MM-DD` and `T` or a space before it) since 1970-01-01 UTC, less a
-    `+hh:mm` offset. None if the cell is not one."""
+    `+hh:mm` offset. None if the cell is not one (minutes past 59, say)."""
     m = _CLOCK.fullmatch(cell)
     if m is None:
         return None
     year, month, day, hh, mm, ss, zone = m.groups()
+    if int(hh) > 23 or int(mm) > 59 or float(ss) >= 61.0:  # 60: a leap second
+        return None
     seconds = int(hh) * 3600 + int(mm) * 60 + float(ss)
     if year is not None:
         try:
@@ -656,6 +658,10 @@ def _problem(
         if j in clocks and clock_seconds(cell) is not None:
             continue
         where = f"column {header.names[j]!r}, row {r}: {_shown(raw[j])}"
+        if j in clocks and _CLOCK.fullmatch(cell):
+            return (
+                f"{where} is not a time of day (hours 0-23, minutes and seconds 0-59)"
+            )
         if header.decimal == "." and _DECIMAL_COMMA.fullmatch(cell):
             return (
                 f"{where} has a decimal comma; give the file's stream "
