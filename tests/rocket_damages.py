@@ -267,7 +267,7 @@ READ = [
         U,
         _bytes(lambda b: b.rstrip(b"\n")[: b.rstrip(b"\n").rfind(b"\n") + 6]),
         r"dropped the last 1 row\(s\) from row 1201 on, a write cut short: row 1201 has "
-        r"1 cells, the header 5: it ends before column 'altitude'",
+        r"1 cell, the header 5: it ends before column 'altitude'",
         {},
     ),
     (

@@ -639,7 +639,7 @@ def _problem(
         )
     if len(line) < width and len(line) <= max(columns):
         return (
-            f"row {r} has {len(line)} cells, the header {width}: it ends before "
+            f"row {r} has {len(line)} cell{'' if len(line) == 1 else 's'}, the header {width}: it ends before "
             f"column {header.names[len(line)]!r}"
         )
     if header.decimal == ",":
