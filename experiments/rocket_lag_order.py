@@ -1,0 +1,240 @@
+"""The barometer's lag to second order: does adding a first-order filter's
+`tau^2` term to the model's delay change what `diagnose` names and what `rocket fit`
+returns?
+
+The model reads the barometer `s (h - tau dh/dt)` (a delay to first order). A
+first-order filter on the pressure reads `s (h - tau dh/dt + tau^2 d2h/dt2 - ...)`,
+a pure delay `s (h - tau dh/dt + tau^2/2 d2h/dt2 - ...)`. With `--term` the model
+adds `+ s tau^2 d2h/dt2` (the model's vertical acceleration; a switch in
+`diffpegasus._vehicle._rocket._model`, not in the interface). Left out, below
+0.1 m on these flights: the height scale's own change with height (`ds/dh dh/dt^2`,
+about 2e-5 /m times 9e4 m^2/s^2 times tau^2 = 0.01 s^2: 0.02 m) and the pressure
+-> altitude curvature of filtering pressure rather than height (`tau^2/2 (dh/dt)^2 /
+H`, H the scale height: 0.05 m at 300 m/s).
+
+One case per process (the switch is read when the model is traced):
+
+    python experiments/rocket_lag_order.py diagnose CASE [--term]
+        CASE `filter`: tests/test_rocket_baro.py's known-failing flight (the model's
+        own 50 Hz flight of tests/data/rocket_sim/clean, its barometer's pressure
+        through scripts/make_rocket_fixtures.py's 0.1 s first-order filter, 0.5 m
+        and 0.3 m/s^2 noise, seed 12); `delay`: the same flight, its barometer read
+        0.1 s late (interpolated in time; the first 0.1 s the pad's reading);
+        `clean`: tests/data/rocket_sim/clean as committed.
+    python experiments/rocket_lag_order.py fit FLIGHT_FOLDER [--term]
+        `diffpegasus rocket fit FLIGHT_FOLDER/rocket.toml --out ...` as the flight's
+        docs page runs it.
+    python experiments/rocket_lag_order.py --table
+
+Results go to experiments/results/rocket_lag_order.json (keyed case/flight and
+with/without the term).
+"""
+
+import json
+import pathlib
+import shutil
+import sys
+import tempfile
+import time
+import tomllib
+
+import numpy as np
+
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+DATA = ROOT / "tests" / "data"
+RESULTS = ROOT / "experiments" / "results" / "rocket_lag_order.json"
+TAU = 0.1
+
+
+def _write_case(case, folder):
+    """The flight of `case` in `folder` (a copy of the committed clean rocket)."""
+    sys.path.insert(0, str(ROOT / "scripts"))
+    from make_rocket_fixtures import lagged_baro
+
+    import diffpegasus.rocket as dr
+    from diffpegasus import read_rocket_log
+
+    shutil.copytree(DATA / "rocket_sim" / "clean", folder)
+    if case == "clean":
+        return
+    toml = folder / "rocket.toml"
+    problem = dr.prepare(dr.read_rocket(toml), read_rocket_log(toml))
+    flown = dr.simulate_flight(problem, start={"thrust_scale": 1.0, "motor_time": 0.0})
+    n = len(problem.record.t)
+    t = np.asarray(problem.record.t, dtype=float)
+    if case == "filter":
+        pad = tomllib.loads(toml.read_text())["launch"]["elevation_m"]
+        baro = lagged_baro(flown.baro[:n], pad, float(problem.record.dt), TAU)
+    elif case == "delay":
+        baro = np.interp(t - TAU, t, np.asarray(flown.baro[:n], dtype=float))
+    else:
+        raise SystemExit(f"unknown case {case!r}")
+    rng = np.random.default_rng(12)  # as the validation test
+    np.savetxt(
+        folder / "log.csv",
+        np.column_stack(
+            [
+                t,
+                baro + rng.normal(0.0, 0.5, n),
+                flown.accel[:n] + rng.normal(0.0, 0.3, n),
+            ]
+        ),
+        delimiter=",",
+        header="time_s,altitude_m,accel_axial_m_s2",
+        comments="",
+        fmt="%.4f",
+    )
+
+
+def diagnose(case):
+    import diffpegasus.rocket as dr
+    from diffpegasus import read_rocket_log
+
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = pathlib.Path(tmp) / "flight"
+        _write_case(case, folder)
+        toml = folder / "rocket.toml"
+        problem = dr.prepare(dr.read_rocket(toml), read_rocket_log(toml))
+        start = time.process_time()
+        named, rows, final = dr.diagnose(problem)
+        seconds = time.process_time() - start
+    fit = final.fit
+    names = list(fit.model.parameters)
+    lag = None
+    if "baro_lag" in names:
+        i = names.index("baro_lag")
+        if fit.free[i]:
+            lag = [float(fit.params[i]), float(fit.stderr[i])]
+    keep = ("barometer lag", "static-pressure error")
+    return {
+        "named": list(named),
+        "rows": [
+            {
+                "round": int(r["round"]),
+                "candidate": r["candidate"],
+                "statistic": float(r["statistic"]),
+                "threshold": float(r["threshold"]),
+                "estimates": {k: float(v) for k, v in r["estimates"].items()},
+            }
+            for r in rows
+            if r["candidate"] in keep or r["significant"]
+        ],
+        "final_lag": lag,
+        "cpu_s": seconds,
+    }
+
+
+def fit(folder):
+    from diffpegasus._cli import main
+
+    folder = pathlib.Path(folder)
+    with tempfile.TemporaryDirectory() as tmp:
+        sys.argv = ["diffpegasus", "rocket", "fit", str(folder / "rocket.toml")]
+        sys.argv += ["--out", tmp]
+        try:
+            main()
+        except SystemExit as e:
+            if e.code:
+                raise
+        summary = json.loads((pathlib.Path(tmp) / "summary.json").read_text())
+    det = min(v["det_r_flown"] for v in summary["tries"].values())
+    return {
+        "baro_lag": summary["estimates"].get("baro_lag"),
+        "static_error": summary["estimates"].get("static_error"),
+        "det_r": det,
+        "tries": summary["tries"],
+        "apogee_reconstructed_m": summary["apogee_reconstructed_m"],
+        "apogee_predicted_m": summary["apogee_predicted_m"],
+        "altitude_rms_m": summary["altitude_rms_m"],
+        "converged": summary["converged"],
+        "cd_table": [[k["mach"], k["cd"], k["stderr"]] for k in summary["cd_table"]],
+        "fit_seconds": summary["fit_seconds"],
+    }
+
+
+def table(results):
+    def fmt_named(r):
+        return " + ".join(r["named"]) or "nothing"
+
+    def first(r, cand):
+        row = next(
+            (x for x in r["rows"] if x["candidate"] == cand and x["round"] == 1), None
+        )
+        if row is None:
+            return "-"
+        est = next(iter(row["estimates"].values()))
+        return f"{row['statistic']:.1f} / {row['threshold']:.1f} ({est:.4g})"
+
+    print("| flight | model | named | lag, 1st round | static error, 1st round |")
+    print("| final lag (s) |")
+    for case in ("filter", "delay", "clean"):
+        for term in ("delay", "term"):
+            r = results.get(f"diagnose/{case}/{term}")
+            if r is None:
+                continue
+            lag = r["final_lag"]
+            lag = "-" if lag is None else f"{lag[0]:.4f} ± {lag[1]:.4f}"
+            print(
+                f"| {case} | {term} | {fmt_named(r)} | "
+                f"{first(r, 'barometer lag')} | {first(r, 'static-pressure error')} "
+                f"| {lag} |"
+            )
+    print()
+    print(
+        "| flight | lag (s) delay / term | det(R) delay / term | apogee recon. "
+        "(m) delay / term | apogee pred. (m) | static error | max |dCD| (in se) |"
+    )
+    flights = sorted({k.split("/")[1] for k in results if k.startswith("fit/")})
+    for f in flights:
+        a, b = results.get(f"fit/{f}/delay"), results.get(f"fit/{f}/term")
+        if a is None or b is None:
+            continue
+
+        def pm(v):
+            return "-" if v is None else f"{v[0]:.4f} ± {v[1]:.4f}"
+
+        dcd = [
+            (abs(x[1] - y[1]), abs(x[1] - y[1]) / x[2])
+            for x, y in zip(a["cd_table"], b["cd_table"], strict=True)
+            if x[0] >= 0.3
+        ]
+        worst = max(dcd) if dcd else (float("nan"), float("nan"))
+        print(
+            f"| {f} | {pm(a['baro_lag'])} / {pm(b['baro_lag'])} | "
+            f"{a['det_r']:.6g} / {b['det_r']:.6g} | "
+            f"{a['apogee_reconstructed_m']:.1f} / {b['apogee_reconstructed_m']:.1f} | "
+            f"{a['apogee_predicted_m']:.1f} / {b['apogee_predicted_m']:.1f} | "
+            f"{pm(a['static_error'])} / {pm(b['static_error'])} | "
+            f"{worst[0]:.4f} ({worst[1]:.2f}) |"
+        )
+
+
+def main():
+    args = sys.argv[1:]
+    results = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
+    if args == ["--table"]:
+        table(results)
+        return
+    term = "--term" in args
+    args = [a for a in args if a != "--term"]
+    from diffpegasus._vehicle._rocket import _model
+
+    _model._LAG_SECOND_ORDER = term
+    kind, what = args
+    if kind == "diagnose":
+        key, out = f"diagnose/{what}", diagnose(what)
+    elif kind == "fit":
+        key, out = f"fit/{pathlib.Path(what).name}", fit(what)
+    else:
+        raise SystemExit(__doc__)
+    key += "/term" if term else "/delay"
+    results = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
+    results[key] = out
+    RESULTS.parent.mkdir(exist_ok=True)
+    RESULTS.write_text(json.dumps(results, indent=1, sort_keys=True) + "\n")
+    print(key, json.dumps(out)[:2000])
+
+
+if __name__ == "__main__":
+    main()
