@@ -27,10 +27,13 @@ One case per process (the switch is read when the model is traced):
     python experiments/rocket_lag_order.py --table
 
 Results go to experiments/results/rocket_lag_order.json (keyed case/flight and
-with/without the term).
+with/without the term). The command's program cache is kept apart per model
+(`lag_order_term`, `lag_order_delay` beside the default cache folder): its kept
+programs are keyed by the package's source, which the switch does not change.
 """
 
 import json
+import os
 import pathlib
 import shutil
 import sys
@@ -153,6 +156,35 @@ def fit(folder):
     }
 
 
+def warm(folder, term):
+    """`fit_rocket` (the noise's band alone) on FLIGHT_FOLDER; with the term, from
+    the delay model's optimum (every parameter; written by the run without it to
+    experiments/results/rocket_lag_order_start_NAME.json): whether the term's fit
+    ending above the delay's det(R) is the term's model or the search's minimum."""
+    import diffpegasus.rocket as dr
+    from diffpegasus import read_rocket_log
+
+    folder = pathlib.Path(folder)
+    toml = folder / "rocket.toml"
+    problem = dr.prepare(dr.read_rocket(toml), read_rocket_log(toml))
+    path = RESULTS.parent / f"rocket_lag_order_start_{folder.name}.json"
+    start = json.loads(path.read_text()) if term else None
+    result = dr.fit_rocket(problem, start=start, spread=False, throw=False)
+    fit = result.fit
+    values = {
+        k: float(v) for k, v in zip(fit.model.parameters, fit.params, strict=True)
+    }
+    if not term:
+        path.write_text(json.dumps(values, indent=1, sort_keys=True) + "\n")
+    det = min(v[1] for v in result.tries.values())
+    return {
+        "det_r_flown": det,
+        "tries": {k: [float(x) for x in v] for k, v in result.tries.items()},
+        "baro_lag": values.get("baro_lag"),
+        "apogee": float(result.apogee),
+    }
+
+
 def table(results):
     def fmt_named(r):
         return " + ".join(r["named"]) or "nothing"
@@ -218,12 +250,20 @@ def main():
         return
     term = "--term" in args
     args = [a for a in args if a != "--term"]
+    # the command's kept programs are keyed by the package's source, not by the
+    # switch: each model its own cache folder, else one reads the other's program
+    from diffpegasus._cache import default_cache_dir
+
+    folder = default_cache_dir().parent / f"lag_order_{'term' if term else 'delay'}"
+    os.environ["JAX_COMPILATION_CACHE_DIR"] = str(folder)
     from diffpegasus._vehicle._rocket import _model
 
     _model._LAG_SECOND_ORDER = term
     kind, what = args
     if kind == "diagnose":
         key, out = f"diagnose/{what}", diagnose(what)
+    elif kind == "warm":
+        key, out = f"warm/{pathlib.Path(what).name}", warm(what, term)
     elif kind == "fit":
         key, out = f"fit/{pathlib.Path(what).name}", fit(what)
     else:
