@@ -198,8 +198,10 @@ def table(results):
         est = next(iter(row["estimates"].values()))
         return f"{row['statistic']:.1f} / {row['threshold']:.1f} ({est:.4g})"
 
-    print("| flight | model | named | lag, 1st round | static error, 1st round |")
-    print("| final lag (s) |")
+    print(
+        "| flight | model | named | lag, 1st round | static error, 1st round "
+        "| final lag (s) |"
+    )
     for case in ("filter", "delay", "clean"):
         for term in ("delay", "term"):
             r = results.get(f"diagnose/{case}/{term}")
@@ -215,7 +217,7 @@ def table(results):
     print()
     print(
         "| flight | lag (s) delay / term | det(R) delay / term | apogee recon. "
-        "(m) delay / term | apogee pred. (m) | static error | max |dCD| (in se) |"
+        "(m) delay / term | apogee pred. (m) | static error | max dCD, M >= 0.3 (in se) |"
     )
     flights = sorted({k.split("/")[1] for k in results if k.startswith("fit/")})
     for f in flights:
@@ -239,6 +241,19 @@ def table(results):
             f"{a['apogee_predicted_m']:.1f} / {b['apogee_predicted_m']:.1f} | "
             f"{pm(a['static_error'])} / {pm(b['static_error'])} | "
             f"{worst[0]:.4f} ({worst[1]:.2f}) |"
+        )
+
+    print()
+    print(
+        "| flight | fit_rocket det(R), lag (s): delay / term from the delay's optimum |"
+    )
+    for f in sorted({k.split("/")[1] for k in results if k.startswith("warm/")}):
+        a, b = results.get(f"warm/{f}/delay"), results.get(f"warm/{f}/term")
+        if a is None or b is None:
+            continue
+        print(
+            f"| {f} | {a['det_r_flown']:.6g}, {a['baro_lag']:.4f} / "
+            f"{b['det_r_flown']:.6g}, {b['baro_lag']:.4f} |"
         )
 
 
