@@ -24,6 +24,10 @@ One case per process (the switch is read when the model is traced):
     python experiments/rocket_lag_order.py fit FLIGHT_FOLDER [--term]
         `diffpegasus rocket fit FLIGHT_FOLDER/rocket.toml --out ...` as the flight's
         docs page runs it.
+    python experiments/rocket_lag_order.py warm FLIGHT_FOLDER [--term]
+        `fit_rocket(problem, spread=False)`; without the term it writes its
+        parameters to experiments/results/rocket_lag_order_start_NAME.json, with it
+        it starts there (is a higher det(R) with the term the model or the search?).
     python experiments/rocket_lag_order.py --table
 
 Results go to experiments/results/rocket_lag_order.json (keyed case/flight and
