@@ -74,22 +74,12 @@ from ._config import Rocket
 from ._descent import Descent, parachute_acceleration
 from ._drag import DragKnots
 from ._motor import motor_at
-from ._sensors import (
-    _lag_second_order,
-    axial_specific_force,
-    baro_altitude,
-    layered_air,
-)
+from ._sensors import axial_specific_force, baro_altitude, layered_air
 
 
 STATES = ("e", "n", "u", "ve", "vn", "vu")
 ATTITUDE = ("ax_e", "ax_n", "ax_u", "w_e", "w_n", "w_u")
 OUTPUTS = ("altitude", "accel", "gyro")  # the channels a log may give, in this order
-# Experiment only (experiments/rocket_lag_order.py sets it before anything is traced;
-# not part of the interface): add the first-order filter's second-order term to the
-# barometer's lag, `+ s lag^2 d2h/dt2` (the vertical acceleration), to the delay's
-# `- s lag dh/dt`. False: the model as documented.
-_LAG_SECOND_ORDER = False
 EFFECTS = (
     "cd_scale",
     "power_on_ratio",
@@ -363,8 +353,6 @@ def observe(flight: Flight, t, x, u, p):
         g,
         mach,
     )
-    if _LAG_SECOND_ORDER:
-        h = h + _lag_second_order(rate, p["baro_lag"], accel[2])
     f = axial_specific_force(accel, g, axis)
     gyro = jnp.sqrt(jnp.sum(x[9:12] ** 2) + 1e-12) if x.shape[0] > 6 else 0.0
     y = jnp.stack(

@@ -125,16 +125,6 @@ def baro_altitude(reading, climb, scale, lag, static, transonic, q, density, g, 
     return reading - scale * lag * climb - dp * scale / (density * g)
 
 
-def _lag_second_order(scale, lag, vertical_accel):
-    """m, the first-order filter's `tau^2` term the model's lag (a delay to first
-    order) leaves out: `scale lag^2 d2h/dt2` for the vertical acceleration
-    `vertical_accel` (m/s^2). Experiment only (`_model._LAG_SECOND_ORDER`); the
-    height scale's change with height and the pressure-to-height curvature of
-    filtering pressure rather than height, both of the same order, are left out
-    (below 0.1 m at 0.1 s and 300 m/s)."""
-    return scale * lag**2 * vertical_accel
-
-
 def axial_specific_force(accel, g, axis):
     """Specific force (m/s^2) along the unit body `axis` `(3,)`, east-north-up, for
     an acceleration `accel` `(3,)` and gravity magnitude `g` (acting down)."""
