@@ -117,6 +117,17 @@ def test_baro_lag_of_a_steady_climb_is_lag_times_rate():
     np.testing.assert_allclose(float(model), exact, rtol=1e-8)  # exp(-t/tau) left
 
 
+def test_baro_lag_is_a_first_order_filter_to_first_order_only():
+    """A first-order lag tau on h = a t^2 / 2: y = a/2 (t^2 - 2 tau t + 2 tau^2
+    (1 - exp(-t/tau))), settling to h - tau dh/dt + tau^2 d2h/dt2. The model's
+    reading (a delay to first order) is tau^2 a low of it: the known limitation
+    documented with the rockets' known problems."""
+    tau, a, t = 0.3, 80.0, 6.0
+    exact = a / 2 * (t**2 - 2 * tau * t + 2 * tau**2 * (1 - np.exp(-t / tau)))
+    delay = dr.baro_altitude(a * t**2 / 2, a * t, 1.0, tau, 0.0, 0.0, 0.0, 1.0, G0, 0.5)
+    np.testing.assert_allclose(float(exact - delay), tau**2 * a, rtol=1e-8)
+
+
 def test_static_pressure_error_reads_as_hydrostatic_height():
     """A pressure error dp reads as -dp / (rho_std g) of height on a standard day
     (scale 1), against the standard atmosphere's inverse at p and p + dp."""
