@@ -194,7 +194,7 @@ class Header:
 
     def _set(self, lines: list[str], h: int, start: int) -> None:
         cells = _split(lines[h], self.sep)
-        names = [c.strip().lstrip("#").strip() for c in cells]
+        names = _names(cells)
         if names and len(names) > 1:
             # 'Data: (Time, Altitude, ..., Voltage)': a label and a parenthesised list
             m = re.match(r"^[A-Za-z ]*:\s*\((.*)$", names[0])
@@ -211,7 +211,7 @@ class Header:
         for k in range(h + 1, start):
             if lines[k].strip() and not lines[k].lstrip().startswith("#"):
                 row = _split(lines[k], self.sep)
-                if [c.strip().lstrip("#").strip() for c in row] == names:
+                if _names(row) == names:
                     continue  # the header written twice (a logger restarted)
                 units = [
                     (u or row[j].strip().strip("()[]").strip()) if j < len(row) else u
@@ -440,7 +440,7 @@ def read_columns(
                 return data, notes
     except UnicodeDecodeError:
         if header.encoding == "utf-8-sig" and header.ascii:
-            notes.append(_cp1252_note(header))
+            notes.append(_read_as_cp1252(header))
             data, more = read_columns(header, columns, clocks)
             return data, notes + more
     except (ValueError, IndexError):
@@ -451,7 +451,9 @@ def read_columns(
     return data, notes + more
 
 
-def _cp1252_note(header: Header) -> str:
+def _read_as_cp1252(header: Header) -> str:
+    """Switch `header` to Windows-1252 (its first lines were ASCII, a later byte is
+    not UTF-8) and say so."""
     header.encoding = "cp1252"
     return (
         f"{header.path.name}: read as Windows-1252 text (a byte past the first "
@@ -542,6 +544,12 @@ def _points(header: Header):
             yield line.replace(",", ".")
 
 
+def _names(cells: list[str]) -> list[str]:
+    """A row's cells as column names: blanks and a leading `#` (a commented header)
+    stripped."""
+    return [c.strip().lstrip("#").strip() for c in cells]
+
+
 def clock_seconds(cell: str) -> float | None:
     """A clock time as seconds: `hh:mm:ss(.f)` since midnight; with a date
     (`YYYY-MM-DD` and `T` or a space before it) since 1970-01-01 UTC, less a
@@ -574,7 +582,7 @@ def _decoded(raw: bytes, header: Header, notes: list[str]) -> str:
     except UnicodeDecodeError:
         if not (header.encoding == "utf-8-sig" and header.ascii):
             raise
-    notes.append(_cp1252_note(header))
+    notes.append(_read_as_cp1252(header))
     return raw.decode(header.encoding)
 
 
@@ -612,7 +620,7 @@ def _problem(
     `raw` cells) cannot be read, as the text after the file's name; None if it can
     (then `line` is read)."""
     width = len(header.names)
-    if [c.strip().lstrip("#").strip() for c in raw] == header.raw_names:
+    if _names(raw) == header.raw_names:
         return (
             f"row {r} repeats the header (line {header.header_line}): the logger "
             "restarted; split the file there, one file per run"
