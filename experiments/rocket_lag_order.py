@@ -57,7 +57,7 @@ TAU = 0.1
 def _write_case(case, folder):
     """The flight of `case` in `folder` (a copy of the committed clean rocket)."""
     sys.path.insert(0, str(ROOT / "scripts"))
-    from make_rocket_fixtures import lagged_baro
+    from make_rocket_fixtures import lagged_baro, write_log
 
     import diffpegasus.rocket as dr
     from diffpegasus import read_rocket_log
@@ -78,19 +78,11 @@ def _write_case(case, folder):
     else:
         raise SystemExit(f"unknown case {case!r}")
     rng = np.random.default_rng(12)  # as the validation test
-    np.savetxt(
-        folder / "log.csv",
-        np.column_stack(
-            [
-                t,
-                baro + rng.normal(0.0, 0.5, n),
-                flown.accel[:n] + rng.normal(0.0, 0.3, n),
-            ]
-        ),
-        delimiter=",",
-        header="time_s,altitude_m,accel_axial_m_s2",
-        comments="",
-        fmt="%.4f",
+    write_log(
+        folder,
+        t,
+        baro + rng.normal(0.0, 0.5, n),
+        flown.accel[:n] + rng.normal(0.0, 0.3, n),
     )
 
 

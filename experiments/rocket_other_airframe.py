@@ -603,7 +603,7 @@ def own(folders, out_name, lag=0.0):
     discrete filter as scripts/make_rocket_fixtures.py's `flight`)."""
     import shutil
 
-    from make_rocket_fixtures import lagged_baro
+    from make_rocket_fixtures import lagged_baro, write_log
 
     import diffpegasus.rocket as dr
     from diffpegasus import read_rocket_log
@@ -629,14 +629,7 @@ def own(folders, out_name, lag=0.0):
         accel = flown.accel[:n] + rng.normal(0.0, truth["noise_accel_m_s2"], n)
         copy = folder.parent / (f"{folder.name}-own" + (f"-lag{lag:g}" if lag else ""))
         shutil.copytree(folder, copy, dirs_exist_ok=True)
-        np.savetxt(
-            copy / "log.csv",
-            np.column_stack([problem.record.t, baro, accel]),
-            delimiter=",",
-            header="time_s,altitude_m,accel_axial_m_s2",
-            comments="",
-            fmt="%.4f",
-        )
+        write_log(copy, problem.record.t, baro, accel)
         results[copy.name] = dict(
             planted=dict(
                 truth,

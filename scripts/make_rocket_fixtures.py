@@ -236,6 +236,23 @@ def baro_pressure(h):
     return 101325.0 * (1 - h / 44330.77) ** (1 / 0.190263)
 
 
+LOG_HEADER = "time_s,altitude_m,accel_axial_m_s2"  # the columns rocket.toml maps
+
+
+def write_log(folder, t, altitude, accel, fmt="%.4f"):
+    """`folder/log.csv` in the simulated flights' layout (the `[log]` map their
+    rocket.toml carries): time (s), barometric altitude (m above the pad), axial
+    specific force (m/s^2)."""
+    np.savetxt(
+        folder / "log.csv",
+        np.column_stack([t, altitude, accel]),
+        delimiter=",",
+        header=LOG_HEADER,
+        comments="",
+        fmt=fmt,
+    )
+
+
 def first_order_lag(x, dt, tau):
     """`x` (shape (n,), sampled every `dt` s) through a first-order lag of time
     constant `tau` s, exact for a piecewise-constant input; a new array."""
@@ -418,7 +435,7 @@ def flight(
     g = np.array([env.gravity(h) for h in z])
     f = np.einsum("ij,ij->i", acc, axis) + g * axis[:, 2]
     f += rng.normal(0, spec["noise"][1], len(t))
-    columns, header = [t, alt, f], "time_s,altitude_m,accel_axial_m_s2"
+    columns, header = [t, alt, f], LOG_HEADER
     if spec.get("gyro"):
         # two gyros across the axis (RocketPy's body rates w1, w2), each with white
         # noise of `gyro` rad/s, read as the lateral rate sqrt(w1^2 + w2^2); drawn

@@ -24,7 +24,7 @@ from diffpegasus import read_rocket_log
 
 DATA = pathlib.Path(__file__).parent / "data"
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "scripts"))
-from make_rocket_fixtures import lagged_baro  # noqa: E402
+from make_rocket_fixtures import lagged_baro, write_log  # noqa: E402
 
 
 # RocketPy's clean flight `curve-c-s5-20hz` (scripts/make_rocket_fixtures.py
@@ -77,14 +77,7 @@ def test_height_dependent_barometer_error_is_not_named_a_lag(tmp_path):
     accel = flown.accel[:n] + rng.normal(0.0, 0.5, n)
     folder = tmp_path / "flight"
     shutil.copytree(TABLE_FLIGHT, folder)
-    np.savetxt(
-        folder / "log.csv",
-        np.column_stack([problem.record.t, baro, accel]),
-        delimiter=",",
-        header="time_s,altitude_m,accel_axial_m_s2",
-        comments="",
-        fmt="%.4f",
-    )
+    write_log(folder, problem.record.t, baro, accel)
     problem = dr.prepare(
         dr.read_rocket(folder / "rocket.toml"), read_rocket_log(folder / "rocket.toml")
     )
@@ -113,19 +106,11 @@ def test_first_order_barometer_lag_is_named_alone(tmp_path):
     pad = tomllib.loads(toml.read_text())["launch"]["elevation_m"]
     baro = lagged_baro(flown.baro[:n], pad, float(problem.record.dt), 0.1)
     rng = np.random.default_rng(12)
-    np.savetxt(
-        folder / "log.csv",
-        np.column_stack(
-            [
-                problem.record.t,
-                baro + rng.normal(0.0, 0.5, n),
-                flown.accel[:n] + rng.normal(0.0, 0.3, n),
-            ]
-        ),
-        delimiter=",",
-        header="time_s,altitude_m,accel_axial_m_s2",
-        comments="",
-        fmt="%.4f",
+    write_log(
+        folder,
+        problem.record.t,
+        baro + rng.normal(0.0, 0.5, n),
+        flown.accel[:n] + rng.normal(0.0, 0.3, n),
     )
     problem = dr.prepare(dr.read_rocket(toml), read_rocket_log(toml))
     named, rows, _ = dr.diagnose(problem)
