@@ -239,7 +239,7 @@ def small_motor(scale=1.0):
 
 def calisto_build(spec):
     """RocketPy's environment, Calisto and its flight to apogee for `spec`."""
-    from rocketpy import Flight, Rocket
+    from rocketpy import Rocket
 
     site = SITES["calisto"]
     env = environment(spec, site)
@@ -271,7 +271,14 @@ def calisto_build(spec):
     rocket.add_tail(
         top_radius=0.0635, bottom_radius=0.0435, length=0.060, position=-1.194656
     )
-    fl = Flight(
+    return env, rocket, to_apogee(rocket, env, site)
+
+
+def to_apogee(rocket, env, site):
+    """RocketPy's flight of `rocket` off the `site`'s rail to apogee."""
+    from rocketpy import Flight
+
+    return Flight(
         rocket=rocket,
         environment=env,
         rail_length=site["rail_length"],
@@ -280,12 +287,11 @@ def calisto_build(spec):
         terminate_on_apogee=True,
         max_time_step=0.01,
     )
-    return env, rocket, fl
 
 
 def small_build(spec):
     """RocketPy's environment, the small rocket and its flight to apogee."""
-    from rocketpy import Flight, Rocket
+    from rocketpy import Rocket
 
     site = SITES["small"]
     env = environment(spec, site)
@@ -305,16 +311,7 @@ def small_build(spec):
         n=3, root_chord=0.11, tip_chord=0.05, span=0.07, position=0.13
     )
     rocket.set_rail_buttons(0.7, 0.2)
-    fl = Flight(
-        rocket=rocket,
-        environment=env,
-        rail_length=site["rail_length"],
-        inclination=site["inclination"],
-        heading=site["heading"],
-        terminate_on_apogee=True,
-        max_time_step=0.01,
-    )
-    return env, rocket, fl
+    return env, rocket, to_apogee(rocket, env, site)
 
 
 def motor_writer(points, name, diameter_mm, length_mm, propellant, total):
