@@ -96,38 +96,6 @@ KNOWN_FAILING: dict[str, str] = {
         "calm launch-vehicle flight of the independent generator name "
         "thrust_misalignment: 27.6 against its threshold 13.0)"
     ),
-    "tests/test_rocket_baro.py::test_clean_rocketpy_flight_through_its_"
-    "atmosphere_table_names_nothing": (
-        "RocketPy's clean flight curve-c-s5-20hz names a barometer lag (32.8 "
-        "against 9.5, estimated 0.011 s): on an ascent a lag and a barometer error "
-        "that depends on height are one signature, and RocketPy's atmosphere table "
-        "puts up to 3.3 m of it into the barometer; a piecewise-linear height error "
-        "in the null does not separate them (the lag 61.6 against 9.2: the table's "
-        "error varies on the boost's height scale); with the descent under "
-        "parachutes (the same rocket and seed flown on by RocketPy, "
-        "descent-c-s5-20hz, whose ascent names nothing: 3.5 against 21.0) the "
-        "lag scores 5.6 against a threshold of 247 and a planted 0.15 s lag "
-        "25.3 against 241, so the descent does not separate them on RocketPy's "
-        "flights (docs/rockets/index.md, The descent under parachutes)"
-    ),
-    "tests/test_rocket_baro.py::test_height_dependent_barometer_error_is_not_"
-    "named_a_lag": (
-        "the model's own 20 Hz flight of curve-c-s5-20hz's rocket with RocketPy's "
-        "atmosphere-table error (up to 3.3 m, a function of height) added to its "
-        "barometer and no lag names a barometer lag, 12.0 against 8.8: on an "
-        "ascent the two are one signature (as the RocketPy flight above); flown "
-        "on through the descent the lag scores 2.2 against 14.0 but an "
-        "accelerometer scale of 1.0015 is named (25.4 against 14.0; "
-        "experiments/rocket_descent.py table:...)"
-    ),
-    "tests/test_rocket_baro.py::test_first_order_barometer_lag_is_named_alone": (
-        "the model's own flight of the clean rocket with a 0.1 s first-order lag "
-        "on its barometer's pressure names the lag and then a static-pressure "
-        "error it does not have (104.7 against 9.7, round 2): the model's lag is "
-        "a delay, the reading tau times the climb rate low, which a first-order "
-        "filter is to first order in tau only; the same on RocketPy's Calisto and "
-        "a small rocket (docs/rockets/simulated.md, Another airframe)"
-    ),
     "tests/test_fem_pegasus.py::test_diagnose_names_turbulence_on_a_turbulent_"
     "launch_vehicle_flight": (
         "the filter does not explain this record: with the coloured gust state "

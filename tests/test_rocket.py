@@ -734,6 +734,68 @@ def test_diagnose_judges_the_thrust_scale_in_the_candidates_family(monkeypatch):
     assert len(intervals) == 2 and all(i > span for i in intervals)
 
 
+def test_diagnose_names_only_what_the_misfit_is_made_of(monkeypatch):
+    """A candidate whose statistic passes the log's threshold but that would take
+    only 6% of the fit's misfit (the predicted fall of det(R)) is not named: the
+    finding must explain half. Its smallest named size is where it would: the fall
+    grows as the estimate squared, `0.01 sqrt(0.94 / 0.06)` = 0.0396 here, above the
+    statistic's `sqrt(9) 0.002`. The engine's fit and score are stand-ins."""
+    import types
+
+    from diffpegasus._diagnose import _candidates
+    from diffpegasus._rocket import _diagnose
+
+    problem = dr.prepare(
+        dr.read_rocket(SIM / "clean" / "rocket.toml"), sim_log("clean")
+    )
+    names = tuple(problem.start)
+    fits = []
+
+    def fake_fit(problem, *, free, hold, start=None, **_):
+        fits.append(tuple(free))
+        model = types.SimpleNamespace(
+            parameters=names, free=[n in free or n == "motor_time" for n in names]
+        )
+        return types.SimpleNamespace(
+            fit=types.SimpleNamespace(model=model, params=np.zeros(len(names))),
+            mach=np.array([0.3, 0.8]),
+        )
+
+    def fake_score(fit, candidates, level):
+        return [
+            {
+                "parameter": c,
+                "statistic": 65.0 if c == "baro_lag" else 1.0,
+                "threshold": 9.0,
+                "cost_reduction": 0.06 if c == "baro_lag" else 0.0,
+                "estimate": 0.01 if c == "baro_lag" else 0.0,
+                "stderr": 0.002,
+                "significant": c == "baro_lag",
+                "hard_to_tell_from": [],
+            }
+            for c in candidates
+        ]
+
+    monkeypatch.setattr(_diagnose, "fit_rocket", fake_fit)
+    monkeypatch.setattr(_candidates, "score_candidates", fake_score)
+    named, rows, _ = _diagnose.diagnose(problem)
+    assert named == [] and len(fits) == 1
+    lag = next(r for r in rows if r["candidate"] == "barometer lag")
+    assert lag["significant"] and not lag["explains_enough"]
+    assert lag["smallest_named"] == pytest.approx(0.01 * np.sqrt(0.94 / 0.06))
+    # given 60%, the same statistic names it
+    monkeypatch.setattr(
+        _candidates,
+        "score_candidates",
+        lambda *a: [
+            dict(r, cost_reduction=0.6 if r["parameter"] == "baro_lag" else 0.0)
+            for r in fake_score(*a)
+        ],
+    )
+    named, rows, _ = _diagnose.diagnose(problem, rounds=1)
+    assert named == ["barometer lag"]
+
+
 def _two_sensor_fit(max_iter=None):
     """A joint output-error fit of a decay `a exp(-b t)` (two "knots", `a` and
     `b`, a held `cd_scale` of 1) read by two sensors that disagree: the second

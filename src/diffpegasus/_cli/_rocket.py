@@ -231,8 +231,10 @@ def diagnose_command(
 ):
     """Name the effects the flight shows beyond drag and thrust (wind, rail
     friction, barometer lag, static-pressure errors, mass error, air brakes, ...).
-    --descent: with the descent under parachutes in the fit."""
-    from .._rocket._diagnose import diagnose
+    --descent: with the descent under parachutes in the fit. A finding's
+    statistic passes the log's own threshold and it explains half or more of the
+    fit's misfit (the predicted fall of det(R))."""
+    from .._rocket._diagnose import diagnose, SHARE
     from .._rocket._identify import prepare
 
     rocket, flight_log = _load(toml, log, columns, attitude)
@@ -261,7 +263,12 @@ def diagnose_command(
             f" {mark} round {r['round']}: {r['candidate']:<34} "
             f"score {r['statistic']:9.1f} (threshold {r['threshold']:.1f})"
         )
-        if not r["significant"] and r.get("cannot_be_told_from"):
+        if r["significant"] and not r.get("explains_enough", True):
+            line += (
+                f"  explains {1 - r['cost_ratio']:.1%} of the misfit; a finding "
+                f"explains {SHARE:.0%} or more"
+            )
+        elif not r["significant"] and r.get("cannot_be_told_from"):
             line += f"  cannot be told from {', '.join(r['cannot_be_told_from'])}"
         elif not r["significant"] and math.isfinite(r.get("smallest_named", math.nan)):
             ((name, value),) = r["estimates"].items()
