@@ -552,6 +552,33 @@ def right(truth, named):
     return "no"
 
 
+def judged(diag):
+    """`(named, text)` of a stored diagnosis judged by the rule as it stands (a
+    finding's statistic passes and it explains `SHARE` of the misfit): the stored
+    rounds up to the first that names nothing now are the same; that round's
+    strongest significant candidate is shown with the share it would explain."""
+    from diffpegasus._rocket._diagnose import SHARE
+
+    if diag.get("named") is None:
+        return None, "error"
+    named, cells, tests = [], [], diag.get("tests", [])
+    for r, stored in enumerate(diag["named"], start=1):
+        row = [t for t in tests if t["round"] == r and t["significant"]]
+        if not row or row[0]["cost_ratio"] > 1.0 - SHARE:
+            break
+        named.append(stored)
+        cells.append(f"{stored}: {row[0]['statistic']:.0f} ({row[0]['threshold']:.1f})")
+    stop = [t for t in tests if t["round"] == len(named) + 1 and t["significant"]]
+    text = "; ".join(cells) or "nothing"
+    if stop:
+        t = stop[0]
+        text += (
+            f" ({'then ' if named else ''}{t['candidate']} {t['statistic']:.0f} "
+            f"({t['threshold']:.1f}), explains {1 - t['cost_ratio']:.0%})"
+        )
+    return named, text
+
+
 def table(paths):
     """The markdown table of one or more `run` JSONs."""
     rows = [
@@ -563,18 +590,7 @@ def table(paths):
         for name, r in json.loads(pathlib.Path(path).read_text()).items():
             truth = r["planted"]
             diag = r["diagnose_cli"]
-            named = diag.get("named")
-            scores = [
-                f"{t['statistic']:.0f} ({t['threshold']:.1f})"
-                for t in diag.get("tests", [])
-                if t["significant"]
-            ]
-            named_text = (
-                "error"
-                if named is None
-                else "; ".join(f"{n}: {s}" for n, s in zip(named, scores, strict=True))
-                or "nothing"
-            )
+            named, named_text = judged(diag)
             if "knots" in r:
                 inside = f"{r['inside']} of {r['points']} ({r['inside_noise']})"
                 apogee = (
