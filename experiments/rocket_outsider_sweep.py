@@ -25,6 +25,7 @@ repository's src on PYTHONPATH):
 
     python experiments/rocket_outsider_sweep.py fly DIR [NAME ...]
     python experiments/rocket_outsider_sweep.py run DIR [NAME ...]
+    python experiments/rocket_outsider_sweep.py burn-held DIR NAME ...
     python experiments/rocket_outsider_sweep.py table
 
 `run` calls `diffpegasus rocket fit FOLDER/rocket.toml --out FOLDER-fit --json` and
@@ -32,7 +33,11 @@ repository's src on PYTHONPATH):
 experiments/results/rocket_outsider_sweep.json: whether each ran (else its error
 line), the planted CD against the fit's 95% band at the knots of `summary.json`'s
 table up to the flight's top Mach, the reconstructed apogee against the log's and
-RocketPy's, the altitude RMS, the times, what diagnose names.
+RocketPy's, the altitude RMS, the times, what diagnose names. `burn-held`
+diagnoses again with the burn's length held at the full fit's estimate instead of
+the accelerometer's reading (experiments/results/rocket_outsider_sweep_burn.json).
+`z-100hz-as-baro` and `z-100hz-buttons` are controls of `z-100hz` (the barometric
+altitude instead of `z`; the rail buttons in the rocket file).
 """
 
 import json
