@@ -206,6 +206,17 @@ FLIGHTS = {
         buttons=True,
         header=("time", "altitude", "acceleration"),
     ),
+    # l395-eng-50hz's log, its rocket file with the fixtures' geometry for
+    # `rocket fit --attitude` (fitted by hand, not by `run`)
+    "l395-eng-50hz-geometry": dict(
+        BASE,
+        motor="L395",
+        altitude="Pa",
+        team_drag=True,
+        seed=65,
+        geometry=True,
+        header=("time_s", "pressure_pa", "accel_m_s2"),
+    ),
     # the rocket 0.4 kg heavier than its file says, 100 Hz
     "mass04-100hz": dict(
         BASE,
@@ -399,6 +410,17 @@ def fly_one(name, spec, out):
     buttons = ""
     if spec.get("buttons"):
         buttons = "rail_buttons_m = [1.1, 0.3]\n\n[geometry]\nnozzle_position_m = 0.0\n"
+    if spec.get("geometry"):
+        # the fixtures' airframe; the L395 loaded at the chamber's centre, its
+        # lateral inertia the casing's 0.05 and a propellant cylinder's
+        buttons = (
+            "I11_kgm2 = 4.4\ncenter_of_mass_without_motor_m = 1.2\n"
+            "rail_buttons_m = [1.1, 0.3]\n\n[geometry]\n"
+            'nose = { kind = "vonKarman", length_m = 0.52, position_m = 2.72 }\n'
+            "fins = { n = 4, span_m = 0.1, root_chord_m = 0.2, tip_chord_m = 0.07, "
+            "position_m = 0.21 }\nmotor_center_of_mass_m = 0.25\n"
+            "nozzle_position_m = 0.0\nmotor_inertia_kgm2 = 0.097\n"
+        )
     lat = f"latitude_deg = {SITE['latitude']}\n" if spec["latitude"] else ""
     (folder / "rocket.toml").write_text(f"""\
 name = "{name}"
