@@ -201,6 +201,14 @@ def test_rocket_toml_read_and_refused(tmp_path):
         bad.write_text(text.replace("latitude_deg = 39.39", f"latitude_deg = {value}"))
         with pytest.raises(ValueError, match=rf"\[launch\] latitude_deg .*{why}"):
             dr.read_rocket(bad)
+    # an angle from the vertical (OpenRocket's launch rod angle) and a radius in mm:
+    # before, both were flown as written (a rail 6 deg up, a 104 m wide rocket)
+    bad.write_text(text.replace("inclination_deg = 84", "inclination_deg = 6"))
+    with pytest.raises(ValueError, match=r"launch rod angle\) is inclination_deg = 84"):
+        dr.read_rocket(bad)
+    bad.write_text(text.replace("radius_m = 0.052", "radius_m = 52"))
+    with pytest.raises(ValueError, match=r"radius_m = 52 m .*\(52 mm is 0\.052 m\)"):
+        dr.read_rocket(bad)
 
 
 def sim_log(name):

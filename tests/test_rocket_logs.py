@@ -342,6 +342,62 @@ def test_gravity_said_removed_on_an_accelerometer_that_reads_1g(tmp_path):
         read_rocket_log(path, columns)
 
 
+def _si_columns(tmp_path, time_scale=1.0, time_name="time", accel_sign=1.0):
+    """The synthetic altimeter file rewritten as a user's script writes it: no
+    units in the header, metres and m/s^2, the time `time_scale` times seconds
+    (with a clock's offset where it is not 1)."""
+    rows = np.loadtxt(FIXTURES / "altimeter.csv", delimiter=",", skiprows=1)
+    t = rows[:, 0] * time_scale + (0.0 if time_scale == 1.0 else 123456789.0)
+    path = tmp_path / "log.csv"
+    np.savetxt(
+        path,
+        np.column_stack([t, rows[:, 1] * 0.3048, accel_sign * rows[:, 2] * G0]),
+        delimiter=",",
+        fmt=["%.2f" if time_scale == 1.0 else "%d", "%.4f", "%.4f"],
+        header=f"{time_name},altitude,acceleration",
+        comments="",
+    )
+    return path
+
+
+@pytest.mark.parametrize(
+    "name, scale", [("micros", 1e6), ("timestamp_us", 1e6), ("time", 1e6)]
+)
+def test_time_in_microseconds(tmp_path, name, scale):
+    """A logger's micros() clock, named so or not at all: before, its unit was
+    dropped from the name (only s and ms were kept), the time read as ms (7.4 h of
+    it) and the altitude's unit blamed ('climbs 2336344 m in the 20421.3 s coast');
+    `micros` was no time column at all."""
+    ref = read_rocket_log(_si_columns(tmp_path))
+    log = read_rocket_log(_si_columns(tmp_path, scale, name))
+    for event in ("liftoff", "burnout", "apogee"):
+        # the times are written to the microsecond: the same events to 1e-6 s
+        assert log.events[event].t == pytest.approx(ref.events[event].t, abs=2e-6)
+    np.testing.assert_allclose(log["altitude"].t, ref["altitude"].t, atol=2e-6)
+    said = [m for m in log.messages if "read as us" in m]
+    assert len(said) == (name == "time")  # a unit from the name says nothing
+
+
+def test_accelerometer_mounted_tail_first(tmp_path):
+    """An accelerometer whose axis points tail-first reads -1 g on the pad: the
+    error says which map entry reads it, and with that entry (no unit: the unit
+    is inferred, the map's sign kept) it reads as the same file the right way up.
+    Before, the inferred unit dropped the map's `scale` and the error stayed."""
+    ref = read_rocket_log(_si_columns(tmp_path))["accel_axial"].values
+    path = _si_columns(tmp_path, accel_sign=-1.0)
+    with pytest.raises(
+        LogError, match=r'about -1 g: its axis points tail-first .*"scale": -1'
+    ):
+        read_rocket_log(path)
+    columns = {
+        "time": "time",
+        "altitude": "altitude",
+        "accel_axial": {"column": "acceleration", "scale": -1},
+    }
+    log = read_rocket_log(path, columns)
+    np.testing.assert_allclose(log["accel_axial"].values, ref, rtol=0, atol=1e-12)
+
+
 def test_pressure_in_hpa(tmp_path):
     src = (FIXTURES / "cats" / "baro.csv").read_text().splitlines()
     path = tmp_path / "baro.csv"

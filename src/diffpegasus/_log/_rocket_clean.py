@@ -202,9 +202,12 @@ def clean_stream(
                 f"{span / 3600:.1f} h long; the column looks like milliseconds (give "
                 'it "unit": "ms" in the column map)'
             )
-        t = t * 1e-3
+        # a flight's minutes are no flight in ms either in microseconds (a
+        # logger's micros(): 27 s of flight is 2.7e7)
+        unit, factor = ("ms", 1e-3) if span * 1e-3 <= 2e4 else ("us", 1e-6)
+        t = t * factor
         messages.append(
-            f"{where_t}: no unit given and {span:.6g} s is no flight: read as ms"
+            f"{where_t}: no unit given and {span:.6g} s is no flight: read as {unit}"
         )
     out: dict[str, Series] = {}
     for k, c in enumerate(names):

@@ -116,6 +116,9 @@ _SPELLINGS = {
     "msec": "ms",
     "millis": "ms",
     "usec": "us",
+    "micros": "us",
+    "µs": "us",  # the micro sign
+    "μs": "us",  # the Greek mu
     "feet": "ft",
     "meters": "m",
     "metres": "m",
@@ -416,7 +419,9 @@ _KEYWORDS = (
     ("altitude", ("altitude", "alt", "height", "h")),
     ("pressure", ("baro",)),  # a barometer's column that says nothing more
 )
-_TIME_NAMES = ("t", "ts", "time", "timestamp", "time_s", "seconds")
+_TIME_NAMES = ("t", "ts", "time", "timestamp", "time_s", "seconds", "millis", "micros")
+# an Arduino sketch's clock, named after the function that read it
+_CLOCK_UNITS = {"millis": "ms", "micros": "us"}
 
 
 def _bare(name: str) -> str:
@@ -429,7 +434,10 @@ def _is_time(name: str) -> bool:
         bare in _TIME_NAMES
         or bare.startswith("time")
         # 'Flight_Time_(s)': a time with a time unit (a clock 'Time' may precede it)
-        or ("time" in re.split(r"[^a-z]+", bare) and _bracket_unit(name) in ("s", "ms"))
+        or (
+            "time" in re.split(r"[^a-z]+", bare)
+            and _bracket_unit(name) in ("s", "ms", "us")
+        )
     )
 
 
@@ -493,12 +501,12 @@ def detect_streams(file: pathlib.Path) -> tuple[list[StreamSpec], str]:
                     break
         if not taken:
             continue
-        time_unit = _bracket_unit(names[j])
+        time_unit = _bracket_unit(names[j]) or _CLOCK_UNITS.get(_bare(names[j]), "")
         time = channel_spec(
             "time",
             {
                 "column": names[j],
-                **({"unit": time_unit} if time_unit in ("s", "ms") else {}),
+                **({"unit": time_unit} if time_unit in ("s", "ms", "us") else {}),
             },
             where,
             None,

@@ -20,6 +20,12 @@ def _fix_hint(alternative: str) -> str:
     return f"(give it {alternative} in the column map)"
 
 
+def _map_scale(c) -> float:
+    """A channel's `scale` from its map: its factor over its unit's (the unit's
+    alternatives the checks try keep it: an axis mapped tail-first stays so)."""
+    return c.factor / UNITS.get(c.unit, UNITS.get(c.unit.lower(), 1.0))
+
+
 def check_accel_axial(
     s: Series, pad: np.ndarray, near_top: np.ndarray, messages: list[str]
 ) -> None:
@@ -30,14 +36,15 @@ def check_accel_axial(
     series is converted to specific force with gravity included."""
     c = s.spec
     removed = c.gravity == "removed"
+    scale = _map_scale(c)
     if pad.size >= 5:
         raw = float(np.median(s.v[pad])) / c.factor
         row = s.rows[pad[len(pad) // 2]]
         units = [(c.unit or "m/s^2", c.factor)] if c.unit_from else []
         units += [
-            (u, f)
+            (u, f * scale)
             for u, f in (("m/s^2", 1.0), ("g", G0))
-            if f != c.factor or not c.unit_from
+            if f * scale != c.factor or not c.unit_from
         ]
         gravities = [c.gravity] if c.gravity else []
         gravities += [g for g in ("included", "removed") if g != c.gravity]
@@ -49,6 +56,13 @@ def check_accel_axial(
         fits = [o for o in options if 0.6 * G0 <= o[3] <= 1.05 * G0]
         # what the map or the format said, as much of it as the reading allows
         fits.sort(key=lambda o: (o[2] != c.gravity, o[1] != c.factor))
+        if not fits and any(0.6 * G0 <= -o[3] <= 1.05 * G0 for o in options):
+            # about -1 g: the axis points tail-first (a board mounted upside down)
+            raise LogError(
+                f"{s.where}, row {row}: reads {raw:.4g} {c.unit or 'm/s^2'} on the "
+                "pad, about -1 g: its axis points tail-first (give it "
+                '{"scale": -1} in the column map)'
+            )
         if not fits:
             raise LogError(
                 f"{s.where}, row {row}: reads {raw:.4g} {c.unit or 'm/s^2'} on the "
@@ -90,7 +104,7 @@ def check_accel_axial(
     # (gravity included) or ~-1 g (1 g removed)
     if c.gravity is None and near_top.size >= 5:
         top = float(np.median(s.v[near_top]))
-        for factor in (c.factor, G0 if c.factor == 1.0 else 1.0):
+        for factor in (c.factor, (G0 if c.factor == scale else 1.0) * scale):
             x = top / c.factor * factor
             if abs(x) < 0.25 * G0 or abs(x + G0) < 0.25 * G0:
                 grav = "included" if abs(x) < 0.25 * G0 else "removed"
@@ -117,7 +131,7 @@ def check_accel_axial(
                 f"{peak / c.factor:.4g} {c.unit or 'm/s^2'}, {peak / G0:.3g} g: the "
                 f"column looks like {unit} {hint}"
             )
-        factor = G0 if unit == "g" else 1.0
+        factor = (G0 if unit == "g" else 1.0) * scale
         s.v = s.v / c.factor * factor
         messages.append(f"{s.where}: the boost reads like {unit}: taken as {unit}")
         sf = s.v + (G0 if removed else 0.0)

@@ -110,6 +110,12 @@ class Rocket(eqx.Module):
         return float(np.pi * self.radius**2)
 
 
+# deg: the lowest rail the logs' readers take (an accelerometer on it reads 0.6 g)
+RAIL_LOWEST = 37.0
+# m: a radius above the widest rockets flown (Saturn V and Starship, 5.05 and 4.5 m)
+RADIUS_WIDEST = 6.0
+
+
 def _number(table, key, path, section, default=None, positive=True):
     if key not in table:
         if default is not None:
@@ -234,6 +240,23 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
             f"{path}: [launch] inclination_deg = {inclination:g} must be "
             "in (0, 90] degrees from horizontal"
         )
+    if inclination < RAIL_LOWEST:
+        # the logs' readers take rails 37-90 degrees up (an axial accelerometer on
+        # the pad reads 0.6-1 g); an angle this low is more likely one from the
+        # vertical, as OpenRocket's launch rod angle is
+        raise LogError(
+            f"{path}: [launch] inclination_deg = {inclination:g} puts the rail "
+            f"{inclination:g} deg above the ground (below {RAIL_LOWEST:g}); it is "
+            f"degrees from horizontal: a rail {inclination:g} deg from the vertical "
+            f"(OpenRocket's launch rod angle) is inclination_deg = {90 - inclination:g}"
+        )
+    radius = _number(rk, "radius_m", path, "rocket")
+    if radius > RADIUS_WIDEST:
+        raise LogError(
+            f"{path}: [rocket] radius_m = {radius:g} m is wider than any rocket "
+            f"flown ({RADIUS_WIDEST:g} m); give metres ({radius:g} mm is "
+            f"{radius / 1000:g} m)"
+        )
     temperature = _optional(at, "surface_temperature_K")
     if temperature is None:
         text = str(at.get("notebook_surface_conditions", ""))
@@ -274,7 +297,7 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
         name=str(doc.get("name", path.parent.name)),
         dry_mass=rocket_mass + motor_dry,
         motor=motor,
-        radius=_number(rk, "radius_m", path, "rocket"),
+        radius=radius,
         holddown=_number(
             mo, "holddown_time_s", path, "motor", default=0.0, positive=False
         ),
@@ -293,9 +316,7 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
         preflight_apogee=_optional(rs, "preflight_simulated_apogee_agl_m"),
         folder=str(folder),
         latitude=_latitude(la, path),
-        airframe=read_airframe(doc, path, _number(rk, "radius_m", path, "rocket"))
-        if attitude
-        else None,
+        airframe=read_airframe(doc, path, radius) if attitude else None,
         airbrake_table=_airbrake_table(folder, ae, path),
         parachutes=_parachutes(doc, path),
         parachute_lags=_parachute_lags(doc, path),
