@@ -722,10 +722,12 @@ class RecursiveLeastSquares(AbstractRecursiveEstimator):
         # bound was short) or negative (differenced noise, whose adjacent
         # blocks share the noise at their common end: the bound was long); its
         # own noise is in the degrees of freedom
-        quarter = self._variance(state, pm, jnp.maximum(j - 2, 0))
-        eighth = self._variance(state, pm, jnp.maximum(j - 3, 0))
-        extrapolated = var_c + 0.25 * (quarter - eighth)
-        extrapolate = (j >= 3) & (extrapolated > 0)
+        top = _EXTRAPOLATION[0][0]
+        extrapolated = var_c
+        for group, coef in _EXTRAPOLATION[1:]:
+            lower = jnp.maximum(j - int(np.log2(top // group)), 0)
+            extrapolated = extrapolated + coef * self._variance(state, pm, lower)
+        extrapolate = (j >= int(np.log2(top))) & (extrapolated > 0)
         var_c = jnp.where(extrapolate, extrapolated, var_c)
         ok = jnp.any(usable) & (var_c > 0)
         var_c = jnp.where(ok, var_c, white)
