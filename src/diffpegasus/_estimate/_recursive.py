@@ -131,7 +131,8 @@ class RecursiveEstimates(eqx.Module):
     """The estimates at one time: `theta` `(p,)`, `stderr` `(p,)` (white
     residuals), `stderr_corrected` `(p,)` (coloured residuals), `dof` `(p,)` an
     estimate of the effective degrees of freedom of the corrected bound (how many
-    independent pieces of data it was estimated from), and `halfwidth` `(p,)` the
+    independent pieces of data it was estimated from; for least squares those of
+    the Student-t band that matches the bound's lower tail), and `halfwidth` `(p,)` the
     half-width of the 95% band: the Student-t quantile at `dof` times
     `stderr_corrected`."""
 
