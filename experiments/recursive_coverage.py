@@ -20,6 +20,7 @@ import json
 import os
 import pathlib
 import time
+import types
 
 
 # Why the vmapped replays stalled in XLA's CPU runtime (every thread waiting, 0 CPU;
@@ -67,23 +68,23 @@ RLS_BAND = 2.0  # Hz: least squares' low-pass of the state equations
 CHUNK = 25  # flights per compiled batch
 
 
-def rates(t, x, u, p):
-    w, q = x
-    return jnp.stack(
-        [
-            p["Zw"] * w + (U0 + ZQ) * q + p["Zde"] * u[0],
-            p["Mw"] * w + p["Mq"] * q + p["Mde"] * u[0],
-        ]
-    )
+def make_model(true, u0=U0, zq=ZQ):
+    """The model file (trim speed `u0`, `zq` the pitch rate's share of `az`),
+    started at half the true values."""
 
+    def rates(t, x, u, p):
+        w, q = x
+        return jnp.stack(
+            [
+                p["Zw"] * w + (u0 + zq) * q + p["Zde"] * u[0],
+                p["Mw"] * w + p["Mq"] * q + p["Mde"] * u[0],
+            ]
+        )
 
-def observe(t, x, u, p):
-    w, q = x
-    return jnp.stack([p["Zw"] * w + ZQ * q + p["Zde"] * u[0], w, q])
+    def observe(t, x, u, p):
+        w, q = x
+        return jnp.stack([p["Zw"] * w + zq * q + p["Zde"] * u[0], w, q])
 
-
-def make_model(true):
-    """The model file, started at half the true values."""
     return dp.Model(
         states=("w", "q"),
         inputs=("de",),
@@ -95,6 +96,12 @@ def make_model(true):
 
 
 MODEL = make_model(TRUE)
+# the aircraft of `--aircraft`: trim speed, `zq`, the true derivatives
+AIRCRAFT = {
+    "short-period": (U0, ZQ, TRUE),
+    # examples/unstable_aircraft.py: a set the bounds were not tuned on
+    "unstable": (UNSTABLE_U0, UNSTABLE_ZQ, UNSTABLE),
+}
 
 
 def input_signal(t):
@@ -124,16 +131,26 @@ def _ar1(rng, shape, rho, sigma):
     return e
 
 
-def simulate(n_flights, duration, rate, seed, scale=1.0, sensor_time=0.0):
+def simulate(
+    n_flights,
+    duration,
+    rate,
+    seed,
+    scale=1.0,
+    sensor_time=0.0,
+    true=TRUE,
+    u0=U0,
+    zq=ZQ,
+):
     """Noise-free states exactly (matrix exponential with inputs linear between
     samples), then per-flight noise (with `sensor_time` > 0 s, the w and q
     sensors' noise first-order coloured with that correlation time instead of
-    white)."""
+    white); the aircraft `true`, `u0`, `zq` (the short-period one by default)."""
     dt = 1.0 / rate
     t = np.arange(0.0, duration + 0.5 * dt, dt)
     de = input_signal(t)
-    a = np.array([[TRUE["Zw"], U0 + ZQ], [TRUE["Mw"], TRUE["Mq"]]])
-    b = np.array([[TRUE["Zde"]], [TRUE["Mde"]]])
+    a = np.array([[true["Zw"], u0 + zq], [true["Mw"], true["Mq"]]])
+    b = np.array([[true["Zde"]], [true["Mde"]]])
     f = np.zeros((4, 4))
     f[:2, :2], f[:2, 2:3], f[2, 3] = a, b, 1.0
     e = scipy.linalg.expm(f * dt)
@@ -141,7 +158,7 @@ def simulate(n_flights, duration, rate, seed, scale=1.0, sensor_time=0.0):
     x = np.zeros((len(t), 2))
     for k in range(len(t) - 1):
         x[k + 1] = phi @ x[k] + (g1 - g2) * de[k] + g2 * de[k + 1]
-    az = TRUE["Zw"] * x[:, 0] + ZQ * x[:, 1] + TRUE["Zde"] * de
+    az = true["Zw"] * x[:, 0] + zq * x[:, 1] + true["Zde"] * de
     clean = np.column_stack([az, x])
     rng = np.random.default_rng(seed)
     white = (
@@ -196,15 +213,16 @@ def coverage(theta, halfwidth, truth):
     return inside.mean(axis=0)
 
 
-def main():
-    parser = argparse.ArgumentParser(description=__doc__)
+def flight_arguments(parser):
+    """The options that choose the simulated flights (shared with the scripts that
+    take these flights apart)."""
     parser.add_argument("--flights", type=int, default=200)
     parser.add_argument("--duration", type=float, default=30.0)
     parser.add_argument("--rate", type=float, default=50.0)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
         "--aircraft",
-        choices=("short-period", "unstable"),
+        choices=tuple(AIRCRAFT),
         default="short-period",
         help="unstable: the unstable aircraft's short-period derivatives (Mw > 0)",
     )
@@ -217,19 +235,16 @@ def main():
         default=0.0,
         help="s: w and q sensor noise first-order coloured (0: white)",
     )
-    parser.add_argument(
-        "--methods", default="rls,rls_memory_10s,rft", help="comma-separated labels"
-    )
-    parser.add_argument(
-        "--out", type=pathlib.Path, default=pathlib.Path("results/recursive_coverage")
-    )
-    args = parser.parse_args()
-    global U0, ZQ, TRUE, MODEL
-    if args.aircraft == "unstable":
-        # examples/unstable_aircraft.py: a set the bounds were not tuned on
-        U0, ZQ = UNSTABLE_U0, UNSTABLE_ZQ
-        TRUE = UNSTABLE
-        MODEL = make_model(TRUE)
+
+
+def setup(args):
+    """The flights of the options `args` ([`flight_arguments`][]) and their
+    regressions: a namespace with `t` `(n,)`, `dt`, the `model`, its `true`
+    derivatives, `regs` (one per flight), `names`, `truth` `(p,)` in their
+    order, `h`, `y`, `o` stacked over the flights, `theta0`, the checked times
+    `check_times` (s) and their sample indices `times_idx`."""
+    u0, zq, true = AIRCRAFT[args.aircraft]
+    model = make_model(true, u0, zq)
     t, de, measured = simulate(
         args.flights,
         args.duration,
@@ -237,23 +252,51 @@ def main():
         args.seed,
         args.noise_scale,
         args.sensor_correlation,
+        true,
+        u0,
+        zq,
     )
     dt = 1.0 / args.rate
     regs = [
         rc.model_regression(
-            MODEL, dp.Record(t, de[:, None], measured[i], x0=np.zeros(2))
+            model, dp.Record(t, de[:, None], measured[i], x0=np.zeros(2))
         )
         for i in range(args.flights)
     ]
     names = regs[0].parameters
-    truth = np.array([TRUE[n] for n in names])
-    h = jnp.stack([r.h for r in regs])
-    y = jnp.stack([r.y for r in regs])
-    o = jnp.stack([r.o for r in regs])
-    theta0 = jnp.asarray(np.asarray(MODEL.start)[list(regs[0].index)])
     check_times = [c for c in (10.0, 15.0, 20.0, 25.0) if c < args.duration]
     check_times.append(args.duration)
-    times_idx = [int(round((c - t[0]) / dt)) for c in check_times]
+    return types.SimpleNamespace(
+        t=t,
+        dt=dt,
+        model=model,
+        true=true,
+        regs=regs,
+        names=names,
+        truth=np.array([true[n] for n in names]),
+        h=jnp.stack([r.h for r in regs]),
+        y=jnp.stack([r.y for r in regs]),
+        o=jnp.stack([r.o for r in regs]),
+        theta0=jnp.asarray(np.asarray(model.start)[list(regs[0].index)]),
+        check_times=check_times,
+        times_idx=[int(round((c - t[0]) / dt)) for c in check_times],
+    )
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__)
+    flight_arguments(parser)
+    parser.add_argument(
+        "--methods", default="rls,rls_memory_10s,rft", help="comma-separated labels"
+    )
+    parser.add_argument(
+        "--out", type=pathlib.Path, default=pathlib.Path("results/recursive_coverage")
+    )
+    args = parser.parse_args()
+    flights = setup(args)
+    dt, regs, names, truth = flights.dt, flights.regs, flights.names, flights.truth
+    h, y, o, theta0 = flights.h, flights.y, flights.o, flights.theta0
+    check_times, times_idx = flights.check_times, flights.times_idx
     freqs = tuple(float(f) for f in np.arange(0.1, BAND + 0.01, 0.04))
     estimators = {
         "rls": rc.RecursiveLeastSquares(

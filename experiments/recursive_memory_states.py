@@ -48,7 +48,6 @@ import scipy.stats  # noqa: E402
 sys.path.insert(0, str(pathlib.Path(__file__).parent))
 import recursive_coverage as rcov  # noqa: E402
 
-import diffpegasus as dp  # noqa: E402
 from diffpegasus._estimate import _recursive as rc  # noqa: E402
 
 
@@ -73,47 +72,17 @@ def states_at(est, h, y, o, theta0, idx):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--flights", type=int, default=200)
-    ap.add_argument("--duration", type=float, default=30.0)
-    ap.add_argument("--rate", type=float, default=50.0)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument(
-        "--aircraft", choices=("short-period", "unstable"), default="short-period"
-    )
-    ap.add_argument("--noise-scale", type=float, default=1.0)
-    ap.add_argument("--sensor-correlation", type=float, default=0.0)
+    rcov.flight_arguments(ap)
     ap.add_argument("--memory", type=float, default=10.0, help="s; 0: all data")
     ap.add_argument("--out", type=pathlib.Path, required=True)
     ap.add_argument(
         "--keep-states", action="store_true", help="also write DIR/states.npz (150 MB)"
     )
     args = ap.parse_args()
-    if args.aircraft == "unstable":
-        rcov.U0, rcov.ZQ = rcov.UNSTABLE_U0, rcov.UNSTABLE_ZQ
-        rcov.TRUE = rcov.UNSTABLE
-        rcov.MODEL = rcov.make_model(rcov.TRUE)
-    t, de, measured = rcov.simulate(
-        args.flights,
-        args.duration,
-        args.rate,
-        args.seed,
-        args.noise_scale,
-        args.sensor_correlation,
-    )
-    dt = 1.0 / args.rate
-    regs = [
-        rc.model_regression(
-            rcov.MODEL, dp.Record(t, de[:, None], measured[i], x0=np.zeros(2))
-        )
-        for i in range(args.flights)
-    ]
-    h = jnp.stack([r.h for r in regs])
-    y = jnp.stack([r.y for r in regs])
-    o = jnp.stack([r.o for r in regs])
-    theta0 = jnp.asarray(np.asarray(rcov.MODEL.start)[list(regs[0].index)])
-    checks = [c for c in (10.0, 15.0, 20.0, 25.0) if c < args.duration]
-    checks.append(args.duration)
-    idx = tuple(int(round((c - t[0]) / dt)) for c in checks)
+    flights = rcov.setup(args)
+    dt, regs, theta0 = flights.dt, flights.regs, flights.theta0
+    h, y, o = flights.h, flights.y, flights.o
+    checks, idx = flights.check_times, tuple(flights.times_idx)
     lam = rc.forgetting_for(args.memory, dt) if args.memory > 0 else 1.0
     est = rc.RecursiveLeastSquares(
         forgetting=lam, derivative=regs[0].derivative, dt=dt, bandwidth=rcov.RLS_BAND
@@ -142,7 +111,7 @@ def main():
         np.concatenate(p)
         for p in zip(*(jax.tree.leaves(p) for p in parts), strict=True)
     ]
-    truth = np.array([rcov.TRUE[n] for n in regs[0].parameters])
+    truth = flights.truth
     args.out.mkdir(parents=True, exist_ok=True)
     states = jax.tree.unflatten(jax.tree.structure(est.init(theta0)), leaves)
     summary = {

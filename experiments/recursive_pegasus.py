@@ -263,6 +263,9 @@ def main():
         "--cache", type=pathlib.Path, default=None, help="keep the replays here"
     )
     parser.add_argument(
+        "--methods", default="rls,rft", help="comma-separated: rls, rft"
+    )
+    parser.add_argument(
         "--out", type=pathlib.Path, default=pathlib.Path("results/recursive_pegasus")
     )
     args = parser.parse_args()
@@ -295,6 +298,7 @@ def main():
             frequencies=freqs, forgetting=lam, derivative=reg.derivative, dt=dt
         ),
     }
+    estimators = {k: v for k, v in estimators.items() if k in args.methods.split(",")}
     cols = [reg.parameters.index(n) for n in DERIVATIVES]
     after = t >= IGNITION
     summary = {
@@ -523,6 +527,8 @@ def main():
     for j, (name, ax) in enumerate(zip(DERIVATIVES, axes.flat, strict=True)):
         ax.plot(t, truth[:, j] * DEG, "k", lw=1.2, label="truth")
         for label, colour in (("rls", "C0"), ("rft", "C2")):
+            if label not in histories:
+                continue
             theta, half_ = histories[label]
             ax.plot(t, theta[:, j] * DEG, colour, lw=0.8, label=label)
             ax.fill_between(

@@ -373,7 +373,102 @@ def test_least_squares_bound_is_the_batch_means_written_here():
     nu = np.trace(a) ** 2 / np.trace(a @ a)
     length = np.array([min(32, 200 - a) for a in range(0, 200, 32)], float)
     share = nu / (length.sum() ** 2 / (length**2).sum())
-    np.testing.assert_allclose(out.dof[0], n_blocks * share, rtol=1e-8)
+    # and that count scaled for the lower tail: the dof at which the Student-t
+    # quantile is the exact critical value of the blocks of 32's own shares
+    # (Imhof's inversion here), over their two-moment count
+    from diffpegasus._estimate import _recursive as rc
+
+    blocks = [slice(a, min(a + 32, 200)) for a in range(0, 200, 32)]
+    shares = np.array([np.diag(pm @ hh[b].T @ hh[b] @ pm) for b in blocks])
+    for a in range(3):
+        crit = _imhof_critical_value(shares[:, a])
+        quantile = rc._t_quantile(out.dof[0, a] / share)
+        np.testing.assert_allclose(quantile, crit, rtol=1e-5)
+    assert np.all(out.dof[0] > n_blocks * share)  # unequal shares: a floor
+
+
+def _imhof_miss(crit, shares):
+    """`P(|Z| > crit sqrt(W))`, `W = sum_b c_b X_b / sum c` (one-degree
+    chi-squares, `Z` an independent standard normal), by Imhof's inversion of the
+    characteristic function of `Z^2 - crit^2 W` (not the estimator's Craig
+    form)."""
+    import scipy.integrate
+
+    lam = np.concatenate([[1.0], -(crit**2) * shares / shares.sum()])
+
+    def integrand(u):
+        theta = 0.5 * np.sum(np.arctan(lam * u))
+        rho = np.prod((1.0 + (lam * u) ** 2) ** 0.25)
+        return np.sin(theta) / (u * rho)
+
+    value, _ = scipy.integrate.quad(integrand, 0.0, np.inf, limit=400, epsabs=1e-12)
+    return 0.5 + value / np.pi
+
+
+def _imhof_critical_value(shares):
+    return scipy.optimize.brentq(lambda c: _imhof_miss(c, shares) - 0.05, 1.9, 30.0)
+
+
+def test_critical_value_of_unequal_blocks_against_references():
+    """The band's critical value for a bound that is a weighted sum of one-degree
+    chi-squares: equal weights give Student's t exactly (scipy); the
+    forgetting's geometric weights `r^b` the root of Imhof's inversion; and the
+    degrees of freedom handed on are those at which the module's Student-t
+    quantile is that value."""
+    import scipy.stats
+
+    from diffpegasus._estimate import _recursive as rc
+
+    for n in (3, 5, 12):
+        c = jnp.ones((n, 1))
+        crit = rc._critical_value(c, rc._t_quantile(jnp.asarray([float(n)])))
+        # 12 nodes of Craig's integral, three Newton steps: within 2e-7 of scipy's
+        np.testing.assert_allclose(crit, scipy.stats.t.ppf(0.975, n), rtol=1e-6)
+    for r in (0.3, 0.5, 0.77):
+        shares = r ** np.arange(60)
+        count = shares.sum() ** 2 / (shares**2).sum()
+        crit = rc._critical_value(
+            jnp.asarray(shares[:, None]), rc._t_quantile(jnp.asarray([count]))
+        )
+        np.testing.assert_allclose(crit[0], _imhof_critical_value(shares), rtol=1e-5)
+        # the two-moment count's band is too wide (the older blocks' floor):
+        # measured dof 2.55, 3.86, 8.73 against the counts 1.86, 3.0, 7.7
+        dof = rc._t_dof(crit)
+        assert dof[0] > count
+        np.testing.assert_allclose(rc._t_quantile(dof), crit, rtol=1e-10)
+
+
+def test_least_squares_ring_keeps_each_blocks_information():
+    """The blocks' own information `C_b = sum_(i in b) w_i^2 G_i`, kept for the
+    newest 64 completed blocks per length and the partial one, projected on
+    each parameter (`(P C_b P)_aa`), against the blocks written here in NumPy
+    after the flight under forgetting."""
+    n, lam, levels = 150, 0.99, 5
+    h, y, o = _regression(n=n, noise=0.05)
+    est = dp.RecursiveLeastSquares(
+        forgetting=lam, derivative=(False,), dt=DT, levels=levels
+    )
+    state = est.init(jnp.zeros(3))
+    step = jax.jit(est.update)
+    for k in range(n):
+        state = step(state, h[k], y[k], o[k])
+    hh = np.asarray(h[:, 0, :])
+    w = lam ** np.arange(n)[::-1]
+    info = (hh * w[:, None]).T @ hh + lam**n * np.eye(3) / 1e6
+    pm = np.linalg.inv(info)
+    from diffpegasus._estimate import _recursive as rc
+
+    for j in range(levels):
+        size = 2**j
+        cut = [slice(a, min(a + size, n)) for a in range(0, n, size)]
+        cb = [(hh[b] * w[b, None] ** 2).T @ hh[b] for b in cut]
+        want = np.array([np.diag(pm @ c @ pm) for c in cb])
+        full = n // size
+        kept = want[max(full - 64, 0) : len(cut)]  # the newest 64 full, the partial
+        got = np.asarray(est._shares(state, rc._inverse(state.info), j))
+        for a in range(3):
+            ref = np.sort(np.concatenate([kept[:, a], np.zeros(65 - len(kept))]))
+            np.testing.assert_allclose(np.sort(got[:, a]), ref, rtol=1e-9, atol=0)
 
 
 def test_least_squares_bands_cover_over_a_monte_carlo():
