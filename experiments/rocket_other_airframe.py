@@ -554,17 +554,18 @@ def right(truth, named):
 
 def judged(diag):
     """`(named, text)` of a stored diagnosis judged by the rule as it stands (a
-    finding's statistic passes and it explains `SHARE` of the misfit): the stored
+    finding's statistic passes and a sensor's own effect explains `SHARE` of the
+    misfit): the stored
     rounds up to the first that names nothing now are the same; that round's
     strongest significant candidate is shown with the share it would explain."""
-    from diffpegasus._rocket._diagnose import SHARE
+    from diffpegasus._rocket._diagnose import explains_enough
 
     if diag.get("named") is None:
         return None, "error"
     named, cells, tests = [], [], diag.get("tests", [])
     for r, stored in enumerate(diag["named"], start=1):
         row = [t for t in tests if t["round"] == r and t["significant"]]
-        if not row or row[0]["cost_ratio"] > 1.0 - SHARE:
+        if not row or not explains_enough(*row[0]["estimates"], row[0]["cost_ratio"]):
             break
         named.append(stored)
         cells.append(f"{stored}: {row[0]['statistic']:.0f} ({row[0]['threshold']:.1f})")

@@ -14,7 +14,7 @@ import pathlib
 
 import numpy as np
 
-from diffpegasus._rocket._diagnose import SHARE
+from diffpegasus._rocket._diagnose import explains_enough
 
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -26,7 +26,9 @@ def judged(r) -> list[str]:
     named = []
     for k, stored in enumerate(r.get("named", []), start=1):
         first = [t for t in r["tests"] if t["round"] == k and t["significant"]]
-        if not first or first[0]["cost_ratio"] > 1.0 - SHARE:
+        if not first or not explains_enough(
+            *first[0]["estimates"], first[0]["cost_ratio"]
+        ):
             break
         named.append(stored)
     return named
@@ -578,7 +580,10 @@ def main():
                 t
                 for t in r["tests"]
                 if t["round"] == last
-                and not (t["significant"] and t["cost_ratio"] <= 1.0 - SHARE)
+                and not (
+                    t["significant"]
+                    and explains_enough(*t["estimates"], t["cost_ratio"])
+                )
             ]
             top = max(missed, key=lambda t: t["statistic"], default=None)
             strongest = (

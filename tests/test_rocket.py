@@ -723,14 +723,15 @@ def test_diagnose_judges_the_thrust_scale_in_the_candidates_family(monkeypatch):
         ]
 
     monkeypatch.setattr(_diagnose, "fit_rocket", fake_fit)
+    monkeypatch.setattr(_diagnose, "held_burn_scale", lambda problem: 0.998)
     monkeypatch.setattr(_candidates, "score_candidates", fake_score)
     named, rows, _ = _diagnose.diagnose(problem)
     # a finding the log cannot tell from another candidate is named with it
     assert named == ["thrust scale (or thrust misalignment) or mass error"]
-    # the burn's length held at the accelerometer's reading throughout (free beside
+    # the burn's length held at the full fit's estimate throughout (free beside
     # a held thrust it took up RocketPy's planted 0.94 thrust scale: nothing named)
     assert fits[0][:2] == ((), ("thrust_scale", "burn_scale"))
-    assert fits[0][2]["thrust_scale"] == 1.0 and "burn_scale" not in fits[0][2]
+    assert fits[0][2]["thrust_scale"] == 1.0 and fits[0][2]["burn_scale"] == 0.998
     assert "thrust_scale" in families[0] and "static_error" in families[0]
     assert "burn_scale" not in families[0]
     assert fits[1][:2] == (("thrust_scale",), ("burn_scale",))
@@ -743,11 +744,13 @@ def test_diagnose_judges_the_thrust_scale_in_the_candidates_family(monkeypatch):
 
 
 def test_diagnose_names_only_what_the_misfit_is_made_of(monkeypatch):
-    """A candidate whose statistic passes the log's threshold but that would take
-    only 6% of the fit's misfit (the predicted fall of det(R)) is not named: the
-    finding must explain half. Its smallest named size is where it would: the fall
-    grows as the estimate squared, `0.01 sqrt(0.94 / 0.06)` = 0.0396 here, above the
-    statistic's `sqrt(9) 0.002`. The engine's fit and score are stand-ins."""
+    """A sensor's own effect (the barometer's lag) whose statistic passes the log's
+    threshold but that would take only 6% of the fit's misfit (the predicted fall of
+    det(R)) is not named: it must explain half; an effect on the flight (the wind)
+    is named on its statistic. Its smallest named size is where it would explain
+    half: the fall grows as the estimate squared, `0.01 sqrt(0.94 / 0.06)` = 0.0396
+    here, above the statistic's `sqrt(9) 0.002`. The engine's fit and score are
+    stand-ins."""
     import types
 
     from diffpegasus._diagnose import _candidates
@@ -785,6 +788,7 @@ def test_diagnose_names_only_what_the_misfit_is_made_of(monkeypatch):
         ]
 
     monkeypatch.setattr(_diagnose, "fit_rocket", fake_fit)
+    monkeypatch.setattr(_diagnose, "held_burn_scale", lambda problem: 0.998)
     monkeypatch.setattr(_candidates, "score_candidates", fake_score)
     named, rows, _ = _diagnose.diagnose(problem)
     assert named == [] and len(fits) == 1
@@ -802,6 +806,25 @@ def test_diagnose_names_only_what_the_misfit_is_made_of(monkeypatch):
     )
     named, rows, _ = _diagnose.diagnose(problem, rounds=1)
     assert named == ["barometer lag"]
+    # an effect on the flight moves the accelerometer too: its statistic decides
+    monkeypatch.setattr(
+        _candidates,
+        "score_candidates",
+        lambda fit, candidates, level: [
+            dict(
+                r,
+                statistic=85.0 if r["parameter"] == "wind_along" else 1.0,
+                cost_reduction=0.03 if r["parameter"] == "wind_along" else 0.0,
+                significant=r["parameter"] == "wind_along",
+            )
+            for r in fake_score(fit, candidates, level)
+        ],
+    )
+    named, rows, _ = _diagnose.diagnose(problem, rounds=1)
+    assert named == ["wind"]
+    # without an accelerometer every effect shows in the barometer alone
+    assert not _diagnose.explains_enough("wind_along", 0.97, barometer_alone=True)
+    assert _diagnose.explains_enough("wind_along", 0.4, barometer_alone=True)
 
 
 def _two_sensor_fit(max_iter=None):

@@ -39,9 +39,9 @@ def test_clean_rocketpy_flight_through_its_atmosphere_table_names_nothing():
     bootstrap threshold) on a clean RocketPy flight names nothing. RocketPy's
     atmosphere table puts up to 3.3 m into its barometer, which the barometer lag
     takes up: its statistic passes (33.6 against 9.6, estimated 0.011 s) but it
-    would explain 14% of the misfit, and a finding explains half; the same flight,
-    seed and noise through the exact standard atmosphere scores it 5.1 against 9.6
-    (experiments/rocket_baro_nuisance.py)."""
+    would explain 14% of the misfit, and a sensor's own effect is named from half; the
+    same flight, seed and noise through the exact standard atmosphere scores it 5.1
+    against 9.6 (experiments/rocket_baro_nuisance.py)."""
     rocket = dr.read_rocket(TABLE_FLIGHT / "rocket.toml")
     named, rows, _ = dr.diagnose(
         dr.prepare(rocket, read_rocket_log(TABLE_FLIGHT / "rocket.toml")), rounds=1
@@ -61,9 +61,9 @@ def test_height_dependent_barometer_error_is_not_named_a_lag(tmp_path):
     height above the pad: -0.77 m at 150 m, +3.31 m at 950 m, +2.2 to +2.5 m above
     2 km. Noise: 1 m on the barometer, 0.5 m/s^2 on the accelerometer (the
     simulated flights'), a fixed seed. The lag takes the error up (12.4 against
-    8.8) but would explain 8% of the misfit, where a finding explains half; the
-    committed `clean` rocket's own flight at 50 Hz with the same error scores the
-    lag 5.7 against 12.1."""
+    8.8) but would explain 8% of the misfit, where a sensor's own effect is named from
+    half; the committed `clean` rocket's own flight at 50 Hz with the same error
+    scores the lag 5.7 against 12.1."""
     problem = dr.prepare(
         dr.read_rocket(TABLE_FLIGHT / "rocket.toml"),
         read_rocket_log(TABLE_FLIGHT / "rocket.toml"),
@@ -97,7 +97,8 @@ def test_first_order_barometer_lag_is_named_alone(tmp_path):
     `diagnose` names the barometer lag and nothing else. The model's lag is a
     delay, the filter that to first order only: once the lag is in, the
     static-pressure error takes up the second-order rest (104.7 against 9.7) but
-    would explain 9% of the misfit, where a finding explains half (the lag: 99%).
+    would explain 9% of the misfit, where a sensor's own effect is named from half
+    (the lag: 99%).
     Noise: 0.5 m and 0.3 m/s^2, a fixed seed."""
     folder = tmp_path / "flight"
     shutil.copytree(DATA / "rocket_sim" / "clean", folder)
@@ -122,3 +123,22 @@ def test_first_order_barometer_lag_is_named_alone(tmp_path):
         named,
         [(r["round"], r["statistic"], r["threshold"]) for r in static],
     )
+
+
+@pytest.mark.validation
+def test_clean_flight_written_another_way_names_nothing():
+    """A clean RocketPy flight of the committed rocket written as a user would
+    (experiments/rocket_outsider_sweep.py's `z-100hz-as-baro`: RocketPy's default
+    atmosphere, the flight computer's barometric altitude and the axial specific
+    force at 100 Hz, 0.3 m and 0.2 m/s^2 of noise, 2 s of pad samples, no column
+    map and no stated events): `diagnose` names nothing. The accelerometer's
+    reading of the burn's length is 0.99 here (a start on a 0.01 grid from a drag
+    guess) where the fit finds 1.0001; held at the reading, a wind (101) and the
+    thrust scale (76) passed the first round's threshold of 23 and a wind was
+    named; held at the fit's, the strongest statistic is 8.8 against 31.1."""
+    toml = DATA / "rocket_outsider" / "z-100hz-as-baro" / "rocket.toml"
+    problem = dr.prepare(dr.read_rocket(toml), read_rocket_log(toml))
+    assert problem.start["burn_scale"] == pytest.approx(0.99)
+    named, rows, _ = dr.diagnose(problem, rounds=1)
+    top = max(rows, key=lambda r: r["statistic"])
+    assert named == [], (named, top["candidate"], top["statistic"], top["threshold"])

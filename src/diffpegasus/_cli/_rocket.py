@@ -232,8 +232,10 @@ def diagnose_command(
     """Name the effects the flight shows beyond drag and thrust (wind, rail
     friction, barometer lag, static-pressure errors, mass error, air brakes, ...).
     --descent: with the descent under parachutes in the fit. A finding's
-    statistic passes the log's own threshold and it explains half or more of the
-    fit's misfit (the predicted fall of det(R))."""
+    statistic passes the log's own threshold; an effect one sensor alone shows (the
+    barometer's lag and pressure errors, the accelerometer's scale; every effect
+    without an accelerometer) must also explain half or more of the fit's misfit
+    (the predicted fall of det(R))."""
     from .._rocket._diagnose import diagnose, SHARE
     from .._rocket._identify import prepare
 
@@ -265,8 +267,8 @@ def diagnose_command(
         )
         if r["significant"] and not r.get("explains_enough", True):
             line += (
-                f"  explains {1 - r['cost_ratio']:.1%} of the misfit; a finding "
-                f"explains {SHARE:.0%} or more"
+                f"  explains {1 - r['cost_ratio']:.1%} of the misfit; what one "
+                f"sensor alone shows is named from {SHARE:.0%}"
             )
         elif not r["significant"] and r.get("cannot_be_told_from"):
             line += f"  cannot be told from {', '.join(r['cannot_be_told_from'])}"
