@@ -723,7 +723,7 @@ def test_diagnose_judges_the_thrust_scale_in_the_candidates_family(monkeypatch):
         ]
 
     monkeypatch.setattr(_diagnose, "fit_rocket", fake_fit)
-    monkeypatch.setattr(_diagnose, "held_burn_scale", lambda problem: 0.998)
+    monkeypatch.setattr(_diagnose, "held_burn_scale", lambda problem: (0.998, "fit"))
     monkeypatch.setattr(_candidates, "score_candidates", fake_score)
     named, rows, _ = _diagnose.diagnose(problem)
     # a finding the log cannot tell from another candidate is named with it
@@ -776,7 +776,7 @@ def test_diagnose_names_only_what_the_misfit_is_made_of(monkeypatch):
         return [
             {
                 "parameter": c,
-                "statistic": 65.0 if c == "baro_lag" else 1.0,
+                "statistic": {"baro_lag": 65.0, "wind_along": 33.0}.get(c, 1.0),
                 "threshold": 9.0,
                 "cost_reduction": 0.06 if c == "baro_lag" else 0.0,
                 "estimate": 0.01 if c == "baro_lag" else 0.0,
@@ -788,12 +788,16 @@ def test_diagnose_names_only_what_the_misfit_is_made_of(monkeypatch):
         ]
 
     monkeypatch.setattr(_diagnose, "fit_rocket", fake_fit)
-    monkeypatch.setattr(_diagnose, "held_burn_scale", lambda problem: 0.998)
+    monkeypatch.setattr(_diagnose, "held_burn_scale", lambda problem: (0.998, "fit"))
     monkeypatch.setattr(_candidates, "score_candidates", fake_score)
     named, rows, _ = _diagnose.diagnose(problem)
     assert named == [] and len(fits) == 1
     lag = next(r for r in rows if r["candidate"] == "barometer lag")
     assert lag["significant"] and not lag["explains_enough"]
+    # a wind past the threshold below it is not judged (the same residuals)
+    wind = next(r for r in rows if r["candidate"] == "wind")
+    assert wind["not_judged"] and not lag.get("not_judged", False)
+    assert lag["burn_scale_held"] == 0.998 and lag["burn_scale_from"] == "fit"
     assert lag["smallest_named"] == pytest.approx(0.01 * np.sqrt(0.94 / 0.06))
     # given 60%, the same statistic names it
     monkeypatch.setattr(
@@ -825,6 +829,33 @@ def test_diagnose_names_only_what_the_misfit_is_made_of(monkeypatch):
     # without an accelerometer every effect shows in the barometer alone
     assert not _diagnose.explains_enough("wind_along", 0.97, barometer_alone=True)
     assert _diagnose.explains_enough("wind_along", 0.4, barometer_alone=True)
+
+
+def test_diagnosis_holds_the_reading_where_the_full_fit_fails(monkeypatch):
+    """The burn's length the diagnosis holds is the full fit's estimate; where that
+    fit does not converge, the accelerometer's reading (the problem's start), and
+    it says so. A stand-in fit here."""
+    import types
+
+    from diffpegasus._rocket import _diagnose
+
+    problem = dr.prepare(
+        dr.read_rocket(SIM / "clean" / "rocket.toml"), sim_log("clean")
+    )
+    names = list(problem.start)
+
+    def fake_fit(problem, converged, **_):
+        params = np.array([1.0004 if n == "burn_scale" else 0.0 for n in names])
+        model = types.SimpleNamespace(parameters=names)
+        return types.SimpleNamespace(
+            fit=types.SimpleNamespace(model=model, params=params, converged=converged)
+        )
+
+    monkeypatch.setattr(_diagnose, "fit_rocket", lambda p, **k: fake_fit(p, True))
+    assert _diagnose.held_burn_scale(problem) == (1.0004, "fit")
+    monkeypatch.setattr(_diagnose, "fit_rocket", lambda p, **k: fake_fit(p, False))
+    burn, source = _diagnose.held_burn_scale(problem)
+    assert burn == problem.start["burn_scale"] and "did not converge" in source
 
 
 def _two_sensor_fit(max_iter=None):

@@ -342,11 +342,14 @@ def test_gravity_said_removed_on_an_accelerometer_that_reads_1g(tmp_path):
         read_rocket_log(path, columns)
 
 
-def _si_columns(tmp_path, time_scale=1.0, time_name="time", accel_sign=1.0):
+def _si_columns(
+    tmp_path, time_scale=1.0, time_name="time", accel_sign=1.0, until=np.inf
+):
     """The synthetic altimeter file rewritten as a user's script writes it: no
     units in the header, metres and m/s^2, the time `time_scale` times seconds
-    (with a clock's offset where it is not 1)."""
+    (with a clock's offset where it is not 1), its rows to `until` s."""
     rows = np.loadtxt(FIXTURES / "altimeter.csv", delimiter=",", skiprows=1)
+    rows = rows[rows[:, 0] <= until]
     t = rows[:, 0] * time_scale + (0.0 if time_scale == 1.0 else 123456789.0)
     path = tmp_path / "log.csv"
     np.savetxt(
@@ -376,6 +379,17 @@ def test_time_in_microseconds(tmp_path, name, scale):
     np.testing.assert_allclose(log["altitude"].t, ref["altitude"].t, atol=2e-6)
     said = [m for m in log.messages if "read as us" in m]
     assert len(said) == (name == "time")  # a unit from the name says nothing
+
+
+def test_short_log_in_microseconds(tmp_path):
+    """A microsecond clock without a unit over a log of 16 s (to 2.5 s past
+    apogee): its span, 1.6e7, is a flight's 4.5 h in ms too, but its samples
+    would be 50 s apart in ms and are 0.05 s apart in microseconds: read as
+    microseconds (it was read as ms and the altitude's unit blamed)."""
+    ref = read_rocket_log(_si_columns(tmp_path, until=16.0))
+    log = read_rocket_log(_si_columns(tmp_path, 1e6, "time", until=16.0))
+    assert log.events["apogee"].t == pytest.approx(ref.events["apogee"].t, abs=2e-6)
+    assert any("read as us" in m for m in log.messages)
 
 
 def test_accelerometer_mounted_tail_first(tmp_path):

@@ -244,7 +244,10 @@ def diagnose_command(
         problem = prepare(rocket, flight_log, descent=descent)
     except LogError as e:
         _fail(str(e))
-    named, rows, _ = diagnose(problem)
+    try:
+        named, rows, _ = diagnose(problem)
+    except LogError as e:
+        _fail(str(e))
     if as_json:
         typer.echo(
             json.dumps(
@@ -253,6 +256,11 @@ def diagnose_command(
         )
         return
     typer.echo(f"{rocket.name}: " + (", ".join(named) if named else "nothing named"))
+    if rows:
+        typer.echo(
+            f"   burn's length held at {rows[0]['burn_scale_held']:.4f} of the "
+            f"catalogue's ({rows[0]['burn_scale_from']})"
+        )
     for r in rows:
         mark = "*" if r["significant"] else " "
         if r.get("uninformed"):
@@ -267,9 +275,11 @@ def diagnose_command(
         )
         if r["significant"] and not r.get("explains_enough", True):
             line += (
-                f"  explains {1 - r['cost_ratio']:.1%} of the misfit; what one "
-                f"sensor alone shows is named from {SHARE:.0%}"
+                f"  explains {max(1 - r['cost_ratio'], 0.0):.1%} of the misfit; what "
+                f"one sensor alone shows is named from {SHARE:.0%}"
             )
+        elif r.get("not_judged"):
+            line += "  passes, not judged: the round's strongest was too small to name"
         elif not r["significant"] and r.get("cannot_be_told_from"):
             line += f"  cannot be told from {', '.join(r['cannot_be_told_from'])}"
         elif not r["significant"] and math.isfinite(r.get("smallest_named", math.nan)):

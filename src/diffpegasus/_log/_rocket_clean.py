@@ -203,8 +203,11 @@ def clean_stream(
                 'it "unit": "ms" in the column map)'
             )
         # a flight's minutes are no flight in ms either in microseconds (a
-        # logger's micros(): 27 s of flight is 2.7e7)
-        unit, factor = ("ms", 1e-3) if span * 1e-3 <= 2e4 else ("us", 1e-6)
+        # logger's micros(): 27 s of flight is 2.7e7), nor are samples more than a
+        # second apart (a short log's 1.6e7 us are 4.5 h in ms, its samples 50 s)
+        step = float(np.median(gaps[gaps > 0])) if np.any(gaps > 0) else 0.0
+        ms = span * 1e-3 <= 2e4 and step * 1e-3 <= 1.0
+        unit, factor = ("ms", 1e-3) if ms else ("us", 1e-6)
         t = t * factor
         messages.append(
             f"{where_t}: no unit given and {span:.6g} s is no flight: read as {unit}"
