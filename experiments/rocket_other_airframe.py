@@ -414,12 +414,13 @@ def fly(out, names):
         )
 
 
-def cli(*args):
-    """`diffpegasus ARGS --json` in this interpreter's environment: its JSON, or the
-    failure's exit code and last lines."""
+def cli(*args, nice: bool = False):
+    """`diffpegasus ARGS --json` in this interpreter's environment (under `nice -n
+    10` with `nice`): its JSON, or the failure's exit code and last lines."""
     t0 = time.perf_counter()
+    prefix = ["nice", "-n", "10"] if nice else []
     proc = subprocess.run(
-        [sys.executable, "-m", "diffpegasus", *args, "--json"],
+        [*prefix, sys.executable, "-m", "diffpegasus", *args, "--json"],
         capture_output=True,
         text=True,
     )
@@ -435,11 +436,12 @@ def cli(*args):
     return dict(json.loads(text[text.index("{") :]), seconds=seconds)
 
 
-def coverage(summary, folder, top):
+def coverage(summary, folder, top, drag="drag.csv"):
     """Each knot of the fit's CD table inside the flight's Mach range (up to its
-    top `top`): the planted CD there and whether it is inside the 95% band, with
-    the sensors' spread (`stderr`) and with the noise's alone (`stderr_noise`)."""
-    mach_true, cd_true = np.loadtxt(folder / "drag.csv", delimiter=",").T
+    top `top`): the planted CD there (`folder / drag`, Mach and CD) and whether it
+    is inside the 95% band, with the sensors' spread (`stderr`) and with the
+    noise's alone (`stderr_noise`)."""
+    mach_true, cd_true = np.loadtxt(folder / drag, delimiter=",").T
     rows = []
     for row in summary["cd_table"]:
         if row["mach"] > top:

@@ -42,9 +42,7 @@ altitude instead of `z`; the rail buttons in the rocket file).
 
 import json
 import pathlib
-import subprocess
 import sys
-import time
 
 import numpy as np
 
@@ -52,6 +50,11 @@ import numpy as np
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "experiments" / "results" / "rocket_outsider_sweep.json"
 sys.path.insert(0, str(ROOT / "scripts"))
+sys.path.insert(0, str(ROOT / "experiments"))
+
+import rocket_other_airframe as other_airframe  # noqa: E402
+
+
 G0 = 9.80665
 
 # the planted drag curve (Mach, CD): none of the fixtures' curves
@@ -465,47 +468,15 @@ file = "log.csv"
 
 
 def cli(*args):
-    """`diffpegasus ARGS --json` under `nice -n 10` in this interpreter: its JSON, or
-    the failure's exit code and its last lines."""
-    t0 = time.perf_counter()
-    proc = subprocess.run(
-        ["nice", "-n", "10", sys.executable, "-m", "diffpegasus", *args, "--json"],
-        capture_output=True,
-        text=True,
-    )
-    seconds = time.perf_counter() - t0
-    if proc.returncode != 0:
-        return dict(
-            error=proc.returncode,
-            stderr=proc.stderr[-3000:],
-            stdout=proc.stdout[-2000:],
-            seconds=seconds,
-        )
-    text = proc.stdout
-    return dict(json.loads(text[text.index("{") :]), seconds=seconds)
+    """`diffpegasus ARGS --json` under `nice -n 10` (the other-airframe
+    experiment's)."""
+    return other_airframe.cli(*args, nice=True)
 
 
 def coverage(summary, folder, top):
-    """The planted CD against the fit's band at each knot of its table up to `top`."""
-    mach_true, cd_true = np.loadtxt(folder / "planted_drag.csv", delimiter=",").T
-    rows = []
-    for row in summary["cd_table"]:
-        if row["mach"] > top:
-            continue
-        planted = float(np.interp(row["mach"], mach_true, cd_true))
-        off = abs(row["cd"] - planted)
-        rows.append(
-            dict(
-                mach=row["mach"],
-                cd=row["cd"],
-                planted=planted,
-                stderr=row["stderr"],
-                stderr_noise=row["stderr_noise"],
-                inside=bool(off <= 1.96 * row["stderr"]),
-                inside_noise=bool(off <= 1.96 * row["stderr_noise"]),
-            )
-        )
-    return rows
+    """The planted CD against the fit's band at each knot of its table up to `top`
+    (the other-airframe experiment's, from `planted_drag.csv`)."""
+    return other_airframe.coverage(summary, folder, top, drag="planted_drag.csv")
 
 
 def expected(truth):
