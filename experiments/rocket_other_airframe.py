@@ -567,7 +567,11 @@ def judged(diag):
     named, cells, tests = [], [], diag.get("tests", [])
     for r, stored in enumerate(diag["named"], start=1):
         row = [t for t in tests if t["round"] == r and t["significant"]]
-        if not row or not explains_enough(*row[0]["estimates"], row[0]["cost_ratio"]):
+        enough = row and row[0].get(
+            "explains_enough",
+            explains_enough(*row[0]["estimates"], row[0]["cost_ratio"]),
+        )
+        if not enough:
             break
         named.append(stored)
         cells.append(f"{stored}: {row[0]['statistic']:.0f} ({row[0]['threshold']:.1f})")
@@ -575,9 +579,11 @@ def judged(diag):
     text = "; ".join(cells) or "nothing"
     if stop:
         t = stop[0]
+        share = 1 - t["cost_ratio"]
         text += (
             f" ({'then ' if named else ''}{t['candidate']} {t['statistic']:.0f} "
-            f"({t['threshold']:.1f}), explains {1 - t['cost_ratio']:.0%})"
+            f"({t['threshold']:.1f}), explains "
+            f"{f'{share:.1%}' if share < 0.095 else f'{share:.0%}'})"
         )
     return named, text
 

@@ -586,11 +586,15 @@ def table():
     what diagnose names with the burn's length held at the full fit's estimate."""
     burn_path = RESULTS.with_name("rocket_outsider_sweep_burn.json")
     burn = json.loads(burn_path.read_text()) if burn_path.exists() else {}
+    # the diagnosis as it stands: `rocket diagnose FOLDER/rocket.toml --json` again
+    now_path = RESULTS.with_name("rocket_outsider_sweep_diagnose.json")
+    now = json.loads(now_path.read_text()) if now_path.exists() else {}
     rows = [
         "| flight | written as | planted | CD knots inside the 95% band "
         "(noise's band alone) | apogee: fit - log's (- RocketPy's) m | altitude RMS "
-        "m | fit / diagnose s | named: statistic (threshold) | right? | burn's "
-        "start; named with the fit's burn held |",
+        "m | fit / diagnose s | named: statistic (threshold), as the diagnosis "
+        "stands | right? | as first run: the burn's start; named with the fit's "
+        "burn held |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name, r in json.loads(RESULTS.read_text()).items():
@@ -616,18 +620,12 @@ def table():
             rms = f"{r['altitude_rms_m']:.2f}"
         else:
             inside = apo = rms = "error" if "error" in fit else "-"
-        named = r.get("named")
-        scores = [
-            f"{x['statistic']:.0f} ({x['threshold']:.1f})"
-            for x in diag.get("tests", [])
-            if x.get("significant")
-        ]
-        named_text = (
-            "error"
-            if named is None
-            else "; ".join(f"{n}: {s}" for n, s in zip(named, scores, strict=False))
-            or "nothing"
-        )
+        if name in now:
+            named, named_text = other_airframe.judged(now[name])
+            right = verdict(t, named)
+        else:
+            named, right = r.get("named"), "-"
+            named_text = "not re-run"
         held = "-"
         if name in burn:
             b = burn[name]
@@ -640,7 +638,7 @@ def table():
         rows.append(
             f"| {name} | {written} | {planted(t)} | {inside} | {apo} | {rms} | "
             f"{fit['seconds']:.0f} / {diag['seconds']:.0f} | {named_text} | "
-            f"{r.get('right', '-')} | {held} |"
+            f"{right} | {held} |"
         )
     print("\n".join(rows))
 
