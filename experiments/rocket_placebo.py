@@ -230,18 +230,9 @@ def correlation_length(e):
 def _prepared(d):
     """The score test's parts as the rule reads them (an uninformed candidate's
     rows zero, its slope 0 and curvature 1)."""
-    rows = np.array(d["rows"], float)
-    s = np.array(d["curvature"], float)
-    g = np.array(d["slope"], float)
-    informed = (
-        np.isfinite(s)
-        & (s > 0.0)
-        & np.isfinite(g)
-        & np.all(np.isfinite(rows), axis=tuple(range(rows.ndim - 1)))
-    )
-    rows[..., ~informed] = 0.0
-    g = np.where(informed, g, 0.0)
-    s = np.where(informed, s, 1.0)
+    from diffpegasus._diagnose._rule import informed_parts
+
+    rows, s, g, informed = informed_parts(d["rows"], d["curvature"], d["slope"])
     return rows, np.array(d["residuals"], float), s, g, informed
 
 

@@ -115,29 +115,15 @@ class DecisionRule:
         `statistic_given` and `threshold_given` (where it was last judged).
         """
         valid = np.asarray(test.valid, bool)
-        rows = np.array(np.asarray(test.rows)[valid], float)
+        rows = np.asarray(test.rows)[valid]
         resid = np.array(np.asarray(test.residuals)[valid], float)
         basis = getattr(test, "basis", None)
         if basis is not None:
             basis = np.asarray(basis)[valid]
             # held unknowns have zero columns: only the free ones are resampled
             basis = basis[..., np.any(basis != 0.0, axis=(0, 1))]
-        s = np.array(test.curvature, float)
-        g = np.array(test.slope, float)
+        rows, s, g, informed = informed_parts(rows, test.curvature, test.slope)
         est = np.asarray(test.estimate, float)
-        # a candidate this log holds no information on (no sensitivity: a rail's
-        # friction on a vertical rail) has no statistic; it leaves the family as a
-        # padded one does (zero rows, unit curvature: statistic 0), so it cannot
-        # make every threshold undefined
-        informed = (
-            np.isfinite(s)
-            & (s > 0.0)
-            & np.isfinite(g)
-            & np.all(np.isfinite(rows), axis=tuple(range(rows.ndim - 1)))
-        )
-        rows[..., ~informed] = 0.0
-        g = np.where(informed, g, 0.0)
-        s = np.where(informed, s, 1.0)
         with np.errstate(invalid="ignore", divide="ignore"):
             start = est + g / s  # the held values
         corr = np.where(np.outer(informed, informed), test.correlation, 0.0)
@@ -237,6 +223,27 @@ class DecisionRule:
             )
         )
         return ranking, cals
+
+
+def informed_parts(rows, curvature, slope):
+    """The score test's parts as the rule reads them: `(rows, curvature, slope,
+    informed)`, a candidate this log holds no information on (no sensitivity: a
+    rail's friction on a vertical rail) with zero rows, unit curvature and zero
+    slope, so that it leaves the family as a padded one does (statistic 0) instead
+    of making every threshold undefined. `rows` `(samples, ..., k)`; new arrays."""
+    rows = np.array(rows, float)
+    s = np.array(curvature, float)
+    g = np.array(slope, float)
+    informed = (
+        np.isfinite(s)
+        & (s > 0.0)
+        & np.isfinite(g)
+        & np.all(np.isfinite(rows), axis=tuple(range(rows.ndim - 1)))
+    )
+    rows[..., ~informed] = 0.0
+    g = np.where(informed, g, 0.0)
+    s = np.where(informed, s, 1.0)
+    return rows, s, g, informed
 
 
 def rule_summary(ranking: list[dict]) -> dict:
