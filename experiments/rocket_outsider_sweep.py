@@ -293,28 +293,14 @@ def _motor(spec, folder):
 def fly_one(name, spec, out):
     """Fly `spec` in RocketPy and write `out/name`: log.csv, rocket.toml, the motor's
     file, truth.json, planted_drag.csv (and team_drag.csv where the team has one)."""
-    from make_rocket_fixtures import baro_altitude, first_order_lag
-    from rocketpy import Flight, Rocket
+    from make_rocket_fixtures import baro_altitude, first_order_lag, fixtures_rocket
+    from rocketpy import Flight
 
     folder = out / name
     folder.mkdir(parents=True, exist_ok=True)
     env = _environment(spec)
     motor, motor_file = _motor(spec, folder)
-    rocket = Rocket(
-        radius=0.052,
-        mass=8.2 + spec["mass_error"],
-        inertia=(4.4, 4.4, 0.015),
-        power_off_drag=CURVE,
-        power_on_drag=CURVE,
-        center_of_mass_without_motor=1.2,
-        coordinate_system_orientation="tail_to_nose",
-    )
-    rocket.add_motor(motor, position=0.0)
-    rocket.add_nose(length=0.52, kind="von karman", position=2.72)
-    rocket.add_trapezoidal_fins(
-        n=4, root_chord=0.2, tip_chord=0.07, span=0.1, position=0.21
-    )
-    rocket.set_rail_buttons(1.1, 0.3)
+    rocket = fixtures_rocket(motor, CURVE, mass=8.2 + spec["mass_error"])
     fl = Flight(
         rocket=rocket,
         environment=env,

@@ -278,10 +278,34 @@ def lagged_baro(baro, pad, dt, tau):
 MOTOR_INERTIA = round(0.05 + 1.9 * (3 * 0.0375**2 + 0.5**2) / 12, 4)
 
 
+def fixtures_rocket(motor, drag, mass=8.2):
+    """RocketPy's `Rocket` of the fixtures' airframe (the rocket.toml's `FACTS`):
+    `motor` at the tail, `drag` (Mach, CD) pairs power on and off, `mass` kg
+    without the motor."""
+    from rocketpy import Rocket
+
+    rocket = Rocket(
+        radius=0.052,
+        mass=mass,
+        inertia=(4.4, 4.4, 0.015),
+        power_off_drag=drag,
+        power_on_drag=drag,
+        center_of_mass_without_motor=1.2,
+        coordinate_system_orientation="tail_to_nose",
+    )
+    rocket.add_motor(motor, position=0.0)
+    rocket.add_nose(length=0.52, kind="von karman", position=2.72)
+    rocket.add_trapezoidal_fins(
+        n=4, root_chord=0.2, tip_chord=0.07, span=0.1, position=0.21
+    )
+    rocket.set_rail_buttons(1.1, 0.3)
+    return rocket
+
+
 def rocketpy_flight(spec):
     """RocketPy's environment, rocket and flight (to apogee) for a flight `spec`
     of `FLIGHTS`: the fixtures' rocket, motor, rail and site."""
-    from rocketpy import Environment, Flight, GenericMotor, Rocket
+    from rocketpy import Environment, Flight, GenericMotor
 
     flown = THRUST.copy()
     flown[:, 1] *= spec["scale"]
@@ -315,22 +339,7 @@ def rocketpy_flight(spec):
         dry_inertia=(0.05, 0.05, 0.002),
         center_of_dry_mass_position=0.25,
     )
-    drag = [tuple(p) for p in spec["drag"]]
-    rocket = Rocket(
-        radius=0.052,
-        mass=8.2,
-        inertia=(4.4, 4.4, 0.015),
-        power_off_drag=drag,
-        power_on_drag=drag,
-        center_of_mass_without_motor=1.2,
-        coordinate_system_orientation="tail_to_nose",
-    )
-    rocket.add_motor(motor, position=0.0)
-    rocket.add_nose(length=0.52, kind="von karman", position=2.72)
-    rocket.add_trapezoidal_fins(
-        n=4, root_chord=0.2, tip_chord=0.07, span=0.1, position=0.21
-    )
-    rocket.set_rail_buttons(1.1, 0.3)
+    rocket = fixtures_rocket(motor, [tuple(p) for p in spec["drag"]])
     for k, (cds, trigger, *lag) in enumerate(spec.get("chutes", ())):
         rocket.add_parachute(f"chute{k}", cd_s=cds, trigger=trigger, lag=sum(lag))
     fl = Flight(
