@@ -412,14 +412,21 @@ def test_accelerometer_mounted_tail_first(tmp_path):
     np.testing.assert_allclose(log["accel_axial"].values, ref, rtol=0, atol=1e-12)
 
 
-def test_pressure_in_hpa(tmp_path):
+def _cats_baro_in(tmp_path, pascals, fmt):
+    """The CATS barometer file with its pressure in a unit of `pascals` Pa, written
+    with `fmt`."""
     src = (FIXTURES / "cats" / "baro.csv").read_text().splitlines()
     path = tmp_path / "baro.csv"
     rows = [src[0]] + [
-        ",".join([*x.split(",")[:3], f"{float(x.split(',')[3]) / 100:.2f}"])
+        ",".join([*x.split(",")[:3], format(float(x.split(",")[3]) / pascals, fmt)])
         for x in src[1:]
     ]
     path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def test_pressure_in_hpa(tmp_path):
+    path = _cats_baro_in(tmp_path, 100.0, ".2f")
     with pytest.raises(LogError, match=r"pad pressure 1013.* looks like hPa"):
         read_rocket_log(path)
     log = read_rocket_log(
@@ -432,13 +439,7 @@ def test_pressure_in_hpa(tmp_path):
 def test_pressure_in_psi(tmp_path):
     """14.7 psi on the pad: the hint names psi (6894.76 Pa each), and the map's
     "psi" reads the pad as the same file in Pa does."""
-    src = (FIXTURES / "cats" / "baro.csv").read_text().splitlines()
-    path = tmp_path / "baro.csv"
-    rows = [src[0]] + [
-        ",".join([*x.split(",")[:3], f"{float(x.split(',')[3]) / 6894.757:.4f}"])
-        for x in src[1:]
-    ]
-    path.write_text("\n".join(rows) + "\n")
+    path = _cats_baro_in(tmp_path, 6894.757, ".4f")
     with pytest.raises(LogError, match=r"pad pressure 14\.69.* looks like psi"):
         read_rocket_log(path)
     log = read_rocket_log(
