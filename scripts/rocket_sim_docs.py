@@ -11,10 +11,15 @@ same."""
 
 import json
 import pathlib
+import sys
 
 import numpy as np
 
 from diffpegasus._rocket._diagnose import explains_enough
+
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "experiments"))
+import rocket_other_airframe as other_airframe  # noqa: E402
 
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -22,16 +27,9 @@ RESULTS = ROOT / "benchmarks" / "results"
 
 
 def judged(r) -> list[str]:
-    """What a stored diagnosis names by the rule as it stands (see the module)."""
-    named = []
-    for k, stored in enumerate(r.get("named", []), start=1):
-        first = [t for t in r["tests"] if t["round"] == k and t["significant"]]
-        if not first or not explains_enough(
-            *first[0]["estimates"], first[0]["cost_ratio"]
-        ):
-            break
-        named.append(stored)
-    return named
+    """What a stored diagnosis names by the rule as it stands (see the module; the
+    other-airframe experiment's reading of stored rounds)."""
+    return other_airframe.judged(r)[0]
 
 
 def worst_z(r):
