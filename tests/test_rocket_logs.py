@@ -746,3 +746,8 @@ def test_apogee_not_taken_from_an_ejection_pulse_that_reads_higher(tmp_path, gli
     # and 0.5 + noise m in test_events_at_other_rates_and_noise)
     assert _file_time(log, "apogee") == pytest.approx(truth.T_APOGEE, abs=0.1)
     assert log.events["apogee"].value == pytest.approx(truth.H_APOGEE, abs=1.0)
+    # the apogee the fit's errors are taken against: the highest sample before the
+    # pulse (the noise is 0.5 m: a few sigma above the truth)
+    from diffpegasus._rocket._data import logged_apogee
+
+    assert logged_apogee(log) == pytest.approx(truth.H_APOGEE + 0.75, abs=1.0)
