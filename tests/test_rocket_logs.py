@@ -266,6 +266,30 @@ def test_corrupt_trailing_rows_dropped(tmp_path):
     ) == pytest.approx(t_last)
 
 
+def test_corrupt_trailing_rows_far_above_apogee_dropped(tmp_path):
+    """An altimeter's last two rows written wrong at its drogue event (Juno III's
+    RRC3 log: 10.7 km, then -2.5 km, after a 3.2 km apogee): a rocket past apogee
+    cannot read far above it, nor fall that fast; both rows go, the flight stays."""
+    path = _copy(tmp_path)
+    lines = _lines(path)
+    keep = [x for x in lines if not x[0].isdigit() or float(x.split(",")[0]) < 45.0]
+    last = keep[-1].split(",")
+    t_last = float(last[0])
+    bad = [
+        f"{t_last + 0.05:.2f},{3.4 * truth.H_APOGEE:.2f},0.5",
+        f"{t_last + 0.1:.2f},{-0.8 * truth.H_APOGEE:.2f},0.4",
+    ]
+    path.write_text("\n".join([*keep, *bad]) + "\n")
+    log = read_rocket_log(path)
+    n = len(keep)  # the first bad row's number: data rows count from 1
+    assert any(
+        f"dropped the last 2 samples from row {n}" in m and "far above" in m
+        for m in log.messages
+    )
+    assert log["altitude"].values.max() < truth.H_APOGEE + 5
+    assert _file_time(log, "apogee") == pytest.approx(truth.T_APOGEE, abs=0.1)
+
+
 def test_unreadable_row_mid_file_is_one_error_line(tmp_path):
     path = _copy(tmp_path)
     lines = _lines(path)
