@@ -5,8 +5,8 @@ Every rule is a property of powered flight, not a time or a level tuned to some
 logs: liftoff is where the altitude leaves the pad on a constant-acceleration arc
 (or the accelerometer leaves its pad reading by more than its own noise), burnout
 where the specific force along the axis turns negative (thrust no longer beats
-drag), apogee the top of a smoothing spline whose smoothing the data choose
-(generalised cross-validation), a deployment where the descent rate falls by more
+drag), apogee the vertex of a parabola of curvature -g/2 through the top before
+the record's first fall faster than free fall, a deployment where the descent rate falls by more
 than air density alone can explain, landing where the descent stops.
 """
 
@@ -221,17 +221,15 @@ def _spline(t, h, most: int = 120):
 
 def first_fall(t: np.ndarray, h: np.ndarray, t_lift: float) -> int | None:
     """Index of the first sample that falls from the highest altitude so far faster
-    than free fall from rest there allows (`g dt^2 / 2` plus five times the noise),
-    by more than gravity alone takes from the climb in its last tenth (`g w^2 / 2`,
-    `w` a tenth of the climb time: near the top a barometer's wobbles are far
-    smaller, an ejection charge's pulse far larger),
-    while the climb up to that highest altitude had all but stopped (a rate that
-    gravity alone ends within a tenth of the climb time) at a height above half
-    the record's highest, or `None`. A rocket that
-    has begun to fall cannot climb back: what the record shows after such a fall
-    (an ejection charge's pressure pulse and the baro's recovery from it, which
-    may read higher than the top) is no apogee. A drop while the rocket still
-    climbs fast (a transonic pressure jump) is not such a fall."""
+    than free fall from rest there allows (`g dt^2 / 2`), by more than five times
+    the noise plus `g w^2 / 2` (`w` a tenth of the climb time: near the top a
+    barometer's wobbles are far smaller, an ejection charge's pulse far larger),
+    from a top above half the record's highest that the climb reached at a rate
+    gravity alone ends within `w`; or `None`. A rocket that has begun to fall
+    cannot climb back: what the record shows after such a fall (an ejection
+    charge's pressure pulse and the barometer's recovery from it, which may read
+    higher than the top) is no apogee. A drop while the rocket still climbs fast
+    (a transonic pressure jump) is not such a fall."""
     m = _median3(h)
     s = np.flatnonzero(t >= t_lift)
     if s.size < 3:
