@@ -6,8 +6,8 @@ logs: liftoff is where the altitude leaves the pad on a constant-acceleration ar
 (or the accelerometer leaves its pad reading by more than its own noise), burnout
 where the specific force along the axis turns negative (thrust no longer beats
 drag), apogee the vertex of a parabola of curvature -g/2 through the top before
-the record's first fall faster than free fall, a deployment where the descent rate falls by more
-than air density alone can explain, landing where the descent stops.
+the record's first fall faster than free fall, a deployment where the descent rate
+falls by more than air density alone can explain, landing where the descent stops.
 """
 
 import dataclasses
