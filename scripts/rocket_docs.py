@@ -271,7 +271,7 @@ CD_SCALE_SD = (
 )
 BAND_WIDTHS = (
     "The half-widths, in % of the logged apogee (the prediction's miss): NDRT 2020 "
-    "±3.5 (-3.1), Prometheus ±10.9 (-4.0), Cavour ±16 (-0.7), Camoes ±15.7 "
+    "±3.5 (-3.1), Prometheus ±10.9 (-3.9), Cavour ±16 (-0.7), Camoes ±15.7 "
     "(-10.6), Hedy ±26.5 (+0.7), Andromeda ±43 (+1.2); almost all of it the drag "
     "scale's (the estimates' term 94 to 100% of the variance)."
 )
@@ -285,7 +285,7 @@ SIMULATED = (
     "carry (2.7 to 3.8 standard errors off). Linearised with the fit following, "
     "Prometheus's prediction moves by 25 m per K of pad temperature and 5.4 m per "
     "K/km of lapse: the day's -8.7 K/km instead of the -6.5 held would lower it by "
-    "12 m, so the lapse does not explain its -4.0%, and the temperature held (300 "
+    "12 m, so the lapse does not explain its -3.9%, and the temperature held (300 "
     "K) is the notebook's for another date."
 )
 
@@ -387,7 +387,11 @@ def main():
         f"own fit for the band) {FIT_TIME} "
         "(`python benchmarks/rocket_fit_time.py FOLDER`); with each sensor's own "
         f"fit for the band, as the command runs by default, {FIT_TIME_SPREAD} "
-        "(`python benchmarks/rocket_fit_time.py --spread FOLDER`).",
+        "(`python benchmarks/rocket_fit_time.py --spread FOLDER`); measured again with "
+        "the burn scale estimated and RK4's stages as one loop body (18 parameters, 8 "
+        "iterations), 6.1 s warm and 29.0 s cold at load 0.7 to 1.3, Hedy's (21 "
+        "parameters, 3430 samples, 43 iterations) 14.8 s warm and 34.1 s cold "
+        "(`benchmarks/results/rocket_fit_time_recheck.json`).",
         "",
         "The fit is multiple shooting (a node every 2 s) from the start, then "
         "single shooting (one segment from the pad) from its best try: "
@@ -422,7 +426,7 @@ def main():
         "",
         "The prediction is fitted by multiple shooting alone: on its few "
         "seconds of log single shooting from there found lower det(R) that "
-        "extrapolated far worse (Prometheus +7.1% for -4.0%, Andromeda -19.7% "
+        "extrapolated far worse (Prometheus +7.3% for -3.9%, Andromeda -19.7% "
         "for +1.2%). It holds the barometer's lag and the day's temperature and "
         "lapse rate at their start values (a few seconds of log cannot tell them "
         "from drag) and estimates the barometer's static-pressure error, which "

@@ -171,6 +171,22 @@ def test_motor_reader_eng_and_csv(tmp_path):
         dr.read_motor(csv, propellant_mass=0.1)
 
 
+def test_motor_reader_load_cell_drift_below_zero(tmp_path):
+    """A static fire's curve that ends below zero (a load cell's drift, as
+    Projeto Jupiter's motor file: to -47 N beside a 2472 N peak) reads as no
+    thrust there; a negative larger than 5 % of the peak is refused."""
+    csv = tmp_path / "m.csv"
+    csv.write_text("0,-3\n0.5,1000\n1.5,1000\n2,-20\n2.1,-40\n")
+    m = dr.read_motor(csv, propellant_mass=0.5)
+    t, f, _ = m.tables()
+    assert float(np.min(f)) == 0.0
+    # the trapezoids of (0, 0), (0.5, 1000), (1.5, 1000), (2, 0): 250 + 1000 + 250
+    np.testing.assert_allclose(m.total_impulse, 1500.0, rtol=1e-12)
+    csv.write_text("0,0\n0.5,1000\n1.5,1000\n2,-60\n")
+    with pytest.raises(ValueError, match=r"-60 N at t = 2 s, more than 5% of the"):
+        dr.read_motor(csv, propellant_mass=0.5)
+
+
 def test_drag_curve_sorted_and_averaged(tmp_path):
     f = tmp_path / "cd.csv"
     f.write_text("0.5,0.4\n0.1,0.5\n0.5,0.6\n0.3,0.45\n")

@@ -266,6 +266,30 @@ def test_corrupt_trailing_rows_dropped(tmp_path):
     ) == pytest.approx(t_last)
 
 
+def test_corrupt_trailing_rows_far_above_apogee_dropped(tmp_path):
+    """An altimeter's last two rows written wrong at its drogue event (Juno III's
+    RRC3 log: 10.7 km, then -2.5 km, after a 3.2 km apogee): a rocket past apogee
+    cannot read far above it, nor fall that fast; both rows go, the flight stays."""
+    path = _copy(tmp_path)
+    lines = _lines(path)
+    keep = [x for x in lines if not x[0].isdigit() or float(x.split(",")[0]) < 45.0]
+    last = keep[-1].split(",")
+    t_last = float(last[0])
+    bad = [
+        f"{t_last + 0.05:.2f},{3.4 * truth.H_APOGEE:.2f},0.5",
+        f"{t_last + 0.1:.2f},{-0.8 * truth.H_APOGEE:.2f},0.4",
+    ]
+    path.write_text("\n".join([*keep, *bad]) + "\n")
+    log = read_rocket_log(path)
+    n = len(keep)  # the first bad row's number: data rows count from 1
+    assert any(
+        f"dropped the last 2 samples from row {n}" in m and "far above" in m
+        for m in log.messages
+    )
+    assert log["altitude"].values.max() < truth.H_APOGEE + 5
+    assert _file_time(log, "apogee") == pytest.approx(truth.T_APOGEE, abs=0.1)
+
+
 def test_unreadable_row_mid_file_is_one_error_line(tmp_path):
     path = _copy(tmp_path)
     lines = _lines(path)
@@ -711,3 +735,43 @@ def test_temperature_unit(tmp_path):
                 "temperature": {"column": "Temperature", "unit": "K"},
             },
         )
+
+
+@pytest.mark.parametrize("glitch", [False, True])
+def test_apogee_not_taken_from_an_ejection_pulse_that_reads_higher(tmp_path, glitch):
+    """An ejection charge 0.6 s after apogee: the barometer reads 300 m low for a
+    second, then recovers through readings 40 m above the top (a CATS-like flight
+    computer's filtered altitude at 20 Hz did this on two flights, 120 and 745 m
+    low, 3 and 81 m above the top). A rocket that
+    has begun to fall cannot climb back: the apogee is the top before the pulse.
+    With `glitch`, a 120 m drop for 0.3 s while the rocket climbs at 250 m/s (a
+    transonic pressure jump) changes nothing."""
+    rng = np.random.default_rng(3)
+    t = np.arange(-0.5, 60.0, 0.05)
+    h, _ = truth.flight(t)
+    h = h + rng.normal(0, 0.5, t.size)
+    s = t - (truth.T_APOGEE + 0.6)
+    h = h - 300 * np.exp(-(((s - 0.4) / 0.25) ** 2)) * (s > 0)
+    h = h + 70 * np.exp(-(((s - 1.2) / 0.2) ** 2))
+    if glitch:
+        h = h - 120 * ((t > 2.0) & (t < 2.3))
+    path = tmp_path / "log.csv"
+    np.savetxt(
+        path,
+        np.column_stack([t, h]),
+        delimiter=",",
+        fmt="%.3f",
+        header="time (s),altitude (m)",
+        comments="",
+    )
+    log = read_rocket_log(path)
+    assert h.max() > truth.H_APOGEE + 30  # the pulse's recovery reads higher
+    # the vertex of the top before the pulse: as without it (0.05 + 0.1 * noise s
+    # and 0.5 + noise m in test_events_at_other_rates_and_noise)
+    assert _file_time(log, "apogee") == pytest.approx(truth.T_APOGEE, abs=0.1)
+    assert log.events["apogee"].value == pytest.approx(truth.H_APOGEE, abs=1.0)
+    # the apogee the fit's errors are taken against: the highest sample before the
+    # pulse (the noise is 0.5 m: a few sigma above the truth)
+    from diffpegasus._rocket._data import logged_apogee
+
+    assert logged_apogee(log) == pytest.approx(truth.H_APOGEE + 0.75, abs=1.0)

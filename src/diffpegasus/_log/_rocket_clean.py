@@ -257,14 +257,15 @@ def _drop_held_fixes(out: dict[str, Series], messages: list[str]) -> None:
 
 
 def impossible_tail(
-    s: Series, t_apogee: float, h_apogee: float
+    s: Series, t_apogee: float, h_apogee: float, t_lift: float
 ) -> tuple[int | None, list[float]]:
     """After apogee a rocket cannot fall faster than from rest at apogee in vacuum:
     a drop of more than `sqrt(2 g (H - h)) dt + g dt^2 / 2` plus five times the
     altitude noise between a good sample and the next is impossible. Returns the
     index from which every sample is impossible (a corrupt end of file, to drop),
     or `None`, and the start times of impossible excursions the record returns from
-    (ejection-charge pressure pulses: deployment marks)."""
+    (ejection-charge pressure pulses: deployment marks). Last readings far above
+    apogee (more than an ejection pulse reads) are impossible too."""
     t, h = s.t, s.v
     after = np.flatnonzero(t > t_apogee)
     if after.size < 2:
@@ -295,4 +296,15 @@ def impossible_tail(
             break
         pulses.append(float(t[first]))
         i_done = i
+    # nor can it climb back far above its apogee: a last run of readings there (a
+    # write gone wrong, 10.7 km after a 3.2 km apogee) ends the record too; the
+    # allowance is an ejection pulse's (see `first_fall`: a tenth of the climb
+    # under gravity alone)
+    end = len(t) if bad_from is None else bad_from
+    w = 0.1 * max(t_apogee - t_lift, 1.0)
+    high = h_apogee + margin + 0.5 * G0 * w**2
+    while end > after[0] and h[end - 1] > high:
+        end -= 1
+    if end < len(t) and end != bad_from:
+        bad_from = end
     return bad_from, pulses

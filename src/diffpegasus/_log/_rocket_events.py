@@ -5,9 +5,9 @@ Every rule is a property of powered flight, not a time or a level tuned to some
 logs: liftoff is where the altitude leaves the pad on a constant-acceleration arc
 (or the accelerometer leaves its pad reading by more than its own noise), burnout
 where the specific force along the axis turns negative (thrust no longer beats
-drag), apogee the top of a smoothing spline whose smoothing the data choose
-(generalised cross-validation), a deployment where the descent rate falls by more
-than air density alone can explain, landing where the descent stops.
+drag), apogee the vertex of a parabola of curvature -g/2 through the top before
+the record's first fall faster than free fall, a deployment where the descent rate
+falls by more than air density alone can explain, landing where the descent stops.
 """
 
 import dataclasses
@@ -219,11 +219,48 @@ def _spline(t, h, most: int = 120):
     return scipy.interpolate.make_smoothing_spline(*_binned(t, h, most))
 
 
+def first_fall(t: np.ndarray, h: np.ndarray, t_lift: float) -> int | None:
+    """Index of the first sample that falls from the highest altitude so far faster
+    than free fall from rest there allows (`g dt^2 / 2`), by more than five times
+    the noise plus `g w^2 / 2` (`w` a tenth of the climb time: near the top a
+    barometer's wobbles are far smaller, an ejection charge's pulse far larger),
+    from a top above half the record's highest that the climb reached at a rate
+    gravity alone ends within `w`; or `None`. A rocket that has begun to fall
+    cannot climb back: what the record shows after such a fall (an ejection
+    charge's pressure pulse and the barometer's recovery from it, which may read
+    higher than the top) is no apogee. A drop while the rocket still climbs fast
+    (a transonic pressure jump) is not such a fall."""
+    m = _median3(h)
+    s = np.flatnonzero(t >= t_lift)
+    if s.size < 3:
+        return None
+    ts, ms = t[s], m[s]
+    run = np.maximum.accumulate(ms)
+    at_top = np.maximum.accumulate(np.where(ms >= run, np.arange(len(ms)), 0))
+    climb = np.maximum(ts[at_top] - ts[0], 1.0)
+    w = 0.1 * climb
+    margin = _K_NOISE * robust_sigma(h) + quantum(h) + 0.5 * G0 * w**2
+    falls = np.flatnonzero(run - ms > 0.5 * G0 * (ts - ts[at_top]) ** 2 + margin)
+    if falls.size == 0:
+        return None
+    j, w = at_top[falls], w[falls]
+    rate = (run[falls] - np.interp(ts[j] - w, ts, ms)) / w
+    # the top must be up there: a pulse reads far less than twice the climb (the
+    # pad's own falls and wobbles are not apogees)
+    high = run[falls] - ms[0] > 0.5 * (ms.max() - ms[0])
+    ok = np.flatnonzero((rate < G0 * w) & high)
+    return int(s[falls[ok[0]]]) if ok.size else None
+
+
 def apogee(t: np.ndarray, h: np.ndarray, t_lift: float) -> tuple[float, float]:
     """Apogee time and altitude: the vertex of `H - g (t - ta)^2 / 2` fitted to the
     samples within 5 % of the climb time of the highest one (at least five on each
-    side). Near apogee the vertical speed is near zero, so drag leaves gravity alone
-    to bend the path; the fixed curvature makes the vertex robust to noise."""
+    side) before the first fall faster than free fall (`first_fall`). Near apogee
+    the vertical speed is near zero, so drag leaves gravity alone to bend the path;
+    the fixed curvature makes the vertex robust to noise."""
+    end = first_fall(t, h, t_lift)
+    if end is not None and end >= 3:
+        t, h = t[:end], h[:end]
     i = int(np.argmax(_median3(h)))
     w = 0.05 * max(t[i] - t_lift, 1.0)
     lo = min(int(np.searchsorted(t, t[i] - w)), max(i - 5, 0))

@@ -164,14 +164,14 @@ def one_clock(
         return t_lift, events, pad
     t_apo, h_apo = apogee(th, hh, t_lift)
     if alt is not None:
-        bad_from, pulses = impossible_tail(alt, t_apo, h_apo)
+        bad_from, pulses = impossible_tail(alt, t_apo, h_apo, t_lift)
         if bad_from is not None:
             n = len(alt.t) - bad_from
             messages.append(
                 f"{alt.where}: dropped the last {n} samples from row "
                 f"{alt.rows[bad_from]} ({alt.v[bad_from]:.4g} m at "
                 f"{alt.t[bad_from] - t_lift:.2f} s): a fall faster than free fall "
-                "from apogee, a corrupt end of the file"
+                "from apogee or a reading far above it, a corrupt end of the file"
             )
             bad_rows = set(alt.rows[bad_from:].tolist())
             for s in flat.values():

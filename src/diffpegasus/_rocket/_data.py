@@ -73,6 +73,20 @@ def baro_channel(log):
     return c.t, c.values
 
 
+def logged_apogee(log) -> float:
+    """m AGL: the highest barometric altitude after liftoff, before the record's
+    first fall faster than free fall (an ejection charge's pressure pulse, whose
+    recovery may read above the top: see the apogee event)."""
+    from .._log._rocket_events import first_fall
+
+    t, h = baro_channel(log)
+    up = t > 0
+    end = first_fall(t, h, 0.0)
+    if end is not None and np.any(up[:end]):
+        up = up & (np.arange(len(t)) < end)
+    return float(np.max(h[up]))
+
+
 def pad_pressure(log, elevation=0.0) -> float:
     """Pa at the pad: the log's pre-liftoff pressure, else the standard
     atmosphere's at the pad elevation."""

@@ -8,7 +8,7 @@ import numpy as np
 
 from ._apogee import apogee_band
 from ._checks import equation_error_drag, resimulate
-from ._data import baro_channel
+from ._data import logged_apogee
 from ._identify import (
     accel_covers_ascent,
     altitude_only,
@@ -93,8 +93,7 @@ def run_flight(rocket, log, out=None, *, free=None, spread=True, descent=False) 
     prediction = predict(prepare(rocket, log) if descent else problem, cut)
     band = apogee_band(prediction)
     team = resimulate(problem, result) if rocket.team_drag_off is not None else result
-    t, h = baro_channel(log)
-    log_apogee = float(np.max(h[t > 0]))
+    log_apogee = logged_apogee(log)
     row = summary(problem, result, prediction, team, log_apogee, seconds, band)
     mach = np.array(problem.flight.knots.mach)
     cd, sd = result.cd(mach)

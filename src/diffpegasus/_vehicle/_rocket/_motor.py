@@ -16,6 +16,11 @@ from ..._errors import LogError
 from ._rows import read_rows
 
 
+# negative thrust read as a load cell's zero drift (no thrust) up to this fraction
+# of the peak
+_DRIFT = 0.05
+
+
 class Motor(eqx.Module):
     """A motor's thrust curve and masses.
 
@@ -92,6 +97,9 @@ def read_motor(path, *, propellant_mass=None, dry_mass=0.0) -> Motor:
     - `propellant_mass`: kg; by default the `.eng` header's (a CSV needs it given).
     - `dry_mass`: kg of the empty casing.
 
+    Thrust below zero by at most 5 % of the peak (a static fire's load cell drifting
+    below its zero at ignition or tail-off) is read as 0.
+
     **Returns:** a [`Motor`][]. A malformed file raises a `LogError` naming the file,
     row and value.
     """
@@ -112,8 +120,17 @@ def read_motor(path, *, propellant_mass=None, dry_mass=0.0) -> Motor:
             f"(t = {t[i]:g} s)"
         )
     if np.any(f < 0):
-        i = int(np.argmax(f < 0))
-        raise LogError(f"{path}: negative thrust {f[i]:g} N at t = {t[i]:g} s")
+        # a static fire's load cell drifts below its zero at ignition and tail-off
+        # by a few percent of the peak: no thrust there. A larger negative is a
+        # wrong column or sign.
+        i = int(np.argmin(f))
+        if -f[i] > _DRIFT * f.max():
+            raise LogError(
+                f"{path}: negative thrust {f[i]:g} N at t = {t[i]:g} s, more than "
+                f"{_DRIFT:.0%} of the peak {f.max():g} N (a load cell's drift is "
+                "less): check the columns and the sign"
+            )
+        f = np.maximum(f, 0.0)
     if propellant_mass is None:
         if path.suffix.lower() == ".eng" and header is not None and len(header) >= 6:
             propellant_mass = float(header[4])
