@@ -711,3 +711,46 @@ def test_temperature_unit(tmp_path):
                 "temperature": {"column": "Temperature", "unit": "K"},
             },
         )
+
+
+def test_time_column_after_its_channels(tmp_path):
+    """A logger that writes `alt,t` (the time last): the columns before the first
+    time column are its stream's, read as with the time first."""
+    rows = [x.split(",") for x in _lines(FIXTURES / "altimeter.csv")]
+    first, last = tmp_path / "first.csv", tmp_path / "last.csv"
+    first.write_text("\n".join(f"{r[0]},{r[1]}" for r in rows) + "\n")
+    last.write_text("\n".join(f"{r[1]},{r[0]}" for r in rows) + "\n")
+    a, b = read_rocket_log(first), read_rocket_log(last)
+    np.testing.assert_array_equal(a["altitude"].values, b["altitude"].values)
+    assert b.events["apogee"].t == a.events["apogee"].t
+
+
+def test_one_hertz_log_liftoff_after_its_pad_sample(tmp_path):
+    """An altimeter writing once a second, its first row on the pad: liftoff lies
+    between that row and the next (before, the arc's least 8 samples spanned the
+    boost and the coast and put liftoff seconds before the pad row)."""
+    rows = [x.split(",") for x in _lines(FIXTURES / "altimeter.csv")[1:]]
+    every = [r for r in rows if round((float(r[0]) + 0.3) * 20) % 20 == 0]
+    path = tmp_path / "coarse.csv"
+    path.write_text("t(s),alt(ft)\n" + "\n".join(f"{r[0]},{r[1]}" for r in every))
+    log = read_rocket_log(path)
+    liftoff = next(iter(log.time_offsets.values()))  # file time at liftoff; truth 0
+    assert float(every[0][0]) <= liftoff <= float(every[1][0])
+
+
+def test_log_cut_and_rezeroed_in_flight_is_said(tmp_path):
+    """A record that starts 1.5 s into the boost with its altitude re-zeroed there
+    (0 m at 88 m/s): no boost reaches that from the pad in the time the arc allows,
+    and the message says the zero is not the pad; a record cut at the same time
+    but not re-zeroed (its first height the pad's 66 m) gives no such message."""
+    rows = [x.split(",") for x in _lines(FIXTURES / "altimeter.csv")[1:]]
+    late = [r for r in rows if float(r[0]) >= 1.5]
+    zero = float(late[0][1])
+    cut, rezeroed = tmp_path / "cut.csv", tmp_path / "rezeroed.csv"
+    cut.write_text("t(s),alt(ft)\n" + "\n".join(f"{r[0]},{r[1]}" for r in late))
+    rezeroed.write_text(
+        "t(s),alt(ft)\n" + "\n".join(f"{r[0]},{float(r[1]) - zero:.2f}" for r in late)
+    )
+    assert not any("not the pad" in m for m in read_rocket_log(cut).messages)
+    said = [m for m in read_rocket_log(rezeroed).messages if "not the pad" in m]
+    assert len(said) == 1 and "already climbing at" in said[0]

@@ -88,7 +88,11 @@ def liftoff_from_altitude(
     level = max(0.01 * climb, 10 * robust_sigma(h))
     below = np.flatnonzero(h[:top] - h0 <= level)
     end = int(below[-1]) + 1 if below.size else 0
-    end = min(len(h), max(end + 1, 8))
+    # at least 8 samples, but not past 10 % of the climb: a coarse log's (1 Hz)
+    # first 8 samples span the boost and the coast, which no one arc fits
+    within = np.flatnonzero(h[:top] - h[0] <= 0.1 * climb)
+    cap = max(end + 1, int(within[-1]) + 1 if within.size else 0, 2)
+    end = min(len(h), max(end + 1, min(8, cap)))
     tw, hw = _binned(t[:end], h[:end], 2000)
 
     def sse(t0, fix_pad):
