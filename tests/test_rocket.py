@@ -185,6 +185,18 @@ def test_drag_curve_sorted_and_averaged(tmp_path):
     np.testing.assert_allclose(w @ cd, [0.5, 0.465625, 0.5, 0.5])
 
 
+def test_team_curve_of_two_rows_drawn_across_the_flight(tmp_path):
+    """A team's table of two rows, Mach 0 and 1 at CD 0.55 (a constant): no row
+    lies within a flight to Mach 0.85, yet the figure draws the curve across it."""
+    from diffpegasus._rocket._report import team_curve
+
+    f = tmp_path / "cd.csv"
+    f.write_text("0,0.55\n1,0.55\n")
+    x, y = team_curve(dr.read_drag_curve(f), np.linspace(0.05, 0.85, 200), 0.94)
+    assert x[0] == pytest.approx(0.05) and x[-1] == pytest.approx(0.85)
+    np.testing.assert_allclose(y, 0.55)
+
+
 def test_rocket_toml_read_and_refused(tmp_path):
     r = dr.read_rocket(SIM / "clean" / "rocket.toml")
     np.testing.assert_allclose(r.loaded_mass, 8.2 + 1.6 + 1.9)
