@@ -754,3 +754,23 @@ def test_log_cut_and_rezeroed_in_flight_is_said(tmp_path):
     assert not any("not the pad" in m for m in read_rocket_log(cut).messages)
     said = [m for m in read_rocket_log(rezeroed).messages if "not the pad" in m]
     assert len(said) == 1 and "already climbing at" in said[0]
+
+
+def test_gnss_without_a_fix_dropped(tmp_path):
+    """A receiver without a fix writing (-0.0001, -0.0001) among the flight's
+    positions near 39.39 N, 8.29 W: those rows leave the GNSS channels, with a
+    message naming the first; the altitude keeps every row."""
+    rows = [x.split(",") for x in _lines(FIXTURES / "altimeter.csv")[1:]]
+    lines = []
+    for k, r in enumerate(rows):
+        fix = (-0.0001, -0.0001) if k in (40, 41, 300) else (39.39, -8.29 + 1e-5 * k)
+        lines.append(f"{r[0]},{r[1]},{fix[0]},{fix[1]}")
+    path = tmp_path / "gnss.csv"
+    path.write_text("t(s),alt(ft),lat,lon\n" + "\n".join(lines) + "\n")
+    log = read_rocket_log(path)
+    assert len(log["gnss_lat"].t) == len(rows) - 3
+    assert np.all(log["gnss_lat"].values > 39) and np.all(log["gnss_lon"].values < -8)
+    assert len(log["altitude"].t) == len(rows)
+    assert any(
+        "3 rows with the GNSS position" in m and "row 41" in m for m in log.messages
+    )
