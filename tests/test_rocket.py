@@ -388,14 +388,17 @@ def test_cli_fit_carries_the_sensors_spread_by_default(tmp_path, monkeypatch):
             + ("altitude_rms_pct_of_apogee", "thrust_scale_stderr"),
             1.0,
         )
-        return row | {"cd_structural": {"note": note}}
+        return row | {"cd_structural": {"note": note}, "not_converged_reason": why}
 
+    why = "motor_time stopped against its bound at -0.482"
     monkeypatch.setattr(_pipeline, "run_flight", fake_run)
     runner = CliRunner()
     toml = str(folder / "rocket.toml")
     res = runner.invoke(app, ["rocket", "fit", toml])
     assert res.exit_code == 0, res.output
     assert note in res.output and "NOT converged" in res.output
+    # why the fit did not converge, in its words (before: "NOT converged" alone)
+    assert f"not converged:         {why}" in res.output
     res = runner.invoke(app, ["rocket", "fit", toml, "--no-sensor-spread"])
     assert res.exit_code == 0, res.output
     assert asked == [True, False]

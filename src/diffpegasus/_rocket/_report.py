@@ -46,6 +46,9 @@ def summary(problem, result, prediction, team, log_apogee, seconds, band=None) -
         "thrust_scale": thrust,
         "thrust_scale_stderr": thrust_sd,
         "converged": bool(result.fit.converged),
+        "not_converged_reason": None
+        if result.fit.converged
+        else str(getattr(result.fit, "reason", "")),
         "fit_seconds": seconds,
     }
 
