@@ -774,3 +774,45 @@ def test_gnss_without_a_fix_dropped(tmp_path):
     assert any(
         "3 rows with the GNSS position" in m and "row 41" in m for m in log.messages
     )
+
+
+def test_landing_in_the_logs_last_seconds_under_a_slowing_canopy(tmp_path):
+    """A main whose descent slows from 12.5 to 10.5 m/s as the air thickens, the
+    log ending 1.9 s after touchdown: the landing is found (before, the check of the
+    drop between its neighbours took the canopy's slow bend for the best break,
+    and the landing was called a wiggle: 'still descending')."""
+    rng = np.random.default_rng(5)
+    t = np.arange(-1.0, 400.0, 0.01)
+    a, burn = 60.0, 3.0
+    v0 = a * burn
+    t_apo = burn + v0 / G0
+    h_apo = 0.5 * a * burn**2 + v0**2 / (2 * G0)
+    t_main = t_apo + (h_apo - 800.0) / 25.0
+    # main: rate 12.5 - k s, from 800 m to the ground
+    k = 2.0 / 70.0
+    fall = 800.0 / (12.5 - 0.5 * k * 70.0)
+    t_land = t_main + fall
+    s = t - t_main
+    h = np.select(
+        [t < 0, t < burn, t < t_apo, t < t_main, t < t_land],
+        [
+            0.0 * t,
+            0.5 * a * t**2,
+            h_apo - 0.5 * G0 * (t - t_apo) ** 2,
+            h_apo - 25.0 * (t - t_apo),
+            800.0 - (12.5 * s - 0.5 * k * s**2),
+        ],
+        0.0 * t,
+    )
+    keep = t < t_land + 1.9
+    h = h[keep] + rng.normal(0.0, 0.3, keep.sum())
+    path = tmp_path / "canopy.csv"
+    path.write_text(
+        "t(s),alt(m)\n"
+        + "\n".join(f"{x:.2f},{y:.2f}" for x, y in zip(t[keep], h, strict=True))
+    )
+    log = read_rocket_log(path)
+    # measured 0.28 s early: the continuous two lines' break through the binned,
+    # noisy descent
+    assert log.events["landing"].t == pytest.approx(t_land, abs=0.4)
+    assert "the descent stops" in log.events["landing"].how

@@ -341,10 +341,22 @@ def descent_changes(
     refined = []
     for i in range(1, len(cuts) - 1):
         a, b = cuts[i - 1], cuts[i + 1]
-        r = _two_lines(tt[a:b], hh[a:b]) if b - a >= 12 else None
-        # a drop that does not hold between its neighbours was a local wiggle
-        if r is not None and -r[1] > _MIN_DESCENT and -r[2] < _DEPLOY_RATIO * -r[1]:
-            refined.append((float(tt[a + r[0]]), -r[1], -r[2]))
+        while b - a >= 12:
+            r = _two_lines(tt[a:b], hh[a:b])
+            if r is None:
+                break
+            k = a + r[0]
+            if -r[1] > _MIN_DESCENT and -r[2] < _DEPLOY_RATIO * -r[1]:
+                refined.append((float(tt[k]), -r[1], -r[2]))
+                break
+            # another bend before it (a canopy's slow deceleration over a long
+            # descent outweighs a landing in the log's last seconds): that bend is
+            # the neighbour before. The drop must still hold up to the next
+            # change (or the log's end): one that fails there was a local wiggle
+            if k < cuts[i] - 5:
+                a = k
+            else:
+                break
     return refined
 
 
