@@ -201,6 +201,51 @@ def test_drag_curve_sorted_and_averaged(tmp_path):
     np.testing.assert_allclose(w @ cd, [0.5, 0.465625, 0.5, 0.5])
 
 
+def test_team_curve_of_two_rows_drawn_across_the_flight(tmp_path):
+    """A team's table of two rows, Mach 0 and 1 at CD 0.55 (a constant): no row
+    lies within a flight to Mach 0.85, yet the figure draws the curve across it."""
+    from diffpegasus._rocket._report import team_curve
+
+    f = tmp_path / "cd.csv"
+    f.write_text("0,0.55\n1,0.55\n")
+    x, y = team_curve(dr.read_drag_curve(f), np.linspace(0.05, 0.85, 200), 0.94)
+    assert x[0] == pytest.approx(0.05) and x[-1] == pytest.approx(0.85)
+    np.testing.assert_allclose(y, 0.55)
+
+
+def test_knots_of_a_one_hertz_altitude_reach_the_flights_mach(tmp_path):
+    """An altimeter writing once a second: the top speed (the climb rate's straight
+    lines over 0.5 s, never three samples at 1 Hz) is taken over three samples, and
+    the knots reach the flight's Mach as at 50 Hz (before: 0 m/s, knots to 0.3)."""
+    import shutil
+
+    import diffpegasus as dp
+
+    src = pathlib.Path(__file__).parent / "data" / "rocket_sim" / "clean"
+    tops = {}
+    for every in (1, 50):  # every row (50 Hz), every 50th (1 Hz)
+        folder = tmp_path / str(every)
+        shutil.copytree(src, folder)
+        rows = (src / "log.csv").read_text().splitlines()
+        kept = [r.split(",")[:2] for r in rows[1::every]]
+        (folder / "log.csv").write_text(
+            "time_s,altitude_m\n" + "\n".join(",".join(r) for r in kept) + "\n"
+        )
+        toml = folder / "rocket.toml"
+        toml.write_text(
+            "\n".join(
+                x for x in toml.read_text().splitlines() if "accel_axial" not in x
+            )
+        )
+        rocket = dr.read_rocket(toml)
+        knots = dr.prepare(rocket, dp.read_rocket_log(toml)).flight.knots.mach
+        tops[every] = knots[-1]
+    # 50 Hz: 0.843 (RocketPy's top Mach 0.848); at 1 Hz the straight line over
+    # two seconds straddles burnout's peak speed and reads 0.757 (before: 0.3)
+    assert tops[1] == pytest.approx(0.848, abs=0.02)
+    assert tops[50] == pytest.approx(tops[1], rel=0.12)
+
+
 def test_rocket_toml_read_and_refused(tmp_path):
     r = dr.read_rocket(SIM / "clean" / "rocket.toml")
     np.testing.assert_allclose(r.loaded_mass, 8.2 + 1.6 + 1.9)
@@ -359,14 +404,17 @@ def test_cli_fit_carries_the_sensors_spread_by_default(tmp_path, monkeypatch):
             + ("altitude_rms_pct_of_apogee", "thrust_scale_stderr"),
             1.0,
         )
-        return row | {"cd_structural": {"note": note}}
+        return row | {"cd_structural": {"note": note}, "not_converged_reason": why}
 
+    why = "motor_time stopped against its bound at -0.482"
     monkeypatch.setattr(_pipeline, "run_flight", fake_run)
     runner = CliRunner()
     toml = str(folder / "rocket.toml")
     res = runner.invoke(app, ["rocket", "fit", toml])
     assert res.exit_code == 0, res.output
     assert note in res.output and "NOT converged" in res.output
+    # why the fit did not converge, in its words (before: "NOT converged" alone)
+    assert f"not converged:         {why}" in res.output
     res = runner.invoke(app, ["rocket", "fit", toml, "--no-sensor-spread"])
     assert res.exit_code == 0, res.output
     assert asked == [True, False]

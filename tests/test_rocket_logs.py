@@ -775,3 +775,108 @@ def test_apogee_not_taken_from_an_ejection_pulse_that_reads_higher(tmp_path, gli
     from diffpegasus._rocket._data import logged_apogee
 
     assert logged_apogee(log) == pytest.approx(truth.H_APOGEE + 0.75, abs=1.0)
+
+
+def test_time_column_after_its_channels(tmp_path):
+    """A logger that writes `alt,t` (the time last): the columns before the first
+    time column are its stream's, read as with the time first."""
+    rows = [x.split(",") for x in _lines(FIXTURES / "altimeter.csv")]
+    first, last = tmp_path / "first.csv", tmp_path / "last.csv"
+    first.write_text("\n".join(f"{r[0]},{r[1]}" for r in rows) + "\n")
+    last.write_text("\n".join(f"{r[1]},{r[0]}" for r in rows) + "\n")
+    a, b = read_rocket_log(first), read_rocket_log(last)
+    np.testing.assert_array_equal(a["altitude"].values, b["altitude"].values)
+    assert b.events["apogee"].t == a.events["apogee"].t
+
+
+def test_one_hertz_log_liftoff_after_its_pad_sample(tmp_path):
+    """An altimeter writing once a second, its first row on the pad: liftoff lies
+    between that row and the next (before, the arc's least 8 samples spanned the
+    boost and the coast and put liftoff seconds before the pad row)."""
+    rows = [x.split(",") for x in _lines(FIXTURES / "altimeter.csv")[1:]]
+    every = [r for r in rows if round((float(r[0]) + 0.3) * 20) % 20 == 0]
+    path = tmp_path / "coarse.csv"
+    path.write_text("t(s),alt(ft)\n" + "\n".join(f"{r[0]},{r[1]}" for r in every))
+    log = read_rocket_log(path)
+    liftoff = next(iter(log.time_offsets.values()))  # file time at liftoff; truth 0
+    assert float(every[0][0]) <= liftoff <= float(every[1][0])
+
+
+def test_log_cut_and_rezeroed_in_flight_is_said(tmp_path):
+    """A record that starts 1.5 s into the boost with its altitude re-zeroed there
+    (0 m at 88 m/s): no boost reaches that from the pad in the time the arc allows,
+    and the message says the zero is not the pad; a record cut at the same time
+    but not re-zeroed (its first height the pad's 66 m) gives no such message."""
+    rows = [x.split(",") for x in _lines(FIXTURES / "altimeter.csv")[1:]]
+    late = [r for r in rows if float(r[0]) >= 1.5]
+    zero = float(late[0][1])
+    cut, rezeroed = tmp_path / "cut.csv", tmp_path / "rezeroed.csv"
+    cut.write_text("t(s),alt(ft)\n" + "\n".join(f"{r[0]},{r[1]}" for r in late))
+    rezeroed.write_text(
+        "t(s),alt(ft)\n" + "\n".join(f"{r[0]},{float(r[1]) - zero:.2f}" for r in late)
+    )
+    assert not any("not the pad" in m for m in read_rocket_log(cut).messages)
+    said = [m for m in read_rocket_log(rezeroed).messages if "not the pad" in m]
+    assert len(said) == 1 and "already climbing at" in said[0]
+
+
+def test_gnss_without_a_fix_dropped(tmp_path):
+    """A receiver without a fix writing (-0.0001, -0.0001) among the flight's
+    positions near 39.39 N, 8.29 W: those rows leave the GNSS channels, with a
+    message naming the first; the altitude keeps every row."""
+    rows = [x.split(",") for x in _lines(FIXTURES / "altimeter.csv")[1:]]
+    lines = []
+    for k, r in enumerate(rows):
+        fix = (-0.0001, -0.0001) if k in (40, 41, 300) else (39.39, -8.29 + 1e-5 * k)
+        lines.append(f"{r[0]},{r[1]},{fix[0]},{fix[1]}")
+    path = tmp_path / "gnss.csv"
+    path.write_text("t(s),alt(ft),lat,lon\n" + "\n".join(lines) + "\n")
+    log = read_rocket_log(path)
+    assert len(log["gnss_lat"].t) == len(rows) - 3
+    assert np.all(log["gnss_lat"].values > 39) and np.all(log["gnss_lon"].values < -8)
+    assert len(log["altitude"].t) == len(rows)
+    assert any(
+        "3 rows with the GNSS position" in m and "row 41" in m for m in log.messages
+    )
+
+
+def test_landing_in_the_logs_last_seconds_under_a_slowing_canopy(tmp_path):
+    """A main whose descent slows from 12.5 to 10.5 m/s as the air thickens, the
+    log ending 1.9 s after touchdown: the landing is found (before, the check of the
+    drop between its neighbours took the canopy's slow bend for the best break,
+    and the landing was called a wiggle: 'still descending')."""
+    rng = np.random.default_rng(5)
+    t = np.arange(-1.0, 400.0, 0.01)
+    a, burn = 60.0, 3.0
+    v0 = a * burn
+    t_apo = burn + v0 / G0
+    h_apo = 0.5 * a * burn**2 + v0**2 / (2 * G0)
+    t_main = t_apo + (h_apo - 800.0) / 25.0
+    # main: rate 12.5 - k s, from 800 m to the ground
+    k = 2.0 / 70.0
+    fall = 800.0 / (12.5 - 0.5 * k * 70.0)
+    t_land = t_main + fall
+    s = t - t_main
+    h = np.select(
+        [t < 0, t < burn, t < t_apo, t < t_main, t < t_land],
+        [
+            0.0 * t,
+            0.5 * a * t**2,
+            h_apo - 0.5 * G0 * (t - t_apo) ** 2,
+            h_apo - 25.0 * (t - t_apo),
+            800.0 - (12.5 * s - 0.5 * k * s**2),
+        ],
+        0.0 * t,
+    )
+    keep = t < t_land + 1.9
+    h = h[keep] + rng.normal(0.0, 0.3, keep.sum())
+    path = tmp_path / "canopy.csv"
+    path.write_text(
+        "t(s),alt(m)\n"
+        + "\n".join(f"{x:.2f},{y:.2f}" for x, y in zip(t[keep], h, strict=True))
+    )
+    log = read_rocket_log(path)
+    # measured 0.28 s early: the continuous two lines' break through the binned,
+    # noisy descent
+    assert log.events["landing"].t == pytest.approx(t_land, abs=0.4)
+    assert "the descent stops" in log.events["landing"].how

@@ -129,6 +129,8 @@ def fit_command(
         f"in {row['fit_seconds']:.1f} s"
         + ("" if row["converged"] else " (NOT converged)")
     )
+    if row.get("not_converged_reason"):
+        typer.echo(f"  not converged:         {row['not_converged_reason']}")
     typer.echo(f"  apogee logged          {_m(row['apogee_logged_m'])}")
     typer.echo(
         f"  apogee reconstructed   {_m(row['apogee_reconstructed_m'])} "

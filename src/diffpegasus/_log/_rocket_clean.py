@@ -233,9 +233,42 @@ def clean_stream(
             )
             continue
         out[c.name] = s
+    _drop_no_fix(out, messages)
     _drop_held_fixes(out, messages)
     messages += timing_messages(t, f"{file}: {spec.time.column!r}")
     return out, messages
+
+
+def _drop_no_fix(out: dict[str, Series], messages: list[str]) -> None:
+    """A receiver without a fix writes a position of (0, 0) or near it (one
+    altimeter's -0.0001, -0.0001): rows within 0.01 deg of (0, 0) where the
+    flight's other fixes lie more than a degree from it are dropped from the GNSS
+    channels, with a message."""
+    if "gnss_lat" not in out or "gnss_lon" not in out:
+        return
+    lat, lon = out["gnss_lat"], out["gnss_lon"]
+    if len(lat.t) != len(lon.t) or not np.array_equal(lat.t, lon.t):
+        return
+    null = (np.abs(lat.v) < 0.01) & (np.abs(lon.v) < 0.01)
+    if not null.any() or null.all():
+        return
+    if np.hypot(np.median(lat.v[~null]), np.median(lon.v[~null])) < 1.0:
+        return
+    names = [
+        n
+        for n in ("gnss_lat", "gnss_lon", "gnss_alt")
+        if n in out and np.array_equal(out[n].t, lat.t)
+    ]
+    k = int(np.argmax(null))
+    first, value = int(lat.rows[k]), f"{lat.v[k]:g}, {lon.v[k]:g}"
+    for n in names:
+        out[n].keep(~null)
+    messages.append(
+        f"{lat.file}: {int(np.count_nonzero(null))} rows with the GNSS position "
+        f"within 0.01 deg of (0, 0), far from the flight's other fixes (first at row "
+        f"{first}: {value}): a receiver without a "
+        "fix; dropped from the GNSS channels"
+    )
 
 
 def _drop_held_fixes(out: dict[str, Series], messages: list[str]) -> None:

@@ -88,7 +88,11 @@ def liftoff_from_altitude(
     level = max(0.01 * climb, 10 * robust_sigma(h))
     below = np.flatnonzero(h[:top] - h0 <= level)
     end = int(below[-1]) + 1 if below.size else 0
-    end = min(len(h), max(end + 1, 8))
+    # at least 8 samples, but not past 10 % of the climb: a coarse log's (1 Hz)
+    # first 8 samples span the boost and the coast, which no one arc fits
+    within = np.flatnonzero(h[:top] - h[0] <= 0.1 * climb)
+    cap = max(end + 1, int(within[-1]) + 1 if within.size else 0, 2)
+    end = min(len(h), max(end + 1, min(8, cap)))
     tw, hw = _binned(t[:end], h[:end], 2000)
 
     def sse(t0, fix_pad):
@@ -374,10 +378,22 @@ def descent_changes(
     refined = []
     for i in range(1, len(cuts) - 1):
         a, b = cuts[i - 1], cuts[i + 1]
-        r = _two_lines(tt[a:b], hh[a:b]) if b - a >= 12 else None
-        # a drop that does not hold between its neighbours was a local wiggle
-        if r is not None and -r[1] > _MIN_DESCENT and -r[2] < _DEPLOY_RATIO * -r[1]:
-            refined.append((float(tt[a + r[0]]), -r[1], -r[2]))
+        while b - a >= 12:
+            r = _two_lines(tt[a:b], hh[a:b])
+            if r is None:
+                break
+            k = a + r[0]
+            if -r[1] > _MIN_DESCENT and -r[2] < _DEPLOY_RATIO * -r[1]:
+                refined.append((float(tt[k]), -r[1], -r[2]))
+                break
+            # another bend before it (a canopy's slow deceleration over a long
+            # descent outweighs a landing in the log's last seconds): that bend is
+            # the neighbour before. The drop must still hold up to the next
+            # change (or the log's end): one that fails there was a local wiggle
+            if k < cuts[i] - 5:
+                a = k
+            else:
+                break
     return refined
 
 

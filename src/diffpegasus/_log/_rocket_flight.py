@@ -154,6 +154,10 @@ def one_clock(
             + (f" at {hh[0]:.3g} m" if hh is not None else "")
             + "; liftoff extrapolated"
         )
+        if hh is not None:
+            src = alt if alt is not None else flat.get("pressure")
+            where = src.where if src is not None else "the log"
+            messages.extend(_zero_not_the_pad(th, hh, first - t_lift, where))
     for name in ("pressure", "gnss_lat", "gnss_lon", "gnss_alt"):
         if name in flat:
             p = pad_of(flat[name])
@@ -314,3 +318,23 @@ def _deployments(events, flat, th, hh, t_lift, t_apo, h_apo, pulses, messages):
             f"the log ends {th[-1] - t_lift:.1f} s after liftoff at {hh[-1]:.4g} m, "
             "still descending: no landing"
         )
+
+
+def _zero_not_the_pad(t, h, after: float, where: str) -> list[str]:
+    """A log that starts airborne `after` s past liftoff: its climb rate over its
+    first half second (at least 3 samples) from rest in that time takes an
+    acceleration; above 60 g, more than any boost that carries a flight computer,
+    the log's altitude zero is not the pad (a record cut and re-zeroed in flight)."""
+    n = max(3, int(np.count_nonzero(t - t[0] <= 0.5)))
+    if len(t) < n or after <= 0:
+        return []
+    rate = float(np.polyfit(t[:n] - t[0], h[:n], 1)[0])
+    if rate / after <= 60 * G0:
+        return []
+    return [
+        f"{where}: the log starts at {h[0]:.3g} m already climbing at {rate:.0f} m/s, "
+        f"{after:.2f} s after the liftoff its altitude puts on the pad: "
+        f"{rate / after / G0:.0f} g, more than any boost; its altitude zero is not "
+        "the pad (a record cut and re-zeroed in flight?), its heights and apogee are "
+        "above its first sample"
+    ]

@@ -479,8 +479,11 @@ def detect_streams(file: pathlib.Path) -> tuple[list[StreamSpec], str]:
     streams = []
     for k, j in enumerate(times):
         end = times[k + 1] if k + 1 < len(times) else len(names)
+        # a time column's channels follow it; columns before the first time column
+        # (a logger that writes `alt,t`) are the first stream's too
+        cols = names[: times[0]] + names[j + 1 : end] if k == 0 else names[j + 1 : end]
         taken: dict[str, dict] = {}
-        for col in names[j + 1 : end]:
+        for col in cols:
             bare = _bare(col)
             words = re.split(r"[^a-z]+", bare)
             for channel, keys in _KEYWORDS:

@@ -160,7 +160,8 @@ def top_speed(record, rocket) -> float:
     """m/s, the flight's top speed from the data: the integral of the axial specific
     force less gravity along the rail over the boost where the log has an
     accelerometer, else the largest climb rate of the barometric altitude (straight
-    lines over 0.5 s) over the sine of the rail's inclination."""
+    lines over 0.5 s, or over three samples where the log is coarser: at 1 Hz no
+    0.5 s holds three) over the sine of the rail's inclination."""
     sin = np.sin(np.radians(rocket.inclination))
     if record.inputs.shape[1] > 2 and record.inputs[:, 2].sum() > 10:
         has = record.inputs[:, 2] > 0
@@ -172,8 +173,9 @@ def top_speed(record, rocket) -> float:
     t, h = record.t[has], record.measured[has, 0]
     best = 0.0
     step = max(1, int(0.1 / record.dt))
+    span = max(0.5, 2.0 * float(np.median(np.diff(t)))) if len(t) > 1 else 0.5
     for i in range(0, len(t), step):
-        w = (t >= t[i]) & (t <= t[i] + 0.5)
+        w = (t >= t[i]) & (t <= t[i] + span * (1 + 1e-9))
         if w.sum() >= 3:
             best = max(best, float(np.polyfit(t[w], h[w], 1)[0]))
     return best / sin

@@ -46,8 +46,22 @@ def summary(problem, result, prediction, team, log_apogee, seconds, band=None) -
         "thrust_scale": thrust,
         "thrust_scale_stderr": thrust_sd,
         "converged": bool(result.fit.converged),
+        "not_converged_reason": None
+        if result.fit.converged
+        else str(getattr(result.fit, "reason", "")),
         "fit_seconds": seconds,
     }
+
+
+def team_curve(table, grid, top: float) -> tuple[np.ndarray, np.ndarray]:
+    """The team's `(mach, cd)` table as drawn beside the fit: its rows and the
+    figure's Mach grid within the table's range, Mach 0.05 to `top`, the CD
+    interpolated between rows (a table of two rows, Mach 0 and 1, has none within
+    a flight's Mach range yet a curve across it)."""
+    tm, tc = table
+    x = np.union1d(tm, grid)
+    x = x[(x >= max(tm[0], 0.05)) & (x <= min(tm[-1], top))]
+    return x, np.interp(x, tm, tc)
 
 
 def figures(problem, result, prediction, team, ee, out) -> list[pathlib.Path]:
@@ -144,9 +158,8 @@ def figures(problem, result, prediction, team, ee, out) -> list[pathlib.Path]:
     ax.plot(result.knots.mach, result.cd(np.array(result.knots.mach))[0], "C0o", ms=4)
     rocket = problem.rocket
     if rocket.team_drag_off is not None:
-        tm, tc = rocket.team_drag_off
-        keep = (tm >= 0.05) & (tm <= max(top, 0.3) * 1.1)
-        ax.plot(tm[keep], tc[keep], "k--", label="team, power off")
+        x, y = team_curve(rocket.team_drag_off, m, max(top, 0.3) * 1.1)
+        ax.plot(x, y, "k--", label="team, power off")
     if ee[0].size:
         ax.plot(
             ee[0],
