@@ -16,6 +16,10 @@ from ..._errors import LogError
 from ._rows import read_rows
 
 
+# N: more than any motor flown (a Saturn V's first stage, 35 MN; Starship's 75 MN)
+THRUST_LARGEST = 1e8
+
+
 class Motor(eqx.Module):
     """A motor's thrust curve and masses.
 
@@ -114,9 +118,30 @@ def read_motor(path, *, propellant_mass=None, dry_mass=0.0) -> Motor:
     if np.any(f < 0):
         i = int(np.argmax(f < 0))
         raise LogError(f"{path}: negative thrust {f[i]:g} N at t = {t[i]:g} s")
+    if not np.any(f > 0):
+        raise LogError(f"{path}: every thrust point is 0 N: the curve has no impulse")
+    if np.max(f) > THRUST_LARGEST:
+        i = int(np.argmax(f))
+        raise LogError(
+            f"{path}: thrust {f[i]:g} N at t = {t[i]:g} s is more than any motor "
+            f"gives ({THRUST_LARGEST:g} N); give newtons"
+        )
     if propellant_mass is None:
-        if path.suffix.lower() == ".eng" and header is not None and len(header) >= 6:
-            propellant_mass = float(header[4])
-        else:
-            raise LogError(f"{path}: give the propellant mass (the file has none)")
+        mass = _header_number(header, 4) if path.suffix.lower() == ".eng" else None
+        if mass is None or not mass > 0:
+            raise LogError(
+                f"{path}: give the propellant mass (the file has none"
+                + ("" if header is None else f"; header {' '.join(header)!r}")
+                + ")"
+            )
+        propellant_mass = mass
     return Motor(t, f, float(propellant_mass), float(dry_mass), path.name)
+
+
+def _header_number(header, i) -> float | None:
+    """The `i`-th field of a RASP header as a finite number, else `None`."""
+    try:
+        v = float(header[i])
+    except (TypeError, IndexError, ValueError):
+        return None
+    return v if np.isfinite(v) else None

@@ -1,0 +1,179 @@
+"""A rocket's own files damaged as people damage them (`experiments/broken_inputs_sweep.py`
+found each of these a traceback or silently read): the `rocket.toml` in another
+encoding, a table or a file name of the wrong type, a misspelt key, a number as text,
+a negative motor mass or hold-down, an elevation in no place on Earth; a thrust curve
+with no thrust or a thrust no motor gives. Each is one line naming the file and the
+key or the point."""
+
+import pathlib
+import shutil
+
+import pytest
+from typer.testing import CliRunner
+
+from diffpegasus import LogError, rocket as dr
+from diffpegasus._cli import app
+
+
+CLEAN = pathlib.Path(__file__).parent / "data" / "rocket_sim" / "clean"
+
+
+def _folder(tmp_path):
+    folder = tmp_path / "flight"
+    shutil.copytree(CLEAN, folder)
+    return folder
+
+
+# (id, text replaced, replacement, pattern of the one line after "rocket.toml: ")
+TOML = [
+    (
+        "rocket not a table",
+        "[rocket]\n",
+        "rocket = 1\n[rocket_notes]\n",
+        r"rocket = 1 is not a table",
+    ),
+    (
+        "thrust_file a number",
+        'thrust_file = "motor.csv"',
+        "thrust_file = 5",
+        r"\[motor\] thrust_file = 5 is not a file name",
+    ),
+    (
+        "drag file a list",
+        'power_off_drag_file = "drag.csv"',
+        'power_off_drag_file = ["drag.csv"]',
+        r"\[aero\] power_off_drag_file = \['drag.csv'\] is not a file name",
+    ),
+    (
+        "misspelt key",
+        "dry_mass_kg = 1.6",
+        "dry_mass_kg = 1.6\nholddown_time = 1.0",
+        r"\[motor\] holddown_time is not a key .* did you mean holddown_time_s\?",
+    ),
+    (
+        "misspelt required key",
+        "mass_without_motor_kg = 8.2",
+        "mass_without_motr_kg = 8.2",
+        r"\[rocket\] mass_without_motr_kg is not a key .* did you mean mass_without_motor_kg\?",
+    ),
+    (
+        "negative motor dry mass",
+        "dry_mass_kg = 1.6",
+        "dry_mass_kg = -1.6",
+        r"\[motor\] dry_mass_kg = -1.6 is negative",
+    ),
+    (
+        "motor dry mass as text",
+        "dry_mass_kg = 1.6",
+        'dry_mass_kg = "1.6"',
+        r"\[motor\] dry_mass_kg = '1.6' is not a number",
+    ),
+    (
+        "elevation as text",
+        "elevation_m = 150",
+        'elevation_m = "150"',
+        r"\[launch\] elevation_m = '150' is not a number",
+    ),
+    (
+        "elevation off the Earth",
+        "elevation_m = 150",
+        "elevation_m = 1e6",
+        r"\[launch\] elevation_m = 1e\+06 is not a pad's elevation",
+    ),
+    (
+        "negative holddown",
+        "dry_mass_kg = 1.6",
+        "dry_mass_kg = 1.6\nholddown_time_s = -1",
+        r"\[motor\] holddown_time_s = -1 is negative",
+    ),
+    (
+        "heading nan",
+        "heading_deg = 133",
+        "heading_deg = nan",
+        r"\[launch\] heading_deg = nan is not a finite number",
+    ),
+    (
+        "temperature as text",
+        "surface_temperature_K = 287.177",
+        'surface_temperature_K = "287.177"',
+        r"\[atmosphere\] surface_temperature_K = '287.177' is text",
+    ),
+]
+
+
+@pytest.mark.parametrize(
+    "old, new, pattern", [c[1:] for c in TOML], ids=[c[0] for c in TOML]
+)
+def test_a_damaged_rocket_file_is_one_line(tmp_path, old, new, pattern):
+    folder = _folder(tmp_path)
+    toml = folder / "rocket.toml"
+    text = toml.read_text()
+    assert old in text
+    toml.write_text(text.replace(old, new, 1))
+    with pytest.raises(LogError, match=f"^{toml}: {pattern}") as e:
+        dr.read_rocket(toml)
+    assert "\n" not in str(e.value)
+
+
+def test_a_note_beside_a_key_stays_a_note(tmp_path):
+    """Keys one or two letters from a key read, that differ only in their digits
+    (`I33_kgm2` beside `I11_kgm2`), and text notes where a number is optional
+    (`"not given"`), are read as before."""
+    folder = _folder(tmp_path)
+    toml = folder / "rocket.toml"
+    text = toml.read_text().replace("I11_kgm2 = 4.4", "I11_kgm2 = 4.4\nI33_kgm2 = 0.01")
+    text = text.replace(
+        "[results]", '[results]\npreflight_simulated_apogee_agl_m = "not given"'
+    )
+    toml.write_text(text)
+    rocket = dr.read_rocket(toml)
+    assert rocket.preflight_apogee is None and rocket.dry_mass == pytest.approx(9.8)
+
+
+@pytest.mark.parametrize(
+    "points, pattern",
+    [
+        ("0.0,0\n1.0,0\n2.0,0\n", r"every thrust point is 0 N"),
+        (
+            "0.0,0\n1.0,1e30\n2.0,0\n",
+            r"thrust 1e\+30 N at t = 1 s is more than any motor",
+        ),
+    ],
+    ids=["no thrust", "thrust no motor gives"],
+)
+def test_a_thrust_curve_without_a_plausible_thrust_is_refused(
+    tmp_path, points, pattern
+):
+    """Before, a curve of zeros divided by its zero impulse (NaN masses) and a
+    thrust of 1e30 N flew."""
+    path = tmp_path / "motor.csv"
+    path.write_text("time,thrust\n" + points)
+    with pytest.raises(LogError, match=f"^{path}: {pattern}"):
+        dr.read_motor(path, propellant_mass=1.0)
+
+
+def test_an_eng_header_without_a_mass_asks_for_one(tmp_path):
+    """A RASP header whose propellant field is not a number (before: a ValueError)."""
+    path = tmp_path / "m.eng"
+    path.write_text("L995 seventy-five long\n0.1 100\n1.0 100\n1.1 0\n")
+    with pytest.raises(LogError, match="give the propellant mass .*header 'L995"):
+        dr.read_motor(path)
+
+
+@pytest.mark.parametrize("damage", ["latin-1", "binary"])
+def test_cli_rocket_file_not_utf8_is_one_line(tmp_path, damage):
+    """`rocket fit` on a rocket.toml saved as Latin-1 or not text at all: before, a
+    UnicodeDecodeError traceback."""
+    folder = _folder(tmp_path)
+    toml = folder / "rocket.toml"
+    text = toml.read_text().replace("sim-clean", "sim-cl\u00e9an")
+    toml.write_bytes(
+        text.encode("latin-1") if damage == "latin-1" else b"\x89\xff" * 99
+    )
+    res = CliRunner().invoke(
+        app, ["rocket", "fit", str(toml), "--out", str(tmp_path / "out")]
+    )
+    assert res.exit_code == 2, res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: {toml}: not UTF-8 text")
+    assert not (tmp_path / "out").exists()
