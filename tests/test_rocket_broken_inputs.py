@@ -177,3 +177,11 @@ def test_cli_rocket_file_not_utf8_is_one_line(tmp_path, damage):
     lines = res.output.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"error: {toml}: not UTF-8 text")
     assert not (tmp_path / "out").exists()
+
+
+def test_a_drag_curve_in_percent_is_refused(tmp_path):
+    """A team's CD written in percent (57 for 0.57): before, re-simulated as such."""
+    path = tmp_path / "drag.csv"
+    path.write_text("mach,cd\n0.1,57.1\n0.5,52.0\n0.9,63.8\n")
+    with pytest.raises(LogError, match=f"^{path}: row 2: Mach 0.1, CD 57.1 is beyond"):
+        dr.read_drag_curve(path)
