@@ -185,3 +185,37 @@ def test_a_drag_curve_in_percent_is_refused(tmp_path):
     path.write_text("mach,cd\n0.1,57.1\n0.5,52.0\n0.9,63.8\n")
     with pytest.raises(LogError, match=f"^{path}: row 2: Mach 0.1, CD 57.1 is beyond"):
         dr.read_drag_curve(path)
+
+
+def test_a_mass_the_motor_cannot_lift_is_refused(tmp_path):
+    """The rocket's mass in grams (8200 kg on a 1.9 kg motor): before, the fit ran,
+    its figures failed on NaN axes (a traceback) and left half the --out folder."""
+    folder = _folder(tmp_path)
+    toml = folder / "rocket.toml"
+    toml.write_text(
+        toml.read_text().replace(
+            "mass_without_motor_kg = 8.2", "mass_without_motor_kg = 8200"
+        )
+    )
+    with pytest.raises(
+        LogError,
+        match=f"^{toml}: the motor's peak thrust .* does not lift the 8203.5 kg rocket",
+    ):
+        dr.read_rocket(toml)
+
+
+def test_rocket_outputs_are_complete_or_absent(tmp_path, monkeypatch):
+    """A figure that fails after others were drawn leaves no --out folder and no
+    staging folder beside it."""
+    from diffpegasus._rocket import _pipeline, _report
+
+    def half(problem, result, prediction, team, ee, out):
+        (out / "altitude.png").write_bytes(b"png")
+        raise ValueError("Axis limits cannot be NaN or Inf")
+
+    monkeypatch.setattr(_report, "figures", half)
+    monkeypatch.setattr(_pipeline, "equation_error_drag", lambda result: None)
+    out = tmp_path / "out"
+    with pytest.raises(ValueError):
+        _pipeline._write_outputs(None, None, None, None, {}, False, out)
+    assert sorted(tmp_path.iterdir()) == []

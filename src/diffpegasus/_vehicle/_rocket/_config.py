@@ -36,6 +36,7 @@ import equinox as eqx
 import numpy as np
 
 from ..._errors import LogError
+from .._atmosphere import G0
 from ._barrowman import Airframe, read_airframe
 from ._drag import read_drag_curve
 from ._motor import Motor, read_motor
@@ -344,6 +345,14 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
         dry_mass=motor_dry,
     )
     rocket_mass = _number(rk, "mass_without_motor_kg", path, "rocket")
+    loaded = rocket_mass + motor_dry + prop
+    if not np.max(motor.thrust) > loaded * G0:
+        raise LogError(
+            f"{path}: the motor's peak thrust {np.max(motor.thrust):g} N "
+            f"({motor.name}) does not lift the {loaded:g} kg rocket at ignition "
+            f"(its weight is {loaded * G0:g} N): a mass in grams, or "
+            "a thrust curve in other units?"
+        )
     inclination = _number(la, "inclination_deg", path, "launch")
     if not 0 < inclination <= 90:
         raise LogError(
