@@ -219,3 +219,27 @@ def test_rocket_outputs_are_complete_or_absent(tmp_path, monkeypatch):
     with pytest.raises(ValueError):
         _pipeline._write_outputs(None, None, None, None, {}, False, out)
     assert sorted(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "value, why",
+    [("1e300", "is too large for a measurement"), ("1e12", "times the column's 90th")],
+    ids=["overflows", "a corrupt cell"],
+)
+def test_a_corrupt_cell_in_a_rocket_log_is_refused(tmp_path, value, why):
+    """A cell no altimeter writes, as the aircraft readers refuse it: before, read
+    (an apogee of 1e300 m went to the fit)."""
+    from diffpegasus import read_rocket_log
+
+    folder = _folder(tmp_path)
+    log = folder / "log.csv"
+    lines = log.read_text().splitlines()
+    cells = lines[100].split(",")
+    cells[1] = value
+    lines[100] = ",".join(cells)
+    log.write_text("\n".join(lines) + "\n")
+    with pytest.raises(
+        LogError,
+        match=f"^{log}: column 'altitude_m', row 100: value {value[:2]}.* {why}",
+    ):
+        read_rocket_log(folder / "rocket.toml")
