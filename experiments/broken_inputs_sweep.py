@@ -411,9 +411,16 @@ BYTE_DAMAGES = [
 
 
 class Case:
-    def __init__(self, group, mutation, build, fine=False, kind="check", out=False):
+    """One damaged input: `build(tmp)` writes it and returns the command's arguments
+    and the names its error line should give; `base` the group whose good input
+    the numbers are compared with (by default its own)."""
+
+    def __init__(
+        self, group, mutation, build, fine=False, kind="check", out=False, base=None
+    ):
         self.group, self.mutation, self.build = group, mutation, build
         self.fine, self.kind, self.out = fine, kind, out
+        self.base = base or group
 
 
 def hfb_cases():
@@ -715,6 +722,7 @@ def model_cases():
         return MODEL_SRC.replace(old, new)
 
     bad = {
+        "(good input)": MODEL_SRC,
         "syntax error": MODEL_SRC.replace("def rates", "def rates(", 1),
         "raises at import": MODEL_SRC + "\nraise RuntimeError('boom')\n",
         "no model variable": edit("model = dp.Model(", "other = dp.Model("),
@@ -785,7 +793,8 @@ def model_cases():
             # read() and the file's columns speak of the data file they read
             return args, ["model.py", "flight.csv"]
 
-        cases.append(Case("model file", mid, build, kind="fit", out=True))
+        good = mid == "(good input)"
+        cases.append(Case("model file", mid, build, good, kind="fit", out=True))
 
     for what in ("directory", "missing", "binary"):
 
@@ -1067,7 +1076,8 @@ def rocket_cases():
                 "--json",
             ], [p.name]
 
-        return Case(group, mid, build, fine, "rocket", True)
+        base = "rocket.toml (cavour)" if flight == CAVOUR else None
+        return Case(group, mid, build, fine, "rocket", True, base)
 
     def lines_edit(fn):
         def damage(p):
@@ -1197,7 +1207,11 @@ def rocket_cases():
             lines_edit(
                 lambda ls: (
                     ls[:100]
-                    + [",".join(["9.9", "nan"] + ls[100].split(",")[2:])]
+                    + [
+                        ",".join(
+                            [ls[100].split(",")[0], "nan"] + ls[100].split(",")[2:]
+                        )
+                    ]
                     + ls[101:]
                 )
             ),
@@ -1354,7 +1368,7 @@ def sweep(only=None, workdir=None):
             if c.mutation == "(good input)":
                 baselines[c.group] = numbers(c.kind, out)
             outcome, message = classify(
-                rc, out, err, where, c.kind, baselines.get(c.group)
+                rc, out, err, where, c.kind, baselines.get(c.base)
             )
             partial = []
             # exit 3 writes its report on purpose (it says why nothing was
@@ -1374,6 +1388,8 @@ def sweep(only=None, workdir=None):
                 "message": message.replace(str(tmp) + "/", ""),
                 "seconds": round(secs, 1),
             }
+            if rc == 0:
+                row["numbers"] = numbers(c.kind, out)
             if partial:
                 row["partial"] = partial
             rows.append(row)

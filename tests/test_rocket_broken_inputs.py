@@ -243,3 +243,45 @@ def test_a_corrupt_cell_in_a_rocket_log_is_refused(tmp_path, value, why):
         match=f"^{log}: column 'altitude_m', row 100: value {value[:2]}.* {why}",
     ):
         read_rocket_log(folder / "rocket.toml")
+
+
+def test_a_folder_under_a_shipped_flights_name_reads_its_own_log(tmp_path):
+    """A flight in a folder named as a shipped one (`cavour`) whose rocket.toml names
+    another log: before, the shipped flight's map was applied and read the shipped
+    file name beside it (here a stale copy), not the log the rocket.toml names."""
+    import numpy as np
+
+    from diffpegasus import read_rocket_log
+
+    folder = tmp_path / "cavour"
+    shutil.copytree(CLEAN, folder)
+    toml = folder / "rocket.toml"
+    text = toml.read_text()
+    start = text.index("[log.column_map]")
+    toml.write_text(text[:start] + text[text.index("[log.stated_events]") :])
+    (folder / "logs").mkdir()
+    stale = "ts,altitude[m],velocity[m/s],latitude,longitude\n"
+    stale += "".join(f"{0.1 * k:.1f},{k},{10},39.39,-8.29\n" for k in range(300))
+    (folder / "logs" / "altimeter_cavour.csv").write_text(stale)
+    log = read_rocket_log(toml)
+    a = np.loadtxt(folder / "log.csv", delimiter=",", skiprows=1)
+    assert float(np.max(log["altitude"].values)) == pytest.approx(np.max(a[:, 1]))
+
+
+@pytest.mark.parametrize(
+    "column, factor, isp",
+    [(1, 0.224809, "45.51"), (0, 1000.0, "2.024e\\+05")],
+    ids=["thrust in lbf", "times in ms"],
+)
+def test_a_thrust_curve_in_other_units_is_refused(tmp_path, column, factor, isp):
+    """The curve's impulse over the propellant's weight is no motor's specific
+    impulse (the clean flight's 202 s): before, a thrust in lbf or times in ms flew,
+    and the fit's NaN figures ended in a traceback."""
+    import numpy as np
+
+    a = np.loadtxt(CLEAN / "motor.csv", delimiter=",", skiprows=1)
+    a[:, column] *= factor
+    path = tmp_path / "motor.csv"
+    np.savetxt(path, a, delimiter=",", header="time,thrust", comments="")
+    with pytest.raises(LogError, match=f"^{path}: .* specific impulse of {isp} s"):
+        dr.read_motor(path, propellant_mass=1.9)

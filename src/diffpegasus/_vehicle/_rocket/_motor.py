@@ -13,9 +13,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..._errors import LogError
+from .._atmosphere import G0
 from ._rows import read_rows
 
 
+# s: specific impulses of rocket motors, from the weakest sugar propellants
+# (about 100 s; the shipped flights 135-256 s) to hydrogen-oxygen in vacuum (465 s)
+ISP_RANGE = (60.0, 500.0)
 # N: more than any motor flown (a Saturn V's first stage, 35 MN; Starship's 75 MN)
 THRUST_LARGEST = 1e8
 
@@ -135,7 +139,17 @@ def read_motor(path, *, propellant_mass=None, dry_mass=0.0) -> Motor:
                 + ")"
             )
         propellant_mass = mass
-    return Motor(t, f, float(propellant_mass), float(dry_mass), path.name)
+    motor = Motor(t, f, float(propellant_mass), float(dry_mass), path.name)
+    isp = motor.total_impulse / (float(propellant_mass) * G0)
+    if not ISP_RANGE[0] <= isp <= ISP_RANGE[1]:
+        raise LogError(
+            f"{path}: the curve's impulse {motor.total_impulse:.6g} N s over the "
+            f"propellant's weight ({float(propellant_mass):g} kg) is a specific "
+            f"impulse of {isp:.4g} s; motors give {ISP_RANGE[0]:g}-{ISP_RANGE[1]:g} "
+            "s: a thrust in lbf or kN, times in ms, or the propellant mass in other "
+            "units?"
+        )
+    return motor
 
 
 def _header_number(header, i) -> float | None:
