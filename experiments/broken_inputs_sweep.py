@@ -207,7 +207,7 @@ def write_h5(path, names, rows, extra=None, mat73=False):
         for k, n in enumerate(names):
             f[n] = a[:, k][None, :] if mat73 else a[:, k]
         for n, v in (extra or {}).items():
-            if v == "GROUP":
+            if isinstance(v, str) and v == "GROUP":
                 f.create_group(n).create_dataset("x", data=a[:, 0])
             else:
                 f[n] = v
@@ -896,9 +896,15 @@ def rocket_cases():
                 "--out",
                 tmp / "out",
                 "--json",
-            ], ["rocket.toml"]
+            ], ["rocket.toml", *named(new)]
 
         return Case(f"rocket.toml ({flight.name})", mid, build, fine, "rocket", True)
+
+    def named(new):
+        """A file name the damaged key gives (a missing file is named as itself)."""
+        if not isinstance(new, str) or '"' not in new:
+            return []
+        return [new.split('"')[1]]
 
     cases.append(toml_case("(good input)", None, lambda t: t, True))
     m = "mass_without_motor_kg = 8.219"
