@@ -1441,7 +1441,28 @@ if __name__ == "__main__":
     ap.add_argument(
         "--reclassify", action="store_true", help="re-apply the rules to stored runs"
     )
+    ap.add_argument(
+        "--table", action="store_true", help="print the stored runs' counts (markdown)"
+    )
     a = ap.parse_args()
+    if a.table:
+        runs = json.loads(RESULTS.read_text())["runs"]
+        order = ["error", "error-vague", "traceback", "hang", "fit-failed"]
+        order += ["accepted-same", "accepted-close", "accepted-DIFFERENT", "accepted"]
+        order += ["not-built"]
+        print("| outcome | " + " | ".join(runs) + " |")
+        print("|---|" + "---|" * len(runs))
+        for o in order:
+            print(
+                f"| {o} | "
+                + " | ".join(str(r["counts"].get(o, 0)) for r in runs.values())
+                + " |"
+            )
+        partial = [sum("partial" in c for c in r["cases"]) for r in runs.values()]
+        print(
+            "| of which left files in --out | " + " | ".join(map(str, partial)) + " |"
+        )
+        sys.exit(0)
     if a.reclassify:
         old = json.loads(RESULTS.read_text())
         for run in old["runs"].values():

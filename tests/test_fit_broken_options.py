@@ -81,3 +81,18 @@ def test_a_syntax_error_names_its_line(flight):
     assert res.exit_code == 2
     last = res.output.strip().splitlines()[-1]
     assert last.startswith(f"error: {path}: line 2: SyntaxError at import"), last
+
+
+def test_check_refuses_a_record_too_short_to_fit(tmp_path):
+    """`check --columns` on two rows: before, `ok; 2 samples`, which `fit` refuses."""
+    (tmp_path / "log.csv").write_text("time,QB\n0.0,0.1\n0.1,0.2\n")
+    (tmp_path / "map.json").write_text('{"t": "time", "q": "QB"}')
+    res = CliRunner().invoke(
+        app,
+        ["check", str(tmp_path / "log.csv"), "--columns", str(tmp_path / "map.json")],
+    )
+    assert res.exit_code == 2
+    assert res.output.strip().splitlines() == [
+        f"error: {tmp_path / 'log.csv'}: only 2 sample(s); a record needs at least 3 "
+        "(two steps of the dynamics)"
+    ]
