@@ -219,6 +219,11 @@ def test_rocket_outputs_are_complete_or_absent(tmp_path, monkeypatch):
     with pytest.raises(ValueError):
         _pipeline._write_outputs(None, None, None, None, {}, False, out)
     assert sorted(tmp_path.iterdir()) == []
+    # a fit that did not converge (a radius given as the diameter: NaN bands, and
+    # before, a traceback from the figures) gets its summary.json alone
+    _pipeline._write_outputs(None, None, None, None, {"converged": False}, False, out)
+    assert [p.name for p in tmp_path.iterdir()] == ["out"]
+    assert [p.name for p in out.iterdir()] == ["summary.json"]
 
 
 @pytest.mark.parametrize(

@@ -151,18 +151,21 @@ def run_flight(rocket, log, out=None, *, free=None, spread=True, descent=False) 
 def _write_outputs(problem, result, prediction, team, row, descent, out) -> None:
     """The figures and summary.json in `out`, complete or not at all: written into
     a folder beside it and moved in only once every file is written (a figure that
-    fails leaves `out` as it was)."""
+    fails leaves `out` as it was). A fit that did not converge gets its
+    summary.json alone: its curves may not be finite, and no figure shows them."""
     from ._report import figures
 
     out = pathlib.Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     stage = pathlib.Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
-        if descent:
-            from ._descent_report import descent_figure
+        if row.get("converged", True):
+            if descent:
+                from ._descent_report import descent_figure
 
-            descent_figure(problem, result, stage / "descent.png")
-        figures(problem, result, prediction, team, equation_error_drag(result), stage)
+                descent_figure(problem, result, stage / "descent.png")
+            ee = equation_error_drag(result)
+            figures(problem, result, prediction, team, ee, stage)
         (stage / "summary.json").write_text(json.dumps(row, indent=1, default=float))
         out.mkdir(exist_ok=True)
         for f in sorted(stage.iterdir()):
