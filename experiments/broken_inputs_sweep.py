@@ -1473,10 +1473,14 @@ if __name__ == "__main__":
         sys.exit(0)
     rows = sweep(a.only)
     old = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
-    old.setdefault("runs", {})[a.label + (f" ({a.only})" if a.only else "")] = {
-        "counts": counts(rows),
-        "cases": rows,
-    }
+    runs = old.setdefault("runs", {})
+    if a.only and a.label in runs:
+        # the groups run again (after a change to them) replace theirs in the run
+        kept = [r for r in runs[a.label]["cases"] if not r["group"].startswith(a.only)]
+        rows = kept + rows
+        order = {c.group: k for k, c in enumerate(reversed(all_cases()))}
+        rows.sort(key=lambda r: -order.get(r["group"], 0))
+    runs[a.label] = {"counts": counts(rows), "cases": rows}
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     RESULTS.write_text(json.dumps(old, indent=1) + "\n")
     print(json.dumps(counts(rows)))
