@@ -213,3 +213,22 @@ def test_not_a_mat_file_through_the_command_line(tmp_path):
         and "not a readable MATLAB .mat file" in lines[-1]
     )
     assert "Traceback" not in out.output
+
+
+def test_hdf5_complex_numbers_are_not_called_text(tmp_path):
+    """A complex dataset (h5py's compound type) mapped as a column: before, `is
+    text, not a signal`."""
+    import h5py
+
+    path = tmp_path / "x.h5"
+    with h5py.File(path, "w") as f:
+        f["t"] = np.arange(10.0)
+        f["QC"] = np.ones(10) * (1 + 2j)
+        f["TXT"] = np.array([b"a"] * 10)
+    from diffpegasus._log._matfile import read_matrix_file
+
+    table = read_matrix_file(path)
+    with pytest.raises(dp.LogError, match="'QC' is not a numeric array .*complex128"):
+        assert "QC" in table
+    with pytest.raises(dp.LogError, match="'TXT' is text, not a signal"):
+        assert "TXT" in table

@@ -155,10 +155,11 @@ def test_accelerometer_reads_specific_force():
 def test_motor_reader_eng_and_csv(tmp_path):
     eng = tmp_path / "m.eng"
     eng.write_text(
-        "; comment\nL995 75 486 0 1.996 3.591 CTI\n0.1 1000\n1.0 1000\n1.1 0\n"
+        "; comment\nL995 75 486 0 0.4 3.591 CTI\n0.1 1000\n1.0 1000\n1.1 0\n"
     )
     m = dr.read_motor(eng)
-    assert m.propellant_mass == 1.996
+    # 0.4 kg of propellant for 1000 N s: a specific impulse of 255 s, a motor's
+    assert m.propellant_mass == 0.4
     # trapezoid with the zero at ignition added: 0.05*1000 + 0.9*1000 + 0.05*1000
     np.testing.assert_allclose(m.total_impulse, 1000.0, rtol=1e-12)
     t, f, burned = m.tables()

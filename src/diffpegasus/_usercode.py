@@ -16,13 +16,23 @@ from ._errors import LogError
 
 
 def _line_in(e: BaseException, path: str) -> str:
-    """` line N` of the innermost frame of the traceback in `path`, or ``."""
+    """` line N` of the innermost frame of the traceback in `path` (for a syntax
+    error, the line it names), or ``."""
+    if isinstance(e, SyntaxError) and e.lineno and e.filename:
+        if pathlib.Path(e.filename).resolve() == pathlib.Path(path).resolve():
+            return f" line {e.lineno}"
     frames = [
         f
         for f in traceback.extract_tb(e.__traceback__)
         if pathlib.Path(f.filename).resolve() == pathlib.Path(path).resolve()
     ]
     return f" line {frames[-1].lineno}" if frames else ""
+
+
+def _where(e: BaseException, path) -> str:
+    """`path: line N`, or `path` where no line of it is known."""
+    line = _line_in(e, str(path))
+    return f"{path}:{line}" if line else str(path)
 
 
 @contextlib.contextmanager
@@ -46,7 +56,7 @@ def contained(path: str, what: str):
         said = [ln for ln in captured.getvalue().splitlines() if ln.strip()]
         last = f" after printing {said[-1].strip()[:120]!r}" if said else ""
         raise LogError(
-            f"{path}:{_line_in(e, path)}: the file calls sys.exit({e.code!r}) {what}"
+            f"{_where(e, path)}: the file calls sys.exit({e.code!r}) {what}"
             f"{last} (an argument parser or a script's main?); a model file only "
             "defines things (guard script code with if __name__ == '__main__')"
         ) from None
@@ -55,7 +65,7 @@ def contained(path: str, what: str):
     except Exception as e:  # the user's code: one line, naming where it failed
         first = str(e).splitlines()[0] if str(e) else ""
         raise LogError(
-            f"{path}:{_line_in(e, path)}: {type(e).__name__} {what}: {first}"
+            f"{_where(e, path)}: {type(e).__name__} {what}: {first}"
         ) from None
     finally:
         sys.argv, sys.stdin = argv, stdin

@@ -173,7 +173,11 @@ def fit_command(
             + " after its event"
         )
     if out is not None:
-        typer.echo(f"  figures and summary.json in {out}")
+        typer.echo(
+            f"  figures and summary.json in {out}"
+            if row["converged"]
+            else f"  summary.json in {out} (no figures: the fit did not converge)"
+        )
 
 
 @rocket_app.command("compare")

@@ -208,6 +208,11 @@ def _check_mapped(log, columns, resample, as_json) -> None:
     except LogError as e:
         _fail(str(e))
     t = channels["t"]
+    if len(t) < 3:  # as fit refuses it
+        _fail(
+            f"{log}: only {len(t)} sample(s); a record needs at least 3 (two steps of "
+            "the dynamics)"
+        )
     steps = np.diff(t)
     if steps.size and not np.all(steps > 0):
         row = int(np.argmax(~(steps > 0))) + 2

@@ -67,7 +67,11 @@ def layout(
     dts = np.array([rec.dt for rec in records])
     lengths = np.array([len(rec.t) for rec in records])
     if isinstance(shooting, MultipleShooting):
-        length = max(1, int(round(shooting.interval / dts.min())))
+        # an interval longer than every record is one segment per record, not one
+        # padded to the interval's length (1e9 s would ask for memory no one has)
+        length = max(
+            1, min(int(round(shooting.interval / dts.min())), int(lengths.max()))
+        )
         tol = shooting.continuity_tol
     else:
         length = _bucket(int(lengths.max()))
@@ -380,6 +384,9 @@ def output_error(
             raise ValueError(
                 f"bias on {b!r}: not a model output ({', '.join(model.outputs)})"
             )
+        if biases.count(b) > 1:
+            # two biases on one output cannot be told apart: a singular fit
+            raise ValueError(f"bias on {b!r} given twice; give each output once")
     for rec in records:
         rec.check(model)
     start = np.asarray(model.start if start is None else start, float)

@@ -302,27 +302,26 @@ def _check_step(table: Table, t: np.ndarray, col: Column) -> None:
         )
 
 
-def _check_outliers(table: Table, raw: np.ndarray, col: Column) -> None:
-    """Values the fit cannot use: one whose square, summed over the record, would
-    overflow float64; one a million times beyond the column's own 90th-percentile
-    spread about its median with ordinary samples on both sides (a corrupt cell,
-    not a measurement: a control moved for under a tenth of a record that is
-    otherwise still, to rounding, spans several samples)."""
-    where = f"{table.path}: column {col.column!r} (channel {col.channel!r}) row"
-    big = np.abs(raw * col.factor)
+def corrupt_cell(values: np.ndarray) -> tuple[int, str] | None:
+    """The first value no measurement holds, as `(index, why)`, or `None`: one whose
+    square, summed over the record, would overflow float64; one a million times
+    beyond the column's own 90th-percentile spread about its median with ordinary
+    samples on both sides (a corrupt cell, not a measurement: a control moved for
+    under a tenth of a record that is otherwise still, to rounding, spans several
+    samples). `values` in SI units, finite."""
+    big = np.abs(values)
     i = int(np.argmax(big))
-    if big[i] > np.sqrt(np.finfo(float).max / (4 * len(raw))):
-        raise LogError(
-            f"{where} {i + 1}: value {raw[i]:g} is too large for a measurement (its "
-            "square summed over the record overflows float64); a corrupt cell or a "
-            "wrong scale"
+    if big[i] > np.sqrt(np.finfo(float).max / (4 * len(values))):
+        return i, (
+            "is too large for a measurement (its square summed over the record "
+            "overflows float64); a corrupt cell or a wrong scale"
         )
     # the median and spread from at most 65536 evenly spaced samples: a factor of a
     # million needs no more precision, and a long log costs no sort of every value
-    sample = raw[:: max(1, len(raw) // 65536)]
+    sample = values[:: max(1, len(values) // 65536)]
     med = float(np.median(sample))
     spread = float(np.percentile(np.abs(sample - med), 90))
-    dev = np.abs(raw - med)
+    dev = np.abs(values - med)
     far = dev > 1e6 * spread
     beside = np.zeros_like(far)
     beside[1:] |= far[:-1]
@@ -330,10 +329,21 @@ def _check_outliers(table: Table, raw: np.ndarray, col: Column) -> None:
     lone = far & ~beside
     i = int(np.argmax(np.where(lone, dev, -1.0)))
     if spread > 0 and lone[i]:
+        return i, (
+            f"is {dev[i] / spread:.3g} times the column's 90th-percentile spread "
+            f"about its median ({med:g}): a corrupt cell, not a measurement"
+        )
+    return None
+
+
+def _check_outliers(table: Table, raw: np.ndarray, col: Column) -> None:
+    """A value the fit cannot use (`corrupt_cell`) is one error line."""
+    found = corrupt_cell(raw * col.factor)
+    if found is not None:
+        i, why = found
         raise LogError(
-            f"{where} {i + 1}: value {raw[i]:g} is {dev[i] / spread:.3g} times the "
-            f"column's 90th-percentile spread about its median ({med:g}): a corrupt "
-            "cell, not a measurement"
+            f"{table.path}: column {col.column!r} (channel {col.channel!r}) row "
+            f"{i + 1}: value {raw[i]:g} {why}"
         )
 
 

@@ -104,6 +104,10 @@ def _mat5_variables(path: pathlib.Path) -> dict:
     return out
 
 
+class NotNumeric(str):
+    """An HDF5 dataset that holds no numbers: its MATLAB class or dtype."""
+
+
 def _hdf5_variables(path: pathlib.Path, matlab: bool) -> dict:
     import h5py
 
@@ -121,7 +125,8 @@ def _hdf5_variables(path: pathlib.Path, matlab: bool) -> dict:
                 cls = obj.attrs.get("MATLAB_class", b"")
                 cls = cls.decode() if isinstance(cls, bytes) else str(cls)
                 if cls in ("char", "cell") or obj.dtype.kind not in "biuf":
-                    out[key] = f"<{cls or obj.dtype}>"
+                    text = cls == "char" or obj.dtype.kind in "SUO"
+                    out[key] = NotNumeric("text" if text else cls or str(obj.dtype))
                     return
                 value = obj[()]
                 # MATLAB writes column-major: an N x k matrix is stored k x N
@@ -137,6 +142,10 @@ def _table(path: pathlib.Path, variables: dict) -> MatrixTable:
     signals: dict[str, np.ndarray] = {}  # name -> (N,) or (N, k)
     not_columns: dict[str, str] = {}
     for name, value in variables.items():
+        if isinstance(value, NotNumeric) and value != "text":
+            # complex numbers (a compound type), a cell array
+            not_columns[name] = f"is not a numeric array (it holds {value})"
+            continue
         if isinstance(value, str):
             not_columns[name] = "is text, not a signal"
             continue

@@ -6,7 +6,8 @@ leaves empty, positions held between GNSS fixes, and a final run of samples that
 fall faster than free fall from apogee allows (a write cut short). Reported but
 kept: dropouts (gaps on the log's own sample grid), changes of sample rate, a log
 that starts after liftoff. Refused with one [`LogError`][] line naming file,
-column, row and value: time running backwards.
+column, row and value: time running backwards, a value no measurement holds (a
+corrupt cell: see `_columns.corrupt_cell`).
 """
 
 import dataclasses
@@ -15,6 +16,7 @@ import pathlib
 import numpy as np
 
 from .._errors import LogError
+from ._columns import corrupt_cell
 from ._rocket_events import G0, quantum, robust_sigma
 from ._rocket_maps import ChannelSpec, StreamSpec
 
@@ -226,6 +228,13 @@ def clean_stream(
                 f"from channel {c.name!r} (first at row {rows[np.argmax(~ok)]})"
             )
         s = Series(t[ok], v[ok], rows[ok], c, file)
+        found = corrupt_cell(s.v)
+        if found is not None:
+            i, why = found
+            raise LogError(
+                f"{where}, row {s.rows[i]}: value {raw[ok][i, k]:g} {why} (channel "
+                f"{c.name!r})"
+            )
         if np.ptp(s.v) == 0 and c.name not in ("gnss_lat", "gnss_lon", "gnss_alt"):
             messages.append(
                 f"{where}: {s.v[0] / c.factor - c.offset / c.factor:g} throughout, no "

@@ -30,6 +30,7 @@ Any other name a column map gives is kept as it is mapped (SI by its unit).
 """
 
 import dataclasses
+import json
 import os
 import pathlib
 import tomllib
@@ -361,10 +362,20 @@ def _stated_within(stated: dict[str, float], flat: dict, root) -> None:
             )
 
 
-def shipped_map(folder: str) -> pathlib.Path | None:
-    """The column map shipped for a known flight's folder name, if any."""
+def shipped_map(folder: str, files=None, root=None) -> pathlib.Path | None:
+    """The column map shipped for a known flight's folder name, if any; with
+    `files` (the logs the `rocket.toml` in `root` names), only when the map reads
+    exactly those files: a folder of another flight under a shipped name, or a
+    `rocket.toml` pointing at another log, is read by its own headers instead of
+    the shipped flight's files."""
     path = pathlib.Path(__file__).parents[1] / "data" / "rocket_logs" / f"{folder}.json"
-    return path if path.is_file() else None
+    if not path.is_file():
+        return None
+    if files is None:
+        return path
+    streams = json.loads(path.read_text()).get("streams", [])
+    named = {(root / s["file"]).resolve() for s in streams if "file" in s}
+    return path if named == {pathlib.Path(f).resolve() for f in files} else None
 
 
 def _streams(files, root, column_map, log_table, messages) -> list[StreamSpec]:
@@ -402,7 +413,9 @@ def _streams(files, root, column_map, log_table, messages) -> list[StreamSpec]:
             return out
         else:
             beside = root / "columns.json"
-            column_map = beside if beside.is_file() else shipped_map(root.name)
+            column_map = (
+                beside if beside.is_file() else shipped_map(root.name, files, root)
+            )
     if column_map is not None:
         data, map_folder = load_map(column_map)
         if not isinstance(column_map, dict):

@@ -1,7 +1,10 @@
 """One rocket flight end to end: fit, predict, re-simulate, check, report."""
 
 import json
+import os
 import pathlib
+import shutil
+import tempfile
 import time
 
 import numpy as np
@@ -80,7 +83,7 @@ def run_flight(rocket, log, out=None, *, free=None, spread=True, descent=False) 
     knots) added.
     """
     from ._identify import default_free
-    from ._report import figures, summary
+    from ._report import summary
 
     t0 = time.perf_counter()
     problem = prepare(rocket, log, descent=descent)
@@ -136,14 +139,35 @@ def run_flight(rocket, log, out=None, *, free=None, spread=True, descent=False) 
         for label, (own, flown, ok) in result.tries.items()
     }
     if descent:
-        from ._descent_report import descent_figure, descent_table
+        from ._descent_report import descent_table
 
         row["descent"] = descent_table(problem, result)
-        if out is not None:
-            descent_figure(problem, result, pathlib.Path(out) / "descent.png")
     if out is not None:
-        ee = equation_error_drag(result)
-        figures(problem, result, prediction, team, ee, out)
-        path = pathlib.Path(out) / "summary.json"
-        path.write_text(json.dumps(row, indent=1, default=float))
+        _write_outputs(problem, result, prediction, team, row, descent, out)
     return row
+
+
+def _write_outputs(problem, result, prediction, team, row, descent, out) -> None:
+    """The figures and summary.json in `out`, complete or not at all: written into
+    a folder beside it and moved in only once every file is written (a figure that
+    fails leaves `out` as it was). A fit that did not converge gets its
+    summary.json alone: its curves may not be finite, and no figure shows them."""
+    from ._report import figures
+
+    out = pathlib.Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    stage = pathlib.Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        if row.get("converged", True):
+            if descent:
+                from ._descent_report import descent_figure
+
+                descent_figure(problem, result, stage / "descent.png")
+            ee = equation_error_drag(result)
+            figures(problem, result, prediction, team, ee, stage)
+        (stage / "summary.json").write_text(json.dumps(row, indent=1, default=float))
+        out.mkdir(exist_ok=True)
+        for f in sorted(stage.iterdir()):
+            os.replace(f, out / f.name)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)

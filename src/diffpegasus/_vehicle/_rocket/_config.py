@@ -36,6 +36,7 @@ import equinox as eqx
 import numpy as np
 
 from ..._errors import LogError
+from .._atmosphere import G0
 from ._barrowman import Airframe, read_airframe
 from ._drag import read_drag_curve
 from ._motor import Motor, read_motor
@@ -123,18 +124,119 @@ def _number(table, key, path, section, default=None, positive=True):
         raise LogError(f"{path}: [{section}] needs {key}")
     v = table[key]
     if isinstance(v, bool) or not isinstance(v, int | float):
-        if default is not None:
-            return default
+        # a value given is read, never replaced by the default
         raise LogError(f"{path}: [{section}] {key} = {v!r} is not a number")
     v = float(v)
-    if not np.isfinite(v) or (positive and v <= 0):
+    if not np.isfinite(v):
+        raise LogError(f"{path}: [{section}] {key} = {v!r} is not a finite number")
+    if positive and v <= 0:
         raise LogError(f"{path}: [{section}] {key} = {v!r} must be positive")
     return v
 
 
-def _optional(table, key):
+def _optional(table, key, path=None, section=""):
+    """The number at `key`, or `None` where the file gives none or a note (text such
+    as "not given"). Text that reads as a number (`"2789"`) is refused rather than
+    dropped: the file meant a number."""
     v = table.get(key)
+    if isinstance(v, str) and path is not None:
+        try:
+            float(v)
+        except ValueError:
+            return None
+        raise LogError(
+            f"{path}: [{section}] {key} = {v!r} is text; write the number without "
+            "quotes"
+        )
     return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
+
+
+# the keys read from each table (every other key is a note for people), so that a
+# misspelt one is refused instead of silently ignored
+KEYS = {
+    "rocket": (
+        "mass_without_motor_kg",
+        "radius_m",
+        "I11_kgm2",
+        "center_of_mass_without_motor_m",
+        "rail_buttons_m",
+    ),
+    "motor": (
+        "thrust_file",
+        "propellant_initial_mass_kg",
+        "dry_mass_kg",
+        "holddown_time_s",
+    ),
+    "aero": (
+        "power_off_drag_file",
+        "power_on_drag_file",
+        "air_brakes_actuation_file",
+        "air_brakes_table",
+    ),
+    "launch": (
+        "elevation_m",
+        "rail_length_m",
+        "inclination_deg",
+        "heading_deg",
+        "latitude_deg",
+    ),
+    "atmosphere": ("surface_temperature_K", "era5_near_surface_temperature_K"),
+    "results": ("recorded_apogee_agl_m", "preflight_simulated_apogee_agl_m"),
+}
+# m: the pad's elevation, from the Dead Sea shore to the highest ground
+ELEVATION_RANGE = (-500.0, 9000.0)
+
+
+def _edits(a: str, b: str) -> int:
+    """Levenshtein distance between two short strings."""
+    row = list(range(len(b) + 1))
+    for i, ca in enumerate(a, 1):
+        prev, row[0] = row[0], i
+        for j, cb in enumerate(b, 1):
+            prev, row[j] = row[j], min(row[j] + 1, row[j - 1] + 1, prev + (ca != cb))
+    return row[-1]
+
+
+def _near(key: str, known: str) -> bool:
+    """One or two letters from a key read, and not a sibling quantity that differs
+    only in its digits (`I33_kgm2` beside `I11_kgm2`)."""
+    strip = str.maketrans("", "", "0123456789")
+    a, b = key.lower(), known.lower()
+    return _edits(a, b) <= 2 and a.translate(strip) != b.translate(strip)
+
+
+def _tables(doc, path) -> dict:
+    """The tables the model reads (`{}` where absent), each checked to be a table,
+    and none holding a key one or two letters from a key it reads (a misspelling
+    would leave the value unread, or a default in its place)."""
+    out = {}
+    for section, keys in KEYS.items():
+        table = doc.get(section, {})
+        if not isinstance(table, dict):
+            raise LogError(
+                f"{path}: {section} = {table!r} is not a table (write [{section}] "
+                "with its keys below it)"
+            )
+        for key in table:
+            if key in keys:
+                continue
+            near = [k for k in keys if _near(key, k)]
+            if near:
+                raise LogError(
+                    f"{path}: [{section}] {key} is not a key the rocket is read "
+                    f"from; did you mean {near[0]}? (rename a note so it is not "
+                    "one or two letters from a key)"
+                )
+        out[section] = table
+    return out
+
+
+def _file(table, key, folder, path, section) -> pathlib.Path:
+    """The file `table[key]` names, relative to the rocket file's folder."""
+    v = table[key]
+    if not isinstance(v, str) or not v.strip():
+        raise LogError(f"{path}: [{section}] {key} = {v!r} is not a file name")
+    return folder / v
 
 
 def _latitude(table, path):
@@ -169,7 +271,7 @@ def _airbrake_table(folder, ae, path) -> tuple | None:
     deployment over the closed brakes' at the same Mach, averaged over Mach."""
     if "air_brakes_table" not in ae:
         return None
-    file = folder / ae["air_brakes_table"]
+    file = _file(ae, "air_brakes_table", folder, path, "aero")
     a, lines, _ = read_rows(
         file, ("deployment 0-1", "Mach", "CD"), "the air-brake table"
     )
@@ -217,23 +319,40 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
     """
     path = pathlib.Path(path)
     try:
-        doc = tomllib.loads(path.read_text())
+        doc = tomllib.loads(path.read_bytes().decode("utf-8-sig"))
     except OSError as e:
         raise LogError(f"{path}: cannot read ({e.strerror})") from None
+    except UnicodeDecodeError as e:
+        raise LogError(
+            f"{path}: not UTF-8 text (byte {e.start + 1} is 0x{e.object[e.start]:02x}"
+            "; a Latin-1 or Windows-1252 file, or not a text file): save it as UTF-8"
+        ) from None
     except tomllib.TOMLDecodeError as e:
         raise LogError(f"{path}: not valid TOML ({e})") from None
     folder = path.parent
-    rk, mo = doc.get("rocket", {}), doc.get("motor", {})
-    ae, la = doc.get("aero", {}), doc.get("launch", {})
-    at, rs = doc.get("atmosphere", {}), doc.get("results", {})
+    tables = _tables(doc, path)
+    rk, mo, ae = tables["rocket"], tables["motor"], tables["aero"]
+    la, at, rs = tables["launch"], tables["atmosphere"], tables["results"]
     if "thrust_file" not in mo:
         raise LogError(f"{path}: [motor] needs thrust_file")
     prop = _number(mo, "propellant_initial_mass_kg", path, "motor")
     motor_dry = _number(mo, "dry_mass_kg", path, "motor", default=0.0, positive=False)
+    if motor_dry < 0:
+        raise LogError(f"{path}: [motor] dry_mass_kg = {motor_dry:g} is negative")
     motor = read_motor(
-        folder / mo["thrust_file"], propellant_mass=prop, dry_mass=motor_dry
+        _file(mo, "thrust_file", folder, path, "motor"),
+        propellant_mass=prop,
+        dry_mass=motor_dry,
     )
     rocket_mass = _number(rk, "mass_without_motor_kg", path, "rocket")
+    loaded = rocket_mass + motor_dry + prop
+    if not np.max(motor.thrust) > loaded * G0:
+        raise LogError(
+            f"{path}: the motor's peak thrust {np.max(motor.thrust):g} N "
+            f"({motor.name}) does not lift the {loaded:g} kg rocket at ignition "
+            f"(its weight is {loaded * G0:g} N): a mass in grams, or "
+            "a thrust curve in other units?"
+        )
     inclination = _number(la, "inclination_deg", path, "launch")
     if not 0 < inclination <= 90:
         raise LogError(
@@ -257,12 +376,14 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
             f"flown ({RADIUS_WIDEST:g} m); give metres ({radius:g} mm is "
             f"{radius / 1000:g} m)"
         )
-    temperature = _optional(at, "surface_temperature_K")
+    temperature = _optional(at, "surface_temperature_K", path, "atmosphere")
     if temperature is None:
         text = str(at.get("notebook_surface_conditions", ""))
         m = re.search(r"\bT\s*([0-9.]+)\s*K", text)
         temperature = (
-            float(m.group(1)) if m else _optional(at, "era5_near_surface_temperature_K")
+            float(m.group(1))
+            if m
+            else _optional(at, "era5_near_surface_temperature_K", path, "atmosphere")
         )
     if temperature is not None and not 180 < temperature < 340:
         raise LogError(
@@ -271,11 +392,25 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
         )
 
     def drag(key):
-        return read_drag_curve(folder / ae[key]) if key in ae else None
+        if key not in ae:
+            return None
+        return read_drag_curve(_file(ae, key, folder, path, "aero"))
 
+    holddown = _number(
+        mo, "holddown_time_s", path, "motor", default=0.0, positive=False
+    )
+    if holddown < 0:
+        raise LogError(f"{path}: [motor] holddown_time_s = {holddown:g} is negative")
+    elevation = _number(la, "elevation_m", path, "launch", default=0.0, positive=False)
+    if not ELEVATION_RANGE[0] <= elevation <= ELEVATION_RANGE[1]:
+        raise LogError(
+            f"{path}: [launch] elevation_m = {elevation:g} is not a pad's elevation "
+            f"({ELEVATION_RANGE[0]:g} to {ELEVATION_RANGE[1]:g} m above sea level; "
+            "give metres)"
+        )
     brakes = None
     if "air_brakes_actuation_file" in ae:
-        file = folder / ae["air_brakes_actuation_file"]
+        file = _file(ae, "air_brakes_actuation_file", folder, path, "aero")
         a, lines, _ = read_rows(
             file, ("time s", "deployment 0-1"), "the air-brake schedule"
         )
@@ -298,12 +433,8 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
         dry_mass=rocket_mass + motor_dry,
         motor=motor,
         radius=radius,
-        holddown=_number(
-            mo, "holddown_time_s", path, "motor", default=0.0, positive=False
-        ),
-        elevation=_number(
-            la, "elevation_m", path, "launch", default=0.0, positive=False
-        ),
+        holddown=holddown,
+        elevation=elevation,
         rail_length=_number(la, "rail_length_m", path, "launch")
         - _button_offset(rk, doc.get("geometry", {}), path),
         inclination=inclination,
@@ -312,8 +443,10 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
         team_drag_off=drag("power_off_drag_file"),
         team_drag_on=drag("power_on_drag_file"),
         airbrakes=brakes,
-        recorded_apogee=_optional(rs, "recorded_apogee_agl_m"),
-        preflight_apogee=_optional(rs, "preflight_simulated_apogee_agl_m"),
+        recorded_apogee=_optional(rs, "recorded_apogee_agl_m", path, "results"),
+        preflight_apogee=_optional(
+            rs, "preflight_simulated_apogee_agl_m", path, "results"
+        ),
         folder=str(folder),
         latitude=_latitude(la, path),
         airframe=read_airframe(doc, path, radius) if attitude else None,

@@ -76,6 +76,12 @@ class DragKnots(eqx.Module):
         return self._basis(mach, np)
 
 
+# a team's curve beyond these is in other units (CD in percent) or other columns:
+# rockets' CD stays below 2 (1.5 with air brakes out), sounding rockets fly below Mach 10
+CD_HIGHEST = 5.0
+MACH_HIGHEST = 25.0
+
+
 def read_drag_curve(path) -> tuple[np.ndarray, np.ndarray]:
     """A team's `CD(Mach)` table: two columns (Mach, CD), a header row allowed,
     in any order and with repeated Mach numbers (rows of a simulated trajectory are
@@ -86,6 +92,14 @@ def read_drag_curve(path) -> tuple[np.ndarray, np.ndarray]:
         j = bad[0]
         raise LogError(
             f"{path}: row {lines[j]}: Mach {a[j, 0]:g}, CD {a[j, 1]:g} is not plausible"
+        )
+    high = np.flatnonzero((a[:, 0] > MACH_HIGHEST) | (a[:, 1] > CD_HIGHEST))
+    if len(high):
+        j = high[0]
+        raise LogError(
+            f"{path}: row {lines[j]}: Mach {a[j, 0]:g}, CD {a[j, 1]:g} is beyond any "
+            f"rocket's (Mach up to {MACH_HIGHEST:g}, CD up to {CD_HIGHEST:g}); a CD in "
+            "percent, or the columns swapped? (Mach first, then CD)"
         )
     mach, inverse = np.unique(np.round(a[:, 0], 6), return_inverse=True)
     cd = np.bincount(inverse, a[:, 1]) / np.bincount(inverse)

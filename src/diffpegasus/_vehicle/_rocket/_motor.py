@@ -13,12 +13,18 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..._errors import LogError
+from .._atmosphere import G0
 from ._rows import read_rows
 
 
 # negative thrust read as a load cell's zero drift (no thrust) up to this fraction
 # of the peak
 _DRIFT = 0.05
+# s: specific impulses of rocket motors, from the weakest sugar propellants
+# (about 100 s; the shipped flights 135-256 s) to hydrogen-oxygen in vacuum (465 s)
+ISP_RANGE = (60.0, 500.0)
+# N: more than any motor flown (a Saturn V's first stage, 35 MN; Starship's 75 MN)
+THRUST_LARGEST = 1e8
 
 
 class Motor(eqx.Module):
@@ -131,9 +137,40 @@ def read_motor(path, *, propellant_mass=None, dry_mass=0.0) -> Motor:
                 "less): check the columns and the sign"
             )
         f = np.maximum(f, 0.0)
+    if not np.any(f > 0):
+        raise LogError(f"{path}: every thrust point is 0 N: the curve has no impulse")
+    if np.max(f) > THRUST_LARGEST:
+        i = int(np.argmax(f))
+        raise LogError(
+            f"{path}: thrust {f[i]:g} N at t = {t[i]:g} s is more than any motor "
+            f"gives ({THRUST_LARGEST:g} N); give newtons"
+        )
     if propellant_mass is None:
-        if path.suffix.lower() == ".eng" and header is not None and len(header) >= 6:
-            propellant_mass = float(header[4])
-        else:
-            raise LogError(f"{path}: give the propellant mass (the file has none)")
-    return Motor(t, f, float(propellant_mass), float(dry_mass), path.name)
+        mass = _header_number(header, 4) if path.suffix.lower() == ".eng" else None
+        if mass is None or not mass > 0:
+            raise LogError(
+                f"{path}: give the propellant mass (the file has none"
+                + ("" if header is None else f"; header {' '.join(header)!r}")
+                + ")"
+            )
+        propellant_mass = mass
+    motor = Motor(t, f, float(propellant_mass), float(dry_mass), path.name)
+    isp = motor.total_impulse / (float(propellant_mass) * G0)
+    if not ISP_RANGE[0] <= isp <= ISP_RANGE[1]:
+        raise LogError(
+            f"{path}: the curve's impulse {motor.total_impulse:.6g} N s over the "
+            f"propellant's weight ({float(propellant_mass):g} kg) is a specific "
+            f"impulse of {isp:.4g} s; motors give {ISP_RANGE[0]:g}-{ISP_RANGE[1]:g} "
+            "s: a thrust in lbf or kN, times in ms, or the propellant mass in other "
+            "units?"
+        )
+    return motor
+
+
+def _header_number(header, i) -> float | None:
+    """The `i`-th field of a RASP header as a finite number, else `None`."""
+    try:
+        v = float(header[i])
+    except (TypeError, IndexError, ValueError):
+        return None
+    return v if np.isfinite(v) else None

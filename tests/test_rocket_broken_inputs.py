@@ -1,0 +1,292 @@
+"""A rocket's own files damaged as people damage them (`experiments/broken_inputs_sweep.py`
+found each of these a traceback or silently read): the `rocket.toml` in another
+encoding, a table or a file name of the wrong type, a misspelt key, a number as text,
+a negative motor mass or hold-down, an elevation in no place on Earth; a thrust curve
+with no thrust or a thrust no motor gives. Each is one line naming the file and the
+key or the point."""
+
+import pathlib
+import shutil
+
+import pytest
+from typer.testing import CliRunner
+
+from diffpegasus import LogError, rocket as dr
+from diffpegasus._cli import app
+
+
+CLEAN = pathlib.Path(__file__).parent / "data" / "rocket_sim" / "clean"
+
+
+def _folder(tmp_path):
+    folder = tmp_path / "flight"
+    shutil.copytree(CLEAN, folder)
+    return folder
+
+
+# (id, text replaced, replacement, pattern of the one line after "rocket.toml: ")
+TOML = [
+    (
+        "rocket not a table",
+        "[rocket]\n",
+        "rocket = 1\n[rocket_notes]\n",
+        r"rocket = 1 is not a table",
+    ),
+    (
+        "thrust_file a number",
+        'thrust_file = "motor.csv"',
+        "thrust_file = 5",
+        r"\[motor\] thrust_file = 5 is not a file name",
+    ),
+    (
+        "drag file a list",
+        'power_off_drag_file = "drag.csv"',
+        'power_off_drag_file = ["drag.csv"]',
+        r"\[aero\] power_off_drag_file = \['drag.csv'\] is not a file name",
+    ),
+    (
+        "misspelt key",
+        "dry_mass_kg = 1.6",
+        "dry_mass_kg = 1.6\nholddown_time = 1.0",
+        r"\[motor\] holddown_time is not a key .* did you mean holddown_time_s\?",
+    ),
+    (
+        "misspelt required key",
+        "mass_without_motor_kg = 8.2",
+        "mass_without_motr_kg = 8.2",
+        r"\[rocket\] mass_without_motr_kg is not a key .* did you mean mass_without_motor_kg\?",
+    ),
+    (
+        "negative motor dry mass",
+        "dry_mass_kg = 1.6",
+        "dry_mass_kg = -1.6",
+        r"\[motor\] dry_mass_kg = -1.6 is negative",
+    ),
+    (
+        "motor dry mass as text",
+        "dry_mass_kg = 1.6",
+        'dry_mass_kg = "1.6"',
+        r"\[motor\] dry_mass_kg = '1.6' is not a number",
+    ),
+    (
+        "elevation as text",
+        "elevation_m = 150",
+        'elevation_m = "150"',
+        r"\[launch\] elevation_m = '150' is not a number",
+    ),
+    (
+        "elevation off the Earth",
+        "elevation_m = 150",
+        "elevation_m = 1e6",
+        r"\[launch\] elevation_m = 1e\+06 is not a pad's elevation",
+    ),
+    (
+        "negative holddown",
+        "dry_mass_kg = 1.6",
+        "dry_mass_kg = 1.6\nholddown_time_s = -1",
+        r"\[motor\] holddown_time_s = -1 is negative",
+    ),
+    (
+        "heading nan",
+        "heading_deg = 133",
+        "heading_deg = nan",
+        r"\[launch\] heading_deg = nan is not a finite number",
+    ),
+    (
+        "temperature as text",
+        "surface_temperature_K = 287.177",
+        'surface_temperature_K = "287.177"',
+        r"\[atmosphere\] surface_temperature_K = '287.177' is text",
+    ),
+]
+
+
+@pytest.mark.parametrize(
+    "old, new, pattern", [c[1:] for c in TOML], ids=[c[0] for c in TOML]
+)
+def test_a_damaged_rocket_file_is_one_line(tmp_path, old, new, pattern):
+    folder = _folder(tmp_path)
+    toml = folder / "rocket.toml"
+    text = toml.read_text()
+    assert old in text
+    toml.write_text(text.replace(old, new, 1))
+    with pytest.raises(LogError, match=f"^{toml}: {pattern}") as e:
+        dr.read_rocket(toml)
+    assert "\n" not in str(e.value)
+
+
+def test_a_note_beside_a_key_stays_a_note(tmp_path):
+    """Keys one or two letters from a key read, that differ only in their digits
+    (`I33_kgm2` beside `I11_kgm2`), and text notes where a number is optional
+    (`"not given"`), are read as before."""
+    folder = _folder(tmp_path)
+    toml = folder / "rocket.toml"
+    text = toml.read_text().replace("I11_kgm2 = 4.4", "I11_kgm2 = 4.4\nI33_kgm2 = 0.01")
+    text = text.replace(
+        "[results]", '[results]\npreflight_simulated_apogee_agl_m = "not given"'
+    )
+    toml.write_text(text)
+    rocket = dr.read_rocket(toml)
+    assert rocket.preflight_apogee is None and rocket.dry_mass == pytest.approx(9.8)
+
+
+@pytest.mark.parametrize(
+    "points, pattern",
+    [
+        ("0.0,0\n1.0,0\n2.0,0\n", r"every thrust point is 0 N"),
+        (
+            "0.0,0\n1.0,1e30\n2.0,0\n",
+            r"thrust 1e\+30 N at t = 1 s is more than any motor",
+        ),
+    ],
+    ids=["no thrust", "thrust no motor gives"],
+)
+def test_a_thrust_curve_without_a_plausible_thrust_is_refused(
+    tmp_path, points, pattern
+):
+    """Before, a curve of zeros divided by its zero impulse (NaN masses) and a
+    thrust of 1e30 N flew."""
+    path = tmp_path / "motor.csv"
+    path.write_text("time,thrust\n" + points)
+    with pytest.raises(LogError, match=f"^{path}: {pattern}"):
+        dr.read_motor(path, propellant_mass=1.0)
+
+
+def test_an_eng_header_without_a_mass_asks_for_one(tmp_path):
+    """A RASP header whose propellant field is not a number (before: a ValueError)."""
+    path = tmp_path / "m.eng"
+    path.write_text("L995 seventy-five long\n0.1 100\n1.0 100\n1.1 0\n")
+    with pytest.raises(LogError, match="give the propellant mass .*header 'L995"):
+        dr.read_motor(path)
+
+
+@pytest.mark.parametrize("damage", ["latin-1", "binary"])
+def test_cli_rocket_file_not_utf8_is_one_line(tmp_path, damage):
+    """`rocket fit` on a rocket.toml saved as Latin-1 or not text at all: before, a
+    UnicodeDecodeError traceback."""
+    folder = _folder(tmp_path)
+    toml = folder / "rocket.toml"
+    text = toml.read_text().replace("sim-clean", "sim-cl\u00e9an")
+    toml.write_bytes(
+        text.encode("latin-1") if damage == "latin-1" else b"\x89\xff" * 99
+    )
+    res = CliRunner().invoke(
+        app, ["rocket", "fit", str(toml), "--out", str(tmp_path / "out")]
+    )
+    assert res.exit_code == 2, res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: {toml}: not UTF-8 text")
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_drag_curve_in_percent_is_refused(tmp_path):
+    """A team's CD written in percent (57 for 0.57): before, re-simulated as such."""
+    path = tmp_path / "drag.csv"
+    path.write_text("mach,cd\n0.1,57.1\n0.5,52.0\n0.9,63.8\n")
+    with pytest.raises(LogError, match=f"^{path}: row 2: Mach 0.1, CD 57.1 is beyond"):
+        dr.read_drag_curve(path)
+
+
+def test_a_mass_the_motor_cannot_lift_is_refused(tmp_path):
+    """The rocket's mass in grams (8200 kg on a 1.9 kg motor): before, the fit ran,
+    its figures failed on NaN axes (a traceback) and left half the --out folder."""
+    folder = _folder(tmp_path)
+    toml = folder / "rocket.toml"
+    toml.write_text(
+        toml.read_text().replace(
+            "mass_without_motor_kg = 8.2", "mass_without_motor_kg = 8200"
+        )
+    )
+    with pytest.raises(
+        LogError,
+        match=f"^{toml}: the motor's peak thrust .* does not lift the 8203.5 kg rocket",
+    ):
+        dr.read_rocket(toml)
+
+
+def test_rocket_outputs_are_complete_or_absent(tmp_path, monkeypatch):
+    """A figure that fails after others were drawn leaves no --out folder and no
+    staging folder beside it."""
+    from diffpegasus._rocket import _pipeline, _report
+
+    def half(problem, result, prediction, team, ee, out):
+        (out / "altitude.png").write_bytes(b"png")
+        raise ValueError("Axis limits cannot be NaN or Inf")
+
+    monkeypatch.setattr(_report, "figures", half)
+    monkeypatch.setattr(_pipeline, "equation_error_drag", lambda result: None)
+    out = tmp_path / "out"
+    with pytest.raises(ValueError):
+        _pipeline._write_outputs(None, None, None, None, {}, False, out)
+    assert sorted(tmp_path.iterdir()) == []
+    # a fit that did not converge (a radius given as the diameter: NaN bands, and
+    # before, a traceback from the figures) gets its summary.json alone
+    _pipeline._write_outputs(None, None, None, None, {"converged": False}, False, out)
+    assert [p.name for p in tmp_path.iterdir()] == ["out"]
+    assert [p.name for p in out.iterdir()] == ["summary.json"]
+
+
+@pytest.mark.parametrize(
+    "value, why",
+    [("1e300", "is too large for a measurement"), ("1e12", "times the column's 90th")],
+    ids=["overflows", "a corrupt cell"],
+)
+def test_a_corrupt_cell_in_a_rocket_log_is_refused(tmp_path, value, why):
+    """A cell no altimeter writes, as the aircraft readers refuse it: before, read
+    (an apogee of 1e300 m went to the fit)."""
+    from diffpegasus import read_rocket_log
+
+    folder = _folder(tmp_path)
+    log = folder / "log.csv"
+    lines = log.read_text().splitlines()
+    cells = lines[100].split(",")
+    cells[1] = value
+    lines[100] = ",".join(cells)
+    log.write_text("\n".join(lines) + "\n")
+    with pytest.raises(
+        LogError,
+        match=f"^{log}: column 'altitude_m', row 100: value {value[:2]}.* {why}",
+    ):
+        read_rocket_log(folder / "rocket.toml")
+
+
+def test_a_folder_under_a_shipped_flights_name_reads_its_own_log(tmp_path):
+    """A flight in a folder named as a shipped one (`cavour`) whose rocket.toml names
+    another log: before, the shipped flight's map was applied and read the shipped
+    file name beside it (here a stale copy), not the log the rocket.toml names."""
+    import numpy as np
+
+    from diffpegasus import read_rocket_log
+
+    folder = tmp_path / "cavour"
+    shutil.copytree(CLEAN, folder)
+    toml = folder / "rocket.toml"
+    text = toml.read_text()
+    start = text.index("[log.column_map]")
+    toml.write_text(text[:start] + text[text.index("[log.stated_events]") :])
+    (folder / "logs").mkdir()
+    stale = "ts,altitude[m],velocity[m/s],latitude,longitude\n"
+    stale += "".join(f"{0.1 * k:.1f},{k},{10},39.39,-8.29\n" for k in range(300))
+    (folder / "logs" / "altimeter_cavour.csv").write_text(stale)
+    log = read_rocket_log(toml)
+    a = np.loadtxt(folder / "log.csv", delimiter=",", skiprows=1)
+    assert float(np.max(log["altitude"].values)) == pytest.approx(np.max(a[:, 1]))
+
+
+@pytest.mark.parametrize(
+    "column, factor, isp",
+    [(1, 0.224809, "45.51"), (0, 1000.0, "2.024e\\+05")],
+    ids=["thrust in lbf", "times in ms"],
+)
+def test_a_thrust_curve_in_other_units_is_refused(tmp_path, column, factor, isp):
+    """The curve's impulse over the propellant's weight is no motor's specific
+    impulse (the clean flight's 202 s): before, a thrust in lbf or times in ms flew,
+    and the fit's NaN figures ended in a traceback."""
+    import numpy as np
+
+    a = np.loadtxt(CLEAN / "motor.csv", delimiter=",", skiprows=1)
+    a[:, column] *= factor
+    path = tmp_path / "motor.csv"
+    np.savetxt(path, a, delimiter=",", header="time,thrust", comments="")
+    with pytest.raises(LogError, match=f"^{path}: .* specific impulse of {isp} s"):
+        dr.read_motor(path, propellant_mass=1.9)
