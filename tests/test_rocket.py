@@ -335,7 +335,7 @@ def test_cli_refuses_a_bad_rocket_file_in_one_line(tmp_path):
     missing = runner.invoke(app, ["rocket", "fit", str(tmp_path / "none.toml")])
     assert missing.exit_code == 2 and "no such file" in missing.output
     bad = tmp_path / "rocket.toml"
-    bad.write_text('[rocket]\nradius_m = 0.05\n[motor]\nthrust_file = "m.eng"\n')
+    bad.write_text('[rocket]\nradius_m = 0.05\n[motor]\nthrust_file = "m.csv"\n')
     res = runner.invoke(app, ["rocket", "fit", str(bad)])
     assert res.exit_code == 2
     assert "propellant_initial_mass_kg" in res.output

@@ -160,6 +160,48 @@ def test_an_eng_header_without_a_mass_asks_for_one(tmp_path):
         dr.read_motor(path)
 
 
+def _eng_folder(tmp_path, header=True):
+    """The clean flight with its thrust curve written as a RASP file."""
+    folder = _folder(tmp_path)
+    rows = (folder / "motor.csv").read_text().split()
+    head = "; a comment\nJ500 54 400 0 1.9 3.5 Maker\n" if header else "; no header\n"
+    (folder / "motor.eng").write_text(
+        head + "\n".join(r.replace(",", " ") for r in rows)
+    )
+    toml = folder / "rocket.toml"
+    toml.write_text(toml.read_text().replace('"motor.csv"', '"motor.eng"'))
+    return folder, toml
+
+
+def test_propellant_mass_from_the_eng_header_where_not_given(tmp_path):
+    """A RASP file's header carries the propellant mass: the key may be left out
+    (the header's 1.9 kg); given, the key wins; a CSV curve without it asks."""
+    folder, toml = _eng_folder(tmp_path)
+    given = dr.read_rocket(toml)
+    toml.write_text(toml.read_text().replace("propellant_initial_mass_kg = 1.9\n", ""))
+    assert dr.read_rocket(toml).motor.propellant_mass == 1.9
+    assert given.motor.propellant_mass == 1.9
+    toml.write_text(toml.read_text().replace('"motor.eng"', '"motor.csv"'))
+    with pytest.raises(LogError, match=r"\[motor\] needs propellant_initial_mass_kg"):
+        dr.read_rocket(toml)
+
+
+def test_an_eng_file_without_its_header_line_keeps_its_first_point(tmp_path):
+    """A thrust curve saved as .eng without RASP's motor line: its first point was
+    taken for the header and dropped; now it is a point, and the propellant mass,
+    which no header gives, is asked for in the rocket file."""
+    folder, toml = _eng_folder(tmp_path, header=False)
+    motor = dr.read_motor(folder / "motor.eng", propellant_mass=1.9)
+    csv = dr.read_motor(folder / "motor.csv", propellant_mass=1.9)
+    assert motor.time[0] == csv.time[0] == 0.0
+    assert motor.total_impulse == csv.total_impulse
+    toml.write_text(toml.read_text().replace("propellant_initial_mass_kg = 1.9\n", ""))
+    with pytest.raises(
+        LogError, match=r"propellant_initial_mass_kg: .*the file has none"
+    ):
+        dr.read_rocket(toml)
+
+
 @pytest.mark.parametrize("damage", ["latin-1", "binary"])
 def test_cli_rocket_file_not_utf8_is_one_line(tmp_path, damage):
     """`rocket fit` on a rocket.toml saved as Latin-1 or not text at all: before, a

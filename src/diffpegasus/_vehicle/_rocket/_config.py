@@ -4,7 +4,8 @@ The file is the documented template (see the rockets guide); only these keys are
 read, every other key is kept for people:
 
     [rocket]  mass_without_motor_kg, radius_m
-    [motor]   thrust_file, propellant_initial_mass_kg, dry_mass_kg (default 0),
+    [motor]   thrust_file, propellant_initial_mass_kg (default: a RASP file's
+              header), dry_mass_kg (default 0),
               holddown_time_s (default 0: the motor lifts off as soon as thrust
               exceeds weight)
     [geometry] nose, fins (trapezoidal, elliptical or free-form: see `_barrowman`
@@ -335,15 +336,20 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
     la, at, rs = tables["launch"], tables["atmosphere"], tables["results"]
     if "thrust_file" not in mo:
         raise LogError(f"{path}: [motor] needs thrust_file")
-    prop = _number(mo, "propellant_initial_mass_kg", path, "motor")
+    thrust_file = _file(mo, "thrust_file", folder, path, "motor")
+    prop = None  # a RASP file's header gives it where the key is absent
+    if "propellant_initial_mass_kg" in mo or thrust_file.suffix.lower() != ".eng":
+        prop = _number(mo, "propellant_initial_mass_kg", path, "motor")
     motor_dry = _number(mo, "dry_mass_kg", path, "motor", default=0.0, positive=False)
     if motor_dry < 0:
         raise LogError(f"{path}: [motor] dry_mass_kg = {motor_dry:g} is negative")
-    motor = read_motor(
-        _file(mo, "thrust_file", folder, path, "motor"),
-        propellant_mass=prop,
-        dry_mass=motor_dry,
-    )
+    try:
+        motor = read_motor(thrust_file, propellant_mass=prop, dry_mass=motor_dry)
+    except LogError as e:
+        if prop is None and "give the propellant mass" in str(e):
+            raise LogError(f"{path}: [motor] needs propellant_initial_mass_kg: {e}")
+        raise
+    prop = motor.propellant_mass
     rocket_mass = _number(rk, "mass_without_motor_kg", path, "rocket")
     loaded = rocket_mass + motor_dry + prop
     if not np.max(motor.thrust) > loaded * G0:

@@ -41,8 +41,12 @@ def read_rows(
         if not s or s.startswith(";") or s.startswith("#"):
             continue
         parts = s.replace(",", " ").split()
-        if header_first and header is None:
-            header = parts
+        if (
+            header_first
+            and header is None
+            and not (len(parts) == 2 and all(_number(v) for v in parts))
+        ):
+            header = parts  # a header line missing, the first row is data
             continue
         try:
             values = [float(v) for v in parts[: len(columns)]]
@@ -58,3 +62,10 @@ def read_rows(
     if not rows:
         raise LogError(f"{path}: no ({', '.join(columns)}) rows in {what}")
     return np.asarray(rows, float), np.asarray(lines), header
+
+
+def _number(text: str) -> bool:
+    try:
+        return np.isfinite(float(text))
+    except ValueError:
+        return False
