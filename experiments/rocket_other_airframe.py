@@ -425,7 +425,7 @@ def cli(*args, nice: bool = False):
         text=True,
     )
     seconds = time.perf_counter() - t0
-    if proc.returncode != 0:
+    if proc.returncode != 0 and not (proc.returncode == 3 and "{" in proc.stdout):
         return dict(
             error=proc.returncode,
             stderr=proc.stderr[-3000:],

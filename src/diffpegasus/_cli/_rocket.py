@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from .._errors import LogError
-from ._common import _fail, app
+from ._common import _fail, app, FIT_FAILED
 
 
 rocket_app = typer.Typer(
@@ -123,6 +123,7 @@ def fit_command(
         _fail(str(e))
     if as_json:
         typer.echo(json.dumps(row, default=float))
+        _exit_unless_converged(toml, row)
         return
     typer.echo(
         f"{row['flight']}: fitted {', '.join(row['outputs'])} "
@@ -178,6 +179,17 @@ def fit_command(
             if row["converged"]
             else f"  summary.json in {out} (no figures: the fit did not converge)"
         )
+    _exit_unless_converged(toml, row)
+
+
+def _exit_unless_converged(toml, row):
+    """Exit 3 (the input was fine, the fit failed) after the report of a fit that did
+    not converge: its numbers are printed and written, but a script must not take
+    them for a result."""
+    if not row["converged"]:
+        why = row.get("not_converged_reason") or "see the report"
+        typer.echo(f"error: {toml}: the fit did not converge: {why}", err=True)
+        raise typer.Exit(code=FIT_FAILED)
 
 
 @rocket_app.command("compare")

@@ -347,7 +347,9 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
         motor = read_motor(thrust_file, propellant_mass=prop, dry_mass=motor_dry)
     except LogError as e:
         if prop is None and "give the propellant mass" in str(e):
-            raise LogError(f"{path}: [motor] needs propellant_initial_mass_kg: {e}")
+            raise LogError(
+                f"{path}: [motor] needs propellant_initial_mass_kg: {e}"
+            ) from None
         raise
     prop = motor.propellant_mass
     rocket_mass = _number(rk, "mass_without_motor_kg", path, "rocket")
