@@ -392,6 +392,8 @@ def fly_one(name, spec, out):
         header=",".join(spec["header"]),
         comments="",
     )
+    if spec.get("gnss"):
+        write_gnss(folder / "log.csv", fl, t_log, n_pad, dt, spec, rng)
 
     aero = ""
     if spec["team_drag"]:
@@ -451,6 +453,34 @@ file = "log.csv"
         round(fl.max_mach_number, 3),
         flush=True,
     )
+
+
+def write_gnss(path, fl, t_log, n_pad, dt, spec, rng):
+    """Two columns `latitude`, `longitude` (deg) added to the log at `path`: a
+    GNSS receiver's fixes every `1 / rate` s (`spec["gnss"] = (rate Hz, noise m)`)
+    of RocketPy's own latitude and longitude, each with white noise of `noise` m
+    per axis (turned into degrees on a sphere of 6371 km), the rows between fixes
+    empty, as a flight computer writes a slower channel. On the pad before
+    ignition the pad's fix. Drawn after every other channel's noise, so that the
+    other channels are those of the flight without GNSS."""
+    rate, noise = spec["gnss"]
+    every = max(1, int(round(1.0 / (rate * dt))))
+    rows = np.arange(0, len(t_log), every)
+    flown = np.clip(t_log[rows] - n_pad * dt, 0.0, None)  # RocketPy's time
+    lat = np.array([float(fl.latitude(s)) for s in flown])
+    lon = np.array([float(fl.longitude(s)) for s in flown])
+    radius = 6_371_000.0
+    lat = lat + np.degrees(rng.normal(0, noise, len(rows)) / radius)
+    lon = lon + np.degrees(
+        rng.normal(0, noise, len(rows)) / (radius * np.cos(np.radians(lat)))
+    )
+    cells = [",,"] * len(t_log)
+    for i, a, b in zip(rows, lat, lon, strict=True):
+        cells[i] = f",{a:.8f},{b:.8f}"
+    lines = path.read_text().splitlines()
+    out = [lines[0] + ",latitude,longitude"]
+    out += [line + c for line, c in zip(lines[1:], cells, strict=True)]
+    path.write_text("\n".join(out) + "\n")
 
 
 def cli(*args):

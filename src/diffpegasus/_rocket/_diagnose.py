@@ -41,9 +41,12 @@ alone: a planted 9 m/s tail wind passes at 85.6 against 8.8 while explaining 3.4
 is not named). A round whose strongest candidate is a sensor's own effect too small
 to name names nothing and ends the diagnosis: the candidates below it are scored on
 the same residuals, whose largest structured part it is (on RocketPy's clean Calisto
-flight a wind passes at 26.2 against 10.1 beside the lag, explaining 4%). Without an
-accelerometer every effect shows in the barometer alone,
-and every finding must explain half (a clean 10 Hz pressure log's rail friction,
+flight a wind passes at 26.2 against 10.1 beside the lag, explaining 4%). With the GNSS position among
+the outputs the wind's east and north components are candidates instead of the one
+along the rail (a cross wind drifts the rocket at first order, where the barometer
+and the accelerometer see it at second), flight effects judged by their statistic
+alone. Without an accelerometer or a GNSS position every effect shows in the
+barometer alone, and every finding must explain half (a clean 10 Hz pressure log's rail friction,
 "or thrust scale or mass error or wind or barometer lag", 49.1 against 8.0,
 explaining 9.9%).
 """
@@ -87,15 +90,29 @@ def explains_enough(
     return True
 
 
+def barometer_alone(problem: Problem) -> bool:
+    """Whether the log's barometer is its only sensor of the flight's path (no
+    accelerometer, no GNSS position)."""
+    return not {"accel", "gnss_e"} & set(problem.outputs)
+
+
 def candidates(problem: Problem, top_mach: float) -> list[Candidate]:
     """The candidates this flight can show: the transonic pressure error only when
     the flight came within three widths of Mach 1, air-brake drag only when the
     rocket has air brakes."""
     from .._vehicle._rocket._sensors import TRANSONIC_WIDTH
 
-    out = [
-        # the wind along the rail's heading: a cross wind has no first-order effect
-        Candidate("wind", ("wind_along",)),
+    if "gnss_e" in problem.outputs:
+        # the GNSS position drifts with either component at first order
+        wind = [
+            Candidate("east wind", ("wind_east",)),
+            Candidate("north wind", ("wind_north",)),
+        ]
+    else:
+        # the wind along the rail's heading: a cross wind has no first-order
+        # effect on the barometer and the accelerometer
+        wind = [Candidate("wind", ("wind_along",))]
+    out = wind + [
         Candidate("rail friction", ("rail_friction",)),
         Candidate("barometer lag", ("baro_lag",)),
         Candidate("static-pressure error", ("static_error",)),
@@ -185,12 +202,12 @@ def diagnose(problem: Problem, *, level: float = 0.01, rounds: int = 3):
                     "significant": bool(row["significant"]),
                     # what the fit's misfit is made of (see the module)
                     "explains_enough": explains_enough(
-                        row["parameter"], ratio, "accel" not in problem.outputs
+                        row["parameter"], ratio, barometer_alone(problem)
                     ),
                     # no sensitivity in this log (a vertical rail's friction)
                     "uninformed": bool(row.get("uninformed", False)),
                     "smallest_named": _smallest_named(
-                        row, ratio, "accel" not in problem.outputs
+                        row, ratio, barometer_alone(problem)
                     ),
                     "cannot_be_told_from": [
                         held[c].name for c in row["hard_to_tell_from"] if c in held
