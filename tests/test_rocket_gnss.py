@@ -143,8 +143,12 @@ def test_gnss_fixes_enter_the_record_where_the_log_has_them(tmp_path):
     assert has.sum() == len(fixes)
     # the fix's time on the record's grid, its position 30 m/s east, 40 m/s north
     # (within the fixture's round degrees per metre, 0.2%)
-    np.testing.assert_allclose(rec.measured[has, 2], 30.0 * rec.t[has], rtol=4e-3, atol=1e-9)
-    np.testing.assert_allclose(rec.measured[has, 3], 40.0 * rec.t[has], rtol=4e-3, atol=1e-9)
+    np.testing.assert_allclose(
+        rec.measured[has, 2], 30.0 * rec.t[has], rtol=4e-3, atol=1e-9
+    )
+    np.testing.assert_allclose(
+        rec.measured[has, 3], 40.0 * rec.t[has], rtol=4e-3, atol=1e-9
+    )
     assert not rec.measured[~has, 2:].any()
     # without the flag, or without fixes, no GNSS output
     other = read_rocket_log(SIM / "clean" / "rocket.toml")
