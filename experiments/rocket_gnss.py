@@ -15,7 +15,7 @@ candidates' statistics. Writes experiments/results/rocket_gnss_simulated.json
 (`run`) and rocket_gnss_real.json (`real`).
 
     python experiments/rocket_gnss.py fly DIR [NAME ...]       # RocketPy's venv
-    python experiments/rocket_gnss.py run DIR NAME ... [--no-diagnose]
+    python experiments/rocket_gnss.py run DIR NAME ... [--no-diagnose] [--with]
     python experiments/rocket_gnss.py real NAME ...            # shared data
     python experiments/rocket_gnss.py table [real]
 """
@@ -102,13 +102,24 @@ def one(toml, gnss: bool, diagnose: bool, planted=None, top=None):
         row["named"] = named
         row["diagnose_seconds"] = time.perf_counter() - t0
         row["tests"] = [
-            {k: q[k] for k in ("round", "candidate", "statistic", "threshold")}
+            {
+                k: q[k]
+                for k in (
+                    "round",
+                    "candidate",
+                    "statistic",
+                    "threshold",
+                    "cost_ratio",
+                    "explains_enough",
+                    "estimates",
+                )
+            }
             for q in rows
         ]
     return row
 
 
-def run(folders, path, diagnose=True):
+def run(folders, path, diagnose=True, variants=(False, True)):
     for folder in folders:
         toml = folder / "rocket.toml"
         truth_file = folder / "truth.json"
@@ -117,8 +128,9 @@ def run(folders, path, diagnose=True):
             truth = json.loads(truth_file.read_text())
             planted = np.loadtxt(folder / "planted_drag.csv", delimiter=",").T
             top = truth["max_mach"]
-        row = dict(truth=truth)
-        for gnss in (False, True):
+        results = json.loads(path.read_text()) if path.exists() else {}
+        row = dict(results.get(folder.name, {}), truth=truth)
+        for gnss in variants:
             key = "with" if gnss else "without"
             row[key] = one(toml, gnss, diagnose, planted, top)
             w = row[key]["estimates"]
@@ -188,6 +200,8 @@ def main():
             [out / n for n in names],
             SIMULATED,
             diagnose="--no-diagnose" not in sys.argv,
+            # --with: the GNSS fit alone (the other kept from an earlier run)
+            variants=(True,) if "--with" in sys.argv else (False, True),
         )
 
 

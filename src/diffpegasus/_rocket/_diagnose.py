@@ -76,18 +76,29 @@ THRUST_ABSENT = 1.0
 # explains to be named (see the module)
 SHARE = 0.5
 ONE_SENSOR = ("baro_lag", "static_error", "transonic_error", "accel_scale")
+# with a GNSS position: the wind's components, which it alone reads at first order
+GNSS_ONLY = ("wind_east", "wind_north")
 
 
 def explains_enough(
-    parameter: str, cost_ratio: float, barometer_alone: bool = False
+    parameter: str, cost_ratio: float, barometer_alone: bool = False, gnss=False
 ) -> bool:
     """Whether a candidate whose statistic passes is named: one that shows in one
-    sensor alone (a sensor's own effect, `ONE_SENSOR`, and every effect on a log with
-    the barometer alone, `barometer_alone`) where freeing it leaves at most
-    `1 - SHARE` of det(R) (`cost_ratio`), any other always."""
-    if parameter in ONE_SENSOR or barometer_alone:
+    sensor alone (a sensor's own effect, `ONE_SENSOR`, every effect on a log with
+    the barometer alone, `barometer_alone`, and with a GNSS position, `gnss`, the
+    wind's components, `GNSS_ONLY`) where freeing it leaves at most `1 - SHARE` of
+    det(R) (`cost_ratio`), any other always."""
+    if one_sensor(parameter, barometer_alone, gnss):
         return cost_ratio <= 1.0 - SHARE
     return True
+
+
+def one_sensor(parameter: str, barometer_alone: bool, gnss: bool) -> bool:
+    """Whether `parameter` shows in one sensor alone at first order (see
+    `explains_enough`)."""
+    return (
+        parameter in ONE_SENSOR or barometer_alone or (gnss and parameter in GNSS_ONLY)
+    )
 
 
 def barometer_alone(problem: Problem) -> bool:
@@ -173,6 +184,7 @@ def diagnose(problem: Problem, *, level: float = 0.01, rounds: int = 3):
         spread=False,  # the scores do not read the band
     )
     top = float(np.max(base.mach))
+    gnss = "gnss_e" in problem.outputs
     pool = [THRUST] + candidates(problem, top)
     rows, found_names, named, free = [], [], [], ()
     current = base
@@ -202,12 +214,12 @@ def diagnose(problem: Problem, *, level: float = 0.01, rounds: int = 3):
                     "significant": bool(row["significant"]),
                     # what the fit's misfit is made of (see the module)
                     "explains_enough": explains_enough(
-                        row["parameter"], ratio, barometer_alone(problem)
+                        row["parameter"], ratio, barometer_alone(problem), gnss
                     ),
                     # no sensitivity in this log (a vertical rail's friction)
                     "uninformed": bool(row.get("uninformed", False)),
                     "smallest_named": _smallest_named(
-                        row, ratio, barometer_alone(problem)
+                        row, ratio, barometer_alone(problem), gnss
                     ),
                     "cannot_be_told_from": [
                         held[c].name for c in row["hard_to_tell_from"] if c in held
@@ -279,7 +291,7 @@ def held_burn_scale(problem: Problem) -> tuple[float, str]:
     return float(full.fit.params[full.fit.model.parameters.index("burn_scale")]), "fit"
 
 
-def _smallest_named(row, ratio: float, barometer_alone: bool) -> float:
+def _smallest_named(row, ratio: float, barometer_alone: bool, gnss: bool) -> float:
     """The smallest effect this test names on this log: its threshold in standard
     errors, or, for an effect one sensor alone shows, the size at which it would
     explain `SHARE` of the misfit if that is larger (the predicted fall of det(R)
@@ -287,7 +299,7 @@ def _smallest_named(row, ratio: float, barometer_alone: bool) -> float:
     against what it takes, `1 - ratio`)."""
     by_statistic = float(np.sqrt(row["threshold"]) * row.get("stderr", np.nan))
     taken = 1.0 - ratio
-    alone = row["parameter"] in ONE_SENSOR or barometer_alone
+    alone = one_sensor(row["parameter"], barometer_alone, gnss)
     if not alone or not 0.0 < taken < 1.0:
         return by_statistic
     by_share = abs(float(row["estimate"])) * np.sqrt(
