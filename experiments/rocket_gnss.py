@@ -60,6 +60,19 @@ FLIGHTS = {
         seed=84,
         header=HEADER,
     ),
+    # the 5 Hz pair with the fixes on the WGS84 ellipsoid, as a receiver's
+    # (RocketPy's latitude and longitude are on a sphere)
+    "gnss5-clean-wgs84": dict(
+        sweep.BASE, gnss=(5.0, 2.0), gnss_wgs84=True, seed=81, header=HEADER
+    ),
+    "gnss5-cross7-wgs84": dict(
+        sweep.BASE,
+        gnss=(5.0, 2.0),
+        gnss_wgs84=True,
+        wind=tuple(7.0 * sweep.ACROSS),
+        seed=82,
+        header=HEADER,
+    ),
 }
 
 

@@ -1031,8 +1031,8 @@ def _observed(flight, t, x, u, params, names):
         def one(t, x, u, params):
             p = dict(zip(names, params, strict=True))
             _, _, air = flight.forces(t, x, u, p)
-            y = _observe(flight, t, x, jnp.stack([u[0], 1.0, 1.0, 1.0, 1.0, 1.0]), p)
-            return jnp.stack([y[0], y[1], air[3], y[2], y[3], y[4]])
+            y = _observe(flight, t, x, jnp.stack([u[0], 1.0, 1.0, 1.0]), p)
+            return jnp.stack([y[0], y[1], air[3], y[2], x[0], x[1]])
 
         _OBSERVED[key] = (flight, jax.jit(jax.vmap(one, (0, 0, 0, None))))
     fn = _OBSERVED[key][1]

@@ -361,14 +361,16 @@ def observe(flight: Flight, t, x, u, p, which=None):
     )
     f = axial_specific_force(accel, g, axis)
     gyro = jnp.sqrt(jnp.sum(x[9:12] ** 2) + 1e-12) if x.shape[0] > 6 else 0.0
-    y = jnp.stack(
-        [h + p["altitude_bias"], p["accel_scale"] * f + p["accel_bias"], gyro]
-        + [x[0], x[1]]
-    )
+    which = tuple(range(u.shape[0] - 1)) if which is None else tuple(which)
+    y = [h + p["altitude_bias"], p["accel_scale"] * f + p["accel_bias"], gyro]
+    if max(which) > 2:  # the GNSS position: the states east and north
+        y += [x[0], x[1]]
+    y = jnp.stack(y)
     # no rocket, no reading: a fit's step there has a NaN cost, which the engine
     # rejects as it does any step that does not lower the cost
     y = jnp.where(physical(flight, p), y, jnp.nan)
-    which = tuple(range(u.shape[0] - 1)) if which is None else which
+    if which == tuple(range(len(which))):
+        return y[: len(which)] * u[1:]
     return y[jnp.asarray(which)] * u[1:]
 
 
