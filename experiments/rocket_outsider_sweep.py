@@ -392,6 +392,8 @@ def fly_one(name, spec, out):
         header=",".join(spec["header"]),
         comments="",
     )
+    if spec.get("gnss"):
+        write_gnss(folder / "log.csv", fl, t_log, n_pad, dt, spec, rng)
 
     aero = ""
     if spec["team_drag"]:
@@ -451,6 +453,73 @@ file = "log.csv"
         round(fl.max_mach_number, 3),
         flush=True,
     )
+
+
+def wgs84_of(east, north, up):
+    """Latitude and longitude (deg) on the WGS84 ellipsoid of points `east`,
+    `north`, `up` m in the frame tangent to it at the pad (`SITE`), as a receiver
+    reports them (RocketPy's own `latitude`, `longitude` are on a sphere): the
+    points' Earth-centred coordinates, then Bowring's latitude, iterated."""
+    a, f = 6_378_137.0, 1 / 298.257223563
+    e2 = f * (2 - f)
+    lat0, lon0 = np.radians(SITE["latitude"]), np.radians(SITE["longitude"])
+    n0 = a / np.sqrt(1 - e2 * np.sin(lat0) ** 2)
+    h0 = SITE["elevation"]
+    origin = np.array(
+        [
+            (n0 + h0) * np.cos(lat0) * np.cos(lon0),
+            (n0 + h0) * np.cos(lat0) * np.sin(lon0),
+            (n0 * (1 - e2) + h0) * np.sin(lat0),
+        ]
+    )
+    sl, cl, so, co = np.sin(lat0), np.cos(lat0), np.sin(lon0), np.cos(lon0)
+    x = origin[0] - so * east - sl * co * north + cl * co * up
+    y = origin[1] + co * east - sl * so * north + cl * so * up
+    z = origin[2] + cl * north + sl * up
+    p = np.hypot(x, y)
+    lat = np.arctan2(z, p * (1 - e2))
+    for _ in range(10):
+        n = a / np.sqrt(1 - e2 * np.sin(lat) ** 2)
+        h = p / np.cos(lat) - n
+        lat = np.arctan2(z, p * (1 - e2 * n / (n + h)))
+    return np.degrees(lat), np.degrees(np.arctan2(y, x))
+
+
+def write_gnss(path, fl, t_log, n_pad, dt, spec, rng):
+    """Two columns `latitude`, `longitude` (deg) added to the log at `path`: a
+    GNSS receiver's fixes every `1 / rate` s (`spec["gnss"] = (rate Hz, noise m)`)
+    of RocketPy's own latitude and longitude (with `spec["gnss_wgs84"]`, its `x`,
+    `y`, `z` on the WGS84 ellipsoid instead: `wgs84_of`), each with white noise of
+    `noise` m
+    per axis (turned into degrees on a sphere of 6371 km), the rows between fixes
+    empty, as a flight computer writes a slower channel. On the pad before
+    ignition the pad's fix. Drawn after every other channel's noise, so that the
+    other channels are those of the flight without GNSS."""
+    rate, noise = spec["gnss"]
+    every = max(1, int(round(1.0 / (rate * dt))))
+    rows = np.arange(0, len(t_log), every)
+    flown = np.clip(t_log[rows] - n_pad * dt, 0.0, None)  # RocketPy's time
+    if spec.get("gnss_wgs84"):
+        lat, lon = wgs84_of(
+            np.array([fl.x(s) for s in flown]),
+            np.array([fl.y(s) for s in flown]),
+            np.array([fl.z(s) for s in flown]) - SITE["elevation"],
+        )
+    else:
+        lat = np.array([float(fl.latitude(s)) for s in flown])
+        lon = np.array([float(fl.longitude(s)) for s in flown])
+    radius = 6_371_000.0
+    lat = lat + np.degrees(rng.normal(0, noise, len(rows)) / radius)
+    lon = lon + np.degrees(
+        rng.normal(0, noise, len(rows)) / (radius * np.cos(np.radians(lat)))
+    )
+    cells = [",,"] * len(t_log)
+    for i, a, b in zip(rows, lat, lon, strict=True):
+        cells[i] = f",{a:.8f},{b:.8f}"
+    lines = path.read_text().splitlines()
+    out = [lines[0] + ",latitude,longitude"]
+    out += [line + c for line, c in zip(lines[1:], cells, strict=True)]
+    path.write_text("\n".join(out) + "\n")
 
 
 def cli(*args):

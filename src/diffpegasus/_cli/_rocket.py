@@ -98,6 +98,16 @@ DescentOption = Annotated[
 ]
 
 
+GnssOption = Annotated[
+    bool,
+    typer.Option(
+        "--gnss",
+        help="Fit the log's GNSS position too (east and north of the pad, where it "
+        "has fixes), with the wind's east and north components",
+    ),
+]
+
+
 @rocket_app.command("fit")
 def fit_command(
     toml: TomlArgument,
@@ -108,16 +118,18 @@ def fit_command(
     attitude: AttitudeOption = False,
     sensor_spread: SpreadOption = True,
     descent: DescentOption = False,
+    gnss: GnssOption = False,
 ):
     """Fit CD(Mach), thrust scale and the barometer to the ascent; reconstruct and
     predict the apogee (from the log up to 2 s after burnout); re-simulate with the
     team's drag curve; write figures with --out. --descent: the descent under
-    parachutes too, each stage's CdS."""
+    parachutes too, each stage's CdS. --gnss: the GNSS position too."""
     from .._rocket._pipeline import run_flight
 
     rocket, flight_log = _load(toml, log, columns, attitude)
     try:
         extra = {"descent": True} if descent else {}  # the call as before without
+        extra.update({"gnss": True} if gnss else {})
         row = run_flight(rocket, flight_log, out, spread=sensor_spread, **extra)
     except LogError as e:
         _fail(str(e))
@@ -246,10 +258,13 @@ def diagnose_command(
     as_json: JsonOption = False,
     attitude: AttitudeOption = False,
     descent: DescentOption = False,
+    gnss: GnssOption = False,
 ):
     """Name the effects the flight shows beyond drag and thrust (wind, rail
     friction, barometer lag, static-pressure errors, mass error, air brakes, ...).
-    --descent: with the descent under parachutes in the fit. A finding's
+    --descent: with the descent under parachutes in the fit. --gnss: with the GNSS
+    position in the fit (the wind's east and north components the candidates
+    instead of the one along the rail). A finding's
     statistic passes the log's own threshold; an effect one sensor alone shows (the
     barometer's lag and pressure errors, the accelerometer's scale; every effect
     without an accelerometer) must also explain half or more of the fit's misfit
@@ -259,7 +274,7 @@ def diagnose_command(
 
     rocket, flight_log = _load(toml, log, columns, attitude)
     try:
-        problem = prepare(rocket, flight_log, descent=descent)
+        problem = prepare(rocket, flight_log, descent=descent, gnss=gnss)
     except LogError as e:
         _fail(str(e))
     try:

@@ -105,7 +105,7 @@ def outputs_function(result):
     import jax.numpy as jnp
 
     from .._estimate._fit import flown_states
-    from ._identify import _long_record, _observed
+    from ._identify import _long_record, _observed, observed_columns
 
     model = result.fit.model
     record = result.record
@@ -118,7 +118,7 @@ def outputs_function(result):
     def outputs(params):
         xs = flown_states(model, long, params)
         ys = _observed(flight, t[:n], xs[:n], inputs[:n], params, names)
-        return ys[:, jnp.asarray([0, 1, 3][:k])] * has
+        return ys[:, jnp.asarray(observed_columns(result.outputs))] * has
 
     return jax.jit(outputs)
 

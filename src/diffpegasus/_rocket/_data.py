@@ -5,7 +5,8 @@ Channels keep their own rates in the log; the record's grid is the fastest of th
 fall in, and an input `has_<channel>` is 1 at the steps that hold a sample and 0
 elsewhere, so the model's output there is 0 like the record's (no residual). Slow,
 sparse or interrupted channels (a 2 Hz tail, telemetry dropouts, an accelerometer
-that stops after the boost) so enter the fit only where they were measured.
+that stops after the boost, a GNSS receiver's 1-10 Hz fixes) so enter the fit only
+where they were measured.
 """
 
 import numpy as np
@@ -15,6 +16,68 @@ from .._model import Record
 
 
 MIN_STEP, MAX_STEP = 0.01, 0.05  # s: 100 Hz, 20 Hz
+GNSS = ("gnss_e", "gnss_n")  # the GNSS outputs, m east and north of the pad
+WGS84_A, WGS84_F = 6_378_137.0, 1 / 298.257223563  # m, flattening
+
+
+def local_tangent(lat, lon, lat0: float, lon0: float):
+    """`(east, north)` m of the points `lat`, `lon` (deg, arrays, on the WGS84
+    ellipsoid) in the plane tangent to it at `lat0`, `lon0` (deg): the model's
+    east-north-up frame, fixed at the pad. Earth-centred coordinates, their
+    difference turned into the pad's east and north; the fix's height is not
+    used (a point 3 km east on the pad's parallel lies 0.6 m north in this
+    plane: the meridians converge)."""
+    e2 = WGS84_F * (2 - WGS84_F)
+
+    def centred(la, lo):
+        la, lo = np.radians(la), np.radians(lo)
+        n = WGS84_A / np.sqrt(1 - e2 * np.sin(la) ** 2)
+        c = np.cos(la)
+        return n * c * np.cos(lo), n * c * np.sin(lo), n * (1 - e2) * np.sin(la)
+
+    x, y, z = centred(np.asarray(lat, float), np.asarray(lon, float))
+    x0, y0, z0 = centred(float(lat0), float(lon0))
+    dx, dy, dz = x - x0, y - y0, z - z0
+    phi, lam = np.radians(lat0), np.radians(lon0)
+    east = -np.sin(lam) * dx + np.cos(lam) * dy
+    north = (
+        -np.sin(phi) * np.cos(lam) * dx
+        - np.sin(phi) * np.sin(lam) * dy
+        + np.cos(phi) * dz
+    )
+    return east, north
+
+
+def gnss_position(log):
+    """`(t, east m, north m)`: the log's GNSS fixes (`gnss_lat`, `gnss_lon`) east
+    and north of the pad, or `None` where it has none or no pad position. The pad
+    is the fixes' median before liftoff (the reader's `pad` value), else the last
+    fix within 10 s before liftoff, else the first fix if it is within 0.5 s after
+    it (the rocket still on the rail, a metre from the pad across it). A fix
+    repeated unchanged after liftoff is the receiver holding its last one (the
+    rocket moves metres between fixes): dropped, so that each fix keeps its
+    time."""
+    ch = log.channels
+    if "gnss_lat" not in ch or "gnss_lon" not in ch:
+        return None
+    lat, lon = ch["gnss_lat"], ch["gnss_lon"]
+    if len(lat.t) != len(lon.t) or not np.array_equal(lat.t, lon.t):
+        return None
+    t, la, lo = lat.t, lat.values, lon.values
+    pad = getattr(log, "pad", {})
+    if "gnss_lat" in pad and "gnss_lon" in pad:
+        lat0, lon0 = pad["gnss_lat"], pad["gnss_lon"]
+    elif np.any((t <= 0) & (t > -10)):
+        i = np.flatnonzero((t <= 0) & (t > -10))[-1]
+        lat0, lon0 = la[i], lo[i]
+    elif t.size and 0 < t[0] <= 0.5:
+        lat0, lon0 = la[0], lo[0]
+    else:
+        return None
+    same = np.r_[False, (la[1:] == la[:-1]) & (lo[1:] == lo[:-1])]
+    keep = ~(same & (t > 0)) & np.isfinite(la) & np.isfinite(lo)
+    east, north = local_tangent(la[keep], lo[keep], float(lat0), float(lon0))
+    return t[keep], east, north
 
 
 def channels_of(log, gyro: bool = False) -> tuple[str, ...]:
@@ -110,11 +173,19 @@ def apogee_time(log) -> float:
 
 
 def ascent_record(
-    log, until=None, name="flight", gyro: bool = False, step: float = MIN_STEP
+    log,
+    until=None,
+    name="flight",
+    gyro: bool = False,
+    step: float = MIN_STEP,
+    gnss: bool = False,
 ) -> tuple[Record, tuple[str, ...]]:
     """The record of the ascent from just before liftoff to `until` (default the
     apogee), and its output names (`gyro`: the lateral body rate where the log has
-    it, for the attitude; `step`: s, the shortest grid step allowed).
+    it, for the attitude; `gnss`: the GNSS position east and north of the pad,
+    `gnss_e` and `gnss_n`, where the log has at least three fixes after liftoff
+    (see [`gnss_position`][]), last; `step`: s, the shortest grid step allowed;
+    the grid is the other channels', each fix in the step it falls in).
 
     **Returns:** `(record, outputs)`; the record's inputs are `airbrake` (0 here,
     filled by the caller where the rocket has air brakes) and `has_<output>`.
@@ -136,6 +207,11 @@ def ascent_record(
         raise LogError("the log has no samples between liftoff and apogee")
     dt = float(np.clip(min(steps), max(MIN_STEP, step), MAX_STEP))
     first = min(-0.3, min(float(t[t > -1.0][0]) for t, _ in series.values()))
+    fixes = gnss_position(log) if gnss else None
+    if fixes is not None and np.sum((fixes[0] > 0) & (fixes[0] <= end)) >= 3:
+        outputs += GNSS
+        series["gnss_e"] = fixes[0], fixes[1]
+        series["gnss_n"] = fixes[0], fixes[2]
     n = int(np.floor((end - first) / dt)) + 1
     grid = first + dt * np.arange(n)
     measured = np.zeros((n, len(outputs)))

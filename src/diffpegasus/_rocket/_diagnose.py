@@ -41,9 +41,12 @@ alone: a planted 9 m/s tail wind passes at 85.6 against 8.8 while explaining 3.4
 is not named). A round whose strongest candidate is a sensor's own effect too small
 to name names nothing and ends the diagnosis: the candidates below it are scored on
 the same residuals, whose largest structured part it is (on RocketPy's clean Calisto
-flight a wind passes at 26.2 against 10.1 beside the lag, explaining 4%). Without an
-accelerometer every effect shows in the barometer alone,
-and every finding must explain half (a clean 10 Hz pressure log's rail friction,
+flight a wind passes at 26.2 against 10.1 beside the lag, explaining 4%). With the GNSS position among
+the outputs the wind's east and north components are candidates instead of the one
+along the rail (a cross wind drifts the rocket at first order, where the barometer
+and the accelerometer see it at second), flight effects judged by their statistic
+alone. Without an accelerometer or a GNSS position every effect shows in the
+barometer alone, and every finding must explain half (a clean 10 Hz pressure log's rail friction,
 "or thrust scale or mass error or wind or barometer lag", 49.1 against 8.0,
 explaining 9.9%).
 """
@@ -73,18 +76,35 @@ THRUST_ABSENT = 1.0
 # explains to be named (see the module)
 SHARE = 0.5
 ONE_SENSOR = ("baro_lag", "static_error", "transonic_error", "accel_scale")
+# with a GNSS position: the wind's components, which it alone reads at first order
+GNSS_ONLY = ("wind_east", "wind_north")
 
 
 def explains_enough(
-    parameter: str, cost_ratio: float, barometer_alone: bool = False
+    parameter: str, cost_ratio: float, barometer_alone: bool = False, gnss=False
 ) -> bool:
     """Whether a candidate whose statistic passes is named: one that shows in one
-    sensor alone (a sensor's own effect, `ONE_SENSOR`, and every effect on a log with
-    the barometer alone, `barometer_alone`) where freeing it leaves at most
-    `1 - SHARE` of det(R) (`cost_ratio`), any other always."""
-    if parameter in ONE_SENSOR or barometer_alone:
+    sensor alone (a sensor's own effect, `ONE_SENSOR`, every effect on a log with
+    the barometer alone, `barometer_alone`, and with a GNSS position, `gnss`, the
+    wind's components, `GNSS_ONLY`) where freeing it leaves at most `1 - SHARE` of
+    det(R) (`cost_ratio`), any other always."""
+    if one_sensor(parameter, barometer_alone, gnss):
         return cost_ratio <= 1.0 - SHARE
     return True
+
+
+def one_sensor(parameter: str, barometer_alone: bool, gnss: bool) -> bool:
+    """Whether `parameter` shows in one sensor alone at first order (see
+    `explains_enough`)."""
+    return (
+        parameter in ONE_SENSOR or barometer_alone or (gnss and parameter in GNSS_ONLY)
+    )
+
+
+def barometer_alone(problem: Problem) -> bool:
+    """Whether the log's barometer is its only sensor of the flight's path (no
+    accelerometer, no GNSS position)."""
+    return not {"accel", "gnss_e"} & set(problem.outputs)
 
 
 def candidates(problem: Problem, top_mach: float) -> list[Candidate]:
@@ -93,9 +113,17 @@ def candidates(problem: Problem, top_mach: float) -> list[Candidate]:
     rocket has air brakes."""
     from .._vehicle._rocket._sensors import TRANSONIC_WIDTH
 
-    out = [
-        # the wind along the rail's heading: a cross wind has no first-order effect
-        Candidate("wind", ("wind_along",)),
+    if "gnss_e" in problem.outputs:
+        # the GNSS position drifts with either component at first order
+        wind = [
+            Candidate("east wind", ("wind_east",)),
+            Candidate("north wind", ("wind_north",)),
+        ]
+    else:
+        # the wind along the rail's heading: a cross wind has no first-order
+        # effect on the barometer and the accelerometer
+        wind = [Candidate("wind", ("wind_along",))]
+    out = wind + [
         Candidate("rail friction", ("rail_friction",)),
         Candidate("barometer lag", ("baro_lag",)),
         Candidate("static-pressure error", ("static_error",)),
@@ -156,6 +184,7 @@ def diagnose(problem: Problem, *, level: float = 0.01, rounds: int = 3):
         spread=False,  # the scores do not read the band
     )
     top = float(np.max(base.mach))
+    gnss = "gnss_e" in problem.outputs
     pool = [THRUST] + candidates(problem, top)
     rows, found_names, named, free = [], [], [], ()
     current = base
@@ -185,12 +214,12 @@ def diagnose(problem: Problem, *, level: float = 0.01, rounds: int = 3):
                     "significant": bool(row["significant"]),
                     # what the fit's misfit is made of (see the module)
                     "explains_enough": explains_enough(
-                        row["parameter"], ratio, "accel" not in problem.outputs
+                        row["parameter"], ratio, barometer_alone(problem), gnss
                     ),
                     # no sensitivity in this log (a vertical rail's friction)
                     "uninformed": bool(row.get("uninformed", False)),
                     "smallest_named": _smallest_named(
-                        row, ratio, "accel" not in problem.outputs
+                        row, ratio, barometer_alone(problem), gnss
                     ),
                     "cannot_be_told_from": [
                         held[c].name for c in row["hard_to_tell_from"] if c in held
@@ -262,7 +291,7 @@ def held_burn_scale(problem: Problem) -> tuple[float, str]:
     return float(full.fit.params[full.fit.model.parameters.index("burn_scale")]), "fit"
 
 
-def _smallest_named(row, ratio: float, barometer_alone: bool) -> float:
+def _smallest_named(row, ratio: float, barometer_alone: bool, gnss: bool) -> float:
     """The smallest effect this test names on this log: its threshold in standard
     errors, or, for an effect one sensor alone shows, the size at which it would
     explain `SHARE` of the misfit if that is larger (the predicted fall of det(R)
@@ -270,7 +299,7 @@ def _smallest_named(row, ratio: float, barometer_alone: bool) -> float:
     against what it takes, `1 - ratio`)."""
     by_statistic = float(np.sqrt(row["threshold"]) * row.get("stderr", np.nan))
     taken = 1.0 - ratio
-    alone = row["parameter"] in ONE_SENSOR or barometer_alone
+    alone = one_sensor(row["parameter"], barometer_alone, gnss)
     if not alone or not 0.0 < taken < 1.0:
         return by_statistic
     by_share = abs(float(row["estimate"])) * np.sqrt(

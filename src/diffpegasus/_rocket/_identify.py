@@ -17,13 +17,16 @@ from .._errors import LogError
 from .._estimate._fit import Fit, fit, MultipleShooting, simulate
 from .._vehicle._rocket import DragKnots, EFFECTS, Flight, Rocket, rocket_model
 from .._vehicle._rocket._model import observe as _observe
-from ._data import ascent_record, pad_pressure
+from ._data import ascent_record, GNSS, pad_pressure
 
 
 BASE_FREE = ("thrust_scale", "motor_time")
 SENSOR_FREE = ("baro_lag", "static_error")
 # the wind along the rail's heading, where an accelerometer spans the ascent
 WIND_FREE = ("wind_along",)
+# with GNSS positions: the wind's two components, a cross wind drifting the
+# rocket at first order
+GNSS_WIND_FREE = ("wind_east", "wind_north")
 # the accelerometer fixes the length scale the barometer reads in, at every height
 ACCEL_FREE = ("temperature", "lapse_rate")
 # with gyros and the attitude: the weathercocking's stiffness and damping
@@ -386,16 +389,21 @@ def default_free(problem) -> tuple[str, ...]:
     frequency and decay in the body rate carry. Where the record deploys air
     brakes, with or without an accelerometer: the CD they add fully out
     (`airbrake_cd`; held at zero, the knots took them up as a function of Mach,
-    which their schedule is not)."""
+    which their schedule is not). With GNSS positions (`gnss_e`, `gnss_n`): the
+    wind's east and north components instead of the one along the heading, with
+    or without an accelerometer (a cross wind drifts the rocket at first order)."""
     from .._vehicle._rocket._sensors import TRANSONIC_WIDTH
 
+    gnss = GNSS_WIND_FREE if "gnss_e" in problem.outputs else ()
     if "accel" not in problem.outputs:
         brakes = AIRBRAKE_FREE if np.any(problem.record.inputs[:, 0] > 0) else ()
-        return ("static_error",) + brakes
+        return ("static_error",) + brakes + gnss
     free = SENSOR_FREE
     if problem.flight.knots.mach[-1] > 1.0 - TRANSONIC_WIDTH:
         free += ("transonic_error",)
-    if accel_covers_ascent(problem.record, end=ascent_end(problem)):
+    if gnss:
+        free += gnss
+    elif accel_covers_ascent(problem.record, end=ascent_end(problem)):
         free += WIND_FREE
     if "gyro" in problem.outputs:
         free += GYRO_FREE
@@ -440,7 +448,12 @@ def airbrake_input(rocket: Rocket, deployment):
 
 
 def prepare(
-    rocket: Rocket, log, *, knots: DragKnots | None = None, descent: bool = False
+    rocket: Rocket,
+    log,
+    *,
+    knots: DragKnots | None = None,
+    descent: bool = False,
+    gnss: bool = False,
 ) -> Problem:
     """The [`Problem`][] of `rocket` flying `log`'s ascent: the record (see
     [`ascent_record`][]), the pad's pressure and temperature, the drag knots (by
@@ -449,11 +462,19 @@ def prepare(
     `_rocket/_descent.py`), each stage's drag area a parameter estimated with the
     drag, and the main's opening time after its event (the drogue's held at the
     rocket file's `lag_s`; see [`start_openings`][], [`estimated_openings`][])
-    (the knots, motor time and thrust read from the ascent as without)."""
+    (the knots, motor time and thrust read from the ascent as without). `gnss`:
+    the ascent's GNSS position east and north of the pad joins the outputs
+    (`gnss_e`, `gnss_n`; see [`ascent_record`][]) where the log has it (not with
+    `descent`); the knots and starts are read from the other channels as
+    without."""
     from .._vehicle._atmosphere import isa
     from .._vehicle._rocket import pressure_altitude
 
-    record, outputs = ascent_record(log, gyro=rocket.airframe is not None)
+    full, outputs = ascent_record(
+        log, gyro=rocket.airframe is not None, gnss=gnss and not descent
+    )
+    # the knots and the starts read the barometer and the accelerometer
+    record = without_gnss(full, outputs)
     pressure = pad_pressure(log, rocket.elevation)
     temperature = rocket.surface_temperature
     if temperature is None:
@@ -487,6 +508,15 @@ def prepare(
     )
     start["thrust_scale"] = measured_thrust_scale(record, rocket, start["motor_time"])
     start["burn_scale"] = measured_burn_scale(record, rocket, start["motor_time"])
+    if len(full.inputs[0]) > len(record.inputs[0]):
+        k = record.inputs.shape[1]
+        record = type(record)(
+            record.t,
+            np.column_stack([record.inputs, full.inputs[:, k:]]),
+            np.column_stack([record.measured, full.measured[:, k - 1 :]]),
+            x0=record.x0,
+            name=record.name,
+        )
     if descent:
         from .._vehicle._rocket._descent import Descent
         from ._descent import descent_record, start_drag_areas, start_openings
@@ -502,6 +532,20 @@ def prepare(
         start.update(start_drag_areas(rocket, record, deploy, pressure, temperature))
         start.update(start_openings(rocket, record, deploy))
     return Problem(rocket, flight, record, outputs, start)
+
+
+def without_gnss(record, outputs):
+    """`record` (with its `outputs`) without the GNSS columns."""
+    keep = [j for j, o in enumerate(outputs) if o not in GNSS]
+    if len(keep) == len(outputs):
+        return record
+    return type(record)(
+        record.t,
+        record.inputs[:, [0] + [1 + j for j in keep]],
+        record.measured[:, keep],
+        x0=record.x0,
+        name=record.name,
+    )
 
 
 def altitude_only(problem: Problem) -> Problem:
@@ -717,10 +761,10 @@ def flown_cost(problem: Problem, record, result) -> float:
     t, x, inputs = _flown(result.model, result.params, record)
     ys = np.asarray(
         _observed(problem.flight, t, x, inputs, result.params, result.model.parameters)
-    )[:, [0, 1, 3]]  # the outputs' order: altitude, accel, gyro
+    )[:, observed_columns(problem.outputs)]
     n = len(record.t)
     has = record.inputs[:, 1:] > 0
-    e = np.where(has, record.measured - ys[:n, : has.shape[1]], 0.0)
+    e = np.where(has, record.measured - ys[:n], 0.0)
     # as the engine's R: mean square over the record's samples, per channel
     cost = float(np.prod(np.sum(e**2, axis=0) / n))
     return cost if np.isfinite(cost) else np.inf
@@ -967,12 +1011,19 @@ def _long_record(record, extra):
 
 
 _OBSERVED: dict = {}
+# each output's column in what `_observed` returns
+_COLUMNS = {"altitude": 0, "accel": 1, "gyro": 3, "gnss_e": 4, "gnss_n": 5}
+
+
+def observed_columns(outputs) -> list[int]:
+    """The columns of `_observed`'s return that hold `outputs` (names), in order."""
+    return [_COLUMNS[o] for o in outputs]
 
 
 def _observed(flight, t, x, u, params, names):
-    """`(samples, 4)`: barometric altitude, axial specific force, Mach and the
-    lateral body rate (0 without the attitude) (one compiled program per
-    flight)."""
+    """`(samples, 6)`: barometric altitude, axial specific force, Mach, the
+    lateral body rate (0 without the attitude) and the position east and north of
+    the pad (one compiled program per flight)."""
     import jax
     import jax.numpy as jnp
 
@@ -983,7 +1034,7 @@ def _observed(flight, t, x, u, params, names):
             p = dict(zip(names, params, strict=True))
             _, _, air = flight.forces(t, x, u, p)
             y = _observe(flight, t, x, jnp.stack([u[0], 1.0, 1.0, 1.0]), p)
-            return jnp.stack([y[0], y[1], air[3], y[2]])
+            return jnp.stack([y[0], y[1], air[3], y[2], x[0], x[1]])
 
         _OBSERVED[key] = (flight, jax.jit(jax.vmap(one, (0, 0, 0, None))))
     fn = _OBSERVED[key][1]

@@ -67,7 +67,9 @@ def predict(problem, until: float):
     )
 
 
-def run_flight(rocket, log, out=None, *, free=None, spread=True, descent=False) -> dict:
+def run_flight(
+    rocket, log, out=None, *, free=None, spread=True, descent=False, gnss=False
+) -> dict:
     """Fit the ascent, predict the apogee from the log up to two seconds after
     burnout with its band ([`apogee_band`][]), re-simulate with the team's drag curve, and (with `out`) write the
     figures and `summary.json` there. `spread`: carry the disagreement between
@@ -75,7 +77,8 @@ def run_flight(rocket, log, out=None, *, free=None, spread=True, descent=False) 
     band alone). `descent`: fit the record through the descent under parachutes
     too (see [`prepare`][]; the prediction reads the ascent as without), each
     stage's drag area in the summary's `descent` rows and, with `out`,
-    `descent.png`.
+    `descent.png`. `gnss`: the log's GNSS position among the outputs (see
+    [`prepare`][]).
 
     **Returns:** the summary (see [`summary`][]) with `cd_table` rows (Mach, CD,
     standard error with the sensors' spread and of the noise alone, team CD) and,
@@ -86,7 +89,7 @@ def run_flight(rocket, log, out=None, *, free=None, spread=True, descent=False) 
     from ._report import summary
 
     t0 = time.perf_counter()
-    problem = prepare(rocket, log, descent=descent)
+    problem = prepare(rocket, log, descent=descent, gnss=gnss)
     if free is None:
         free = default_free(problem)
     free = tuple(free)

@@ -35,7 +35,8 @@ Parameters (name: unit, meaning):
 - `wind_east`, `wind_north`: m/s, a constant wind; `wind_along`: m/s, blowing
   towards the rail's heading (a tail wind; the part a flight at zero angle of attack
   shows to first order: a cross wind moves altitude and axial acceleration only to
-  second order, so its derivative at zero wind is zero).
+  second order, so its derivative at zero wind is zero; the GNSS position drifts
+  with either component at first order).
 - `baro_lag`: s; `static_error`: static-pressure error per dynamic pressure;
   `transonic_error`: its extra part at Mach 1.
 - `mass_offset`: kg added to the dry mass.
@@ -55,9 +56,11 @@ rocket falls under each parachute stage's drag area (parameters `cds_drogue`,
 `cds_main`, m^2, each from its opening time `open_drogue`, `open_main` s after
 its event; see `_descent`), the attitude frozen.
 
-Outputs: `altitude` (m), `accel` (m/s^2) and, with the attitude, `gyro`: the
+Outputs: `altitude` (m), `accel` (m/s^2), with the attitude `gyro`: the
 lateral body rate `sqrt(w_pitch^2 + w_yaw^2)` (rad/s; what two gyros across the
-axis read whatever the roll).
+axis read whatever the roll), and `gnss_e`, `gnss_n` (m): the GNSS receiver's
+horizontal position, east and north of the pad (the states `e`, `n`; where the
+log has a fix). A cross wind drifts them at first order.
 """
 
 import functools
@@ -79,7 +82,8 @@ from ._sensors import axial_specific_force, baro_altitude, layered_air
 
 STATES = ("e", "n", "u", "ve", "vn", "vu")
 ATTITUDE = ("ax_e", "ax_n", "ax_u", "w_e", "w_n", "w_u")
-OUTPUTS = ("altitude", "accel", "gyro")  # the channels a log may give, in this order
+# the channels a log may give, in this order
+OUTPUTS = ("altitude", "accel", "gyro", "gnss_e", "gnss_n")
 EFFECTS = (
     "cd_scale",
     "power_on_ratio",
@@ -336,10 +340,12 @@ def rates(flight: Flight, t, x, u, p):
     return jnp.concatenate([x[3:6], accel, jnp.cross(x[9:12], x[6:9]), spin])
 
 
-def observe(flight: Flight, t, x, u, p):
+def observe(flight: Flight, t, x, u, p, which=None):
     """The measured channels: barometric altitude (m AGL), axial specific force
-    (m/s^2) and, with the attitude, the lateral body rate (rad/s), each multiplied
-    by its `has_` input (0 where the log has no sample)."""
+    (m/s^2), with the attitude the lateral body rate (rad/s) (0 without), and the
+    GNSS position east and north of the pad (m), those at the indices `which`
+    into `OUTPUTS` (default the first `u.shape[0] - 1`), each multiplied by its
+    `has_` input (0 where the log has no sample)."""
     accel, axis, (q, rho, g, mach, reading, rate, _) = flight.forces(t, x, u, p)
     h = baro_altitude(
         reading,
@@ -355,23 +361,35 @@ def observe(flight: Flight, t, x, u, p):
     )
     f = axial_specific_force(accel, g, axis)
     gyro = jnp.sqrt(jnp.sum(x[9:12] ** 2) + 1e-12) if x.shape[0] > 6 else 0.0
-    y = jnp.stack(
-        [h + p["altitude_bias"], p["accel_scale"] * f + p["accel_bias"], gyro]
-    )
+    which = tuple(range(u.shape[0] - 1)) if which is None else tuple(which)
+    y = [h + p["altitude_bias"], p["accel_scale"] * f + p["accel_bias"], gyro]
+    if max(which) > 2:  # the GNSS position: the states east and north
+        y += [x[0], x[1]]
+    y = jnp.stack(y)
     # no rocket, no reading: a fit's step there has a NaN cost, which the engine
     # rejects as it does any step that does not lower the cost
     y = jnp.where(physical(flight, p), y, jnp.nan)
-    return y[: u.shape[0] - 1] * u[1:]
+    if which == tuple(range(len(which))):
+        return y[: len(which)] * u[1:]
+    return y[jnp.asarray(which)] * u[1:]
 
 
 def rocket_model(flight: Flight, outputs, start: dict, free) -> Model:
-    """The [`Model`][] of `flight` with the measured `outputs` (a prefix-ordered
-    subset of `("altitude", "accel", "gyro")`; `gyro` with an airframe only), start
+    """The [`Model`][] of `flight` with the measured `outputs` (a subset of
+    `OUTPUTS` in its order, `altitude` first; `gyro` with an airframe only), start
     values `start` (name -> value) and the estimated parameter names `free`. A start
     value no rocket has (`unphysical`) raises a `LogError` naming it."""
     outputs = tuple(outputs)
-    if outputs != OUTPUTS[: len(outputs)]:
-        raise ValueError(f"outputs must be a prefix of {OUTPUTS}, got {outputs}")
+    if (
+        not outputs
+        or outputs[0] != "altitude"
+        or any(o not in OUTPUTS for o in outputs)
+        or list(outputs) != sorted(outputs, key=OUTPUTS.index)
+    ):
+        raise ValueError(
+            f"outputs must be a subset of {OUTPUTS} in its order, altitude first, "
+            f"got {outputs}"
+        )
     if "gyro" in outputs and flight.rocket.airframe is None:
         raise ValueError("a gyro output needs the attitude (an airframe)")
     names = flight.parameter_names
@@ -381,7 +399,7 @@ def rocket_model(flight: Flight, outputs, start: dict, free) -> Model:
     why = unphysical(flight, start)
     if why:
         raise LogError(f"{flight.rocket.name}: start value {why}")
-    rates_fn, observe_fn = _functions(flight)
+    rates_fn, observe_fn = _functions(flight, outputs)
     scale = (100.0, 100.0, 100.0, 10.0, 10.0, 10.0)
     if flight.rocket.airframe is not None:
         scale = scale + (1.0, 1.0, 1.0, 0.1, 0.1, 0.1)
@@ -400,14 +418,14 @@ def rocket_model(flight: Flight, outputs, start: dict, free) -> Model:
 _FUNCTIONS: dict = {}
 
 
-def _functions(flight: Flight):
-    """One `(rates, observe)` pair per flight, so that every model of one flight
-    (other starts, other estimated sets) has one structure and one compilation."""
-    key = id(flight)
+def _functions(flight: Flight, outputs: tuple):
+    """One `rates` per flight and one `observe` per flight and outputs, so that
+    every model of one flight (other starts, other estimated sets) has one
+    structure and one compilation."""
+    if id(flight) not in _FUNCTIONS or _FUNCTIONS[id(flight)][0] is not flight:
+        _FUNCTIONS[id(flight)] = (flight, functools.partial(rates, flight))
+    key = (id(flight), outputs)
     if key not in _FUNCTIONS or _FUNCTIONS[key][0] is not flight:
-        _FUNCTIONS[key] = (
-            flight,
-            functools.partial(rates, flight),
-            functools.partial(observe, flight),
-        )
-    return _FUNCTIONS[key][1:]
+        which = tuple(OUTPUTS.index(o) for o in outputs)
+        _FUNCTIONS[key] = (flight, functools.partial(observe, flight, which=which))
+    return _FUNCTIONS[id(flight)][1], _FUNCTIONS[key][1]
