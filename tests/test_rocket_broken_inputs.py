@@ -51,6 +51,12 @@ TOML = [
         r"\[motor\] holddown_time is not a key .* did you mean holddown_time_s\?",
     ),
     (
+        "key in other letter case",
+        "dry_mass_kg = 1.6",
+        "dry_mass_kg = 1.6\nHolddown_time_s = 1.0",
+        r"\[motor\] Holddown_time_s is not a key .* did you mean holddown_time_s\?",
+    ),
+    (
         "misspelt required key",
         "mass_without_motor_kg = 8.2",
         "mass_without_motr_kg = 8.2",
@@ -117,11 +123,16 @@ def test_a_damaged_rocket_file_is_one_line(tmp_path, old, new, pattern):
 
 def test_a_note_beside_a_key_stays_a_note(tmp_path):
     """Keys one or two letters from a key read, that differ only in their digits
-    (`I33_kgm2` beside `I11_kgm2`), and text notes where a number is optional
-    (`"not given"`), are read as before."""
+    (`I33_kgm2` beside `I11_kgm2`), their unit (`elevation_ft`, `dry_mass_g`,
+    `surface_temperature_C`) or their datum (`recorded_apogee_asl_m`), and text notes
+    where a number is optional (`"not given"`), are read as before."""
     folder = _folder(tmp_path)
     toml = folder / "rocket.toml"
     text = toml.read_text().replace("I11_kgm2 = 4.4", "I11_kgm2 = 4.4\nI33_kgm2 = 0.01")
+    text = text.replace("[launch]\n", "[launch]\nelevation_ft = 492\n")
+    text = text.replace("dry_mass_kg = 1.6", "dry_mass_kg = 1.6\ndry_mass_g = 1600")
+    text = text.replace("[atmosphere]\n", "[atmosphere]\nsurface_temperature_C = 20\n")
+    text = text.replace("[results]", "[results]\nrecorded_apogee_asl_m = 3100")
     text = text.replace(
         "[results]", '[results]\npreflight_simulated_apogee_agl_m = "not given"'
     )

@@ -198,12 +198,29 @@ def _edits(a: str, b: str) -> int:
     return row[-1]
 
 
+_DATUMS = {"agl", "asl", "msl"}
+
+
 def _near(key: str, known: str) -> bool:
-    """One or two letters from a key read, and not a sibling quantity that differs
-    only in its digits (`I33_kgm2` beside `I11_kgm2`)."""
-    strip = str.maketrans("", "", "0123456789")
+    """`key` (not `known` itself) is `known` in other letter case, or one or two
+    letters from it and not a sibling quantity: one that differs only in its digits
+    (`I33_kgm2` beside `I11_kgm2`), in its unit (`elevation_ft` beside
+    `elevation_m`, `surface_temperature_C`) or in its datum (`..._asl_m` beside
+    `..._agl_m`), which a note may well be."""
     a, b = key.lower(), known.lower()
-    return _edits(a, b) <= 2 and a.translate(strip) != b.translate(strip)
+    if a == b:
+        return True
+    strip = str.maketrans("", "", "0123456789")
+    if a.translate(strip) == b.translate(strip) or _edits(a, b) > 2:
+        return False
+    ta, tb = a.split("_"), b.split("_")
+    if len(ta) == len(tb):
+        differ = [i for i, (x, y) in enumerate(zip(ta, tb)) if x != y]
+        if differ == [len(ta) - 1] or (
+            len(differ) == 1 and {ta[differ[0]], tb[differ[0]]} <= _DATUMS
+        ):
+            return False
+    return True
 
 
 def _tables(doc, path) -> dict:
