@@ -11,7 +11,7 @@ import shutil
 import pytest
 from typer.testing import CliRunner
 
-from diffpegasus import LogError, rocket as dr
+from diffpegasus import LogError, read_rocket_log, rocket as dr
 from diffpegasus._cli import app
 
 
@@ -211,6 +211,40 @@ def test_an_eng_file_without_its_header_line_keeps_its_first_point(tmp_path):
         LogError, match=r"propellant_initial_mass_kg: .*the file has none"
     ):
         dr.read_rocket(toml)
+
+
+def test_an_eng_file_with_a_mark_and_comments_after_its_points(tmp_path):
+    """A RASP file saved with a byte-order mark and without its motor line, and one
+    whose points carry `; comments` (both among RocketPy's motor files): read as
+    the plain file is."""
+    plain = tmp_path / "plain.eng"
+    plain.write_text("M1 75 600 0 2.0 4.0 X\n0.1 2000\n2.0 2000\n2.1 0\n")
+    marked = tmp_path / "marked.eng"
+    marked.write_bytes(b"\xef\xbb\xbf0 0\n0.1 2000\n2.0 2000\n2.1 0\n")
+    noted = tmp_path / "noted.eng"
+    noted.write_text("M1 75 600 0 2.0 4.0 X\n0.1 2000 ; lit\n2.0 2000\n2.1 0; out\n")
+    want = dr.read_motor(plain).total_impulse
+    assert dr.read_motor(noted).total_impulse == want
+    assert dr.read_motor(marked, propellant_mass=2.0).total_impulse == want
+
+
+@pytest.mark.parametrize("mark", [True, False])
+def test_a_rocket_file_read_alike_for_the_rocket_and_its_log(tmp_path, mark):
+    """The rocket and its logs read one rocket.toml alike: with a byte-order mark
+    both read it; with a Latin-1 byte both refuse it in one line (before, the log's
+    reader refused the mark and raised a UnicodeDecodeError on Latin-1)."""
+    folder = _folder(tmp_path)
+    toml = folder / "rocket.toml"
+    text = toml.read_bytes()
+    if mark:
+        toml.write_bytes(b"\xef\xbb\xbf" + text)
+        assert dr.read_rocket(toml).name == "sim-clean"
+        assert "altitude" in read_rocket_log(toml).channels
+    else:
+        toml.write_bytes(text.replace(b"sim-clean", b"sim-cl\xe9an"))
+        for read in (dr.read_rocket, read_rocket_log):
+            with pytest.raises(LogError, match=r"not UTF-8 text \(byte \d+ is 0xe9"):
+                read(toml)
 
 
 @pytest.mark.parametrize("damage", ["latin-1", "binary"])

@@ -33,13 +33,13 @@ import dataclasses
 import json
 import os
 import pathlib
-import tomllib
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
 from .._errors import LogError
+from .._vehicle._rocket._config import read_toml
 from ._rocket_clean import clean_stream, Series
 from ._rocket_events import Event as Event
 from ._rocket_flight import one_clock
@@ -294,12 +294,7 @@ def _sources(source) -> tuple[list[pathlib.Path], pathlib.Path | None, dict]:
     paths = [pathlib.Path(p) for p in source]
     if len(paths) == 1 and paths[0].suffix.lower() == ".toml":
         toml = paths[0]
-        try:
-            facts = tomllib.loads(toml.read_text(encoding="utf-8"))
-        except OSError as e:
-            raise LogError(f"{toml}: cannot read ({e.strerror})") from None
-        except tomllib.TOMLDecodeError as e:
-            raise LogError(f"{toml}: not valid TOML ({e})") from None
+        facts = read_toml(toml)
         log = facts.get("log", {})
         names = [log["file"]] if isinstance(log.get("file"), str) else []
         names += [n for n in log.get("files", []) if isinstance(n, str)]

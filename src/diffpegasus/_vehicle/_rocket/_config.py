@@ -215,7 +215,7 @@ def _near(key: str, known: str) -> bool:
         return False
     ta, tb = a.split("_"), b.split("_")
     if len(ta) == len(tb):
-        differ = [i for i, (x, y) in enumerate(zip(ta, tb)) if x != y]
+        differ = [i for i, (x, y) in enumerate(zip(ta, tb, strict=True)) if x != y]
         if differ == [len(ta) - 1] or (
             len(differ) == 1 and {ta[differ[0]], tb[differ[0]]} <= _DATUMS
         ):
@@ -324,6 +324,22 @@ def _deployments_within_0_1(file, deployment, lines):
         )
 
 
+def read_toml(path: pathlib.Path) -> dict:
+    """A `rocket.toml`'s tables (UTF-8, with or without a byte-order mark); a file
+    that cannot be read, is not UTF-8 or not TOML raises a `LogError` in one line."""
+    try:
+        return tomllib.loads(path.read_bytes().decode("utf-8-sig"))
+    except OSError as e:
+        raise LogError(f"{path}: cannot read ({e.strerror})") from None
+    except UnicodeDecodeError as e:
+        raise LogError(
+            f"{path}: not UTF-8 text (byte {e.start + 1} is 0x{e.object[e.start]:02x}"
+            "; a Latin-1 or Windows-1252 file, or not a text file): save it as UTF-8"
+        ) from None
+    except tomllib.TOMLDecodeError as e:
+        raise LogError(f"{path}: not valid TOML ({e})") from None
+
+
 def read_rocket(path, *, attitude: bool = False) -> Rocket:
     """Read a `rocket.toml` (see the module docstring for its keys).
 
@@ -336,17 +352,7 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
     naming the file, section and key.
     """
     path = pathlib.Path(path)
-    try:
-        doc = tomllib.loads(path.read_bytes().decode("utf-8-sig"))
-    except OSError as e:
-        raise LogError(f"{path}: cannot read ({e.strerror})") from None
-    except UnicodeDecodeError as e:
-        raise LogError(
-            f"{path}: not UTF-8 text (byte {e.start + 1} is 0x{e.object[e.start]:02x}"
-            "; a Latin-1 or Windows-1252 file, or not a text file): save it as UTF-8"
-        ) from None
-    except tomllib.TOMLDecodeError as e:
-        raise LogError(f"{path}: not valid TOML ({e})") from None
+    doc = read_toml(path)
     folder = path.parent
     tables = _tables(doc, path)
     rk, mo, ae = tables["rocket"], tables["motor"], tables["aero"]

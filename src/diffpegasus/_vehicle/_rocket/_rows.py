@@ -31,13 +31,14 @@ def read_rows(
     """
     path = pathlib.Path(path)
     try:
-        text = path.read_text(errors="replace")
+        text = path.read_text(encoding="utf-8-sig", errors="replace")
     except OSError as e:
         raise LogError(f"{path}: cannot read {what} ({e.strerror})") from None
     expected = " ".join(columns)
     rows, lines, header = [], [], None
     for i, line in enumerate(text.splitlines(), 1):
-        s = line.strip()
+        # RASP files end a line's numbers with a `; comment` as they may start one
+        s = (line.split(";")[0] if header_first else line).strip()
         if not s or s.startswith(";") or s.startswith("#"):
             continue
         parts = s.replace(",", " ").split()
