@@ -293,7 +293,8 @@ def test_a_mass_the_motor_cannot_lift_is_refused(tmp_path):
 
 def test_rocket_outputs_are_complete_or_absent(tmp_path, monkeypatch):
     """A figure that fails after others were drawn leaves no --out folder and no
-    staging folder beside it."""
+    staging folder beside it; a second run leaves none of the first's figures it
+    did not draw; a folder that cannot be made is one error line."""
     from diffpegasus._rocket import _pipeline, _report
 
     def half(problem, result, prediction, team, ee, out):
@@ -311,6 +312,32 @@ def test_rocket_outputs_are_complete_or_absent(tmp_path, monkeypatch):
     _pipeline._write_outputs(None, None, None, None, {"converged": False}, False, out)
     assert [p.name for p in tmp_path.iterdir()] == ["out"]
     assert [p.name for p in out.iterdir()] == ["summary.json"]
+    # an earlier run's figures do not stay beside it (a file of the user's does)
+    for name in ("drag.png", "descent.png", "notes.txt"):
+        (out / name).write_bytes(b"earlier")
+    _pipeline._write_outputs(None, None, None, None, {"converged": False}, False, out)
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "summary.json"]
+    # a folder that cannot be made is one line
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.raises(LogError, match=r"cannot write the results there"):
+        _pipeline._write_outputs(
+            None, None, None, None, {"converged": False}, False, blocker / "out"
+        )
+
+
+def test_cli_out_naming_a_file_is_refused_before_the_fit(tmp_path):
+    """`rocket fit --out FILE`: one line before minutes of fitting (before, a
+    FileExistsError traceback after them)."""
+    folder = _folder(tmp_path)
+    taken = tmp_path / "results"
+    taken.write_text("mine")
+    res = CliRunner().invoke(
+        app, ["rocket", "fit", str(folder / "rocket.toml"), "--out", str(taken)]
+    )
+    assert res.exit_code == 2
+    assert "--out names a file" in res.output and "Traceback" not in res.output
+    assert taken.read_text() == "mine"
 
 
 @pytest.mark.parametrize(

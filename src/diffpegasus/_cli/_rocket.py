@@ -126,6 +126,8 @@ def fit_command(
     parachutes too, each stage's CdS. --gnss: the GNSS position too."""
     from .._rocket._pipeline import run_flight
 
+    if out is not None and out.exists() and not out.is_dir():
+        _fail(f"{out}: --out names a file; give a folder for the figures")
     rocket, flight_log = _load(toml, log, columns, attitude)
     try:
         extra = {"descent": True} if descent else {}  # the call as before without

@@ -9,6 +9,7 @@ import time
 
 import numpy as np
 
+from .._errors import LogError
 from ._apogee import apogee_band
 from ._checks import equation_error_drag, resimulate
 from ._data import logged_apogee
@@ -150,6 +151,17 @@ def run_flight(
     return row
 
 
+# every file `rocket fit --out` writes
+OUTPUTS = (
+    "summary.json",
+    "altitude.png",
+    "acceleration.png",
+    "drag.png",
+    "apogee.png",
+    "descent.png",
+)
+
+
 def _write_outputs(problem, result, prediction, team, row, descent, out) -> None:
     """The figures and summary.json in `out`, complete or not at all: written into
     a folder beside it and moved in only once every file is written (a figure that
@@ -158,8 +170,13 @@ def _write_outputs(problem, result, prediction, team, row, descent, out) -> None
     from ._report import figures
 
     out = pathlib.Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    stage = pathlib.Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        stage = pathlib.Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    except OSError as e:
+        raise LogError(
+            f"{out}: cannot write the results there ({e.strerror})"
+        ) from None
     try:
         if row.get("converged", True):
             if descent:
@@ -170,7 +187,16 @@ def _write_outputs(problem, result, prediction, team, row, descent, out) -> None
             figures(problem, result, prediction, team, ee, stage)
         (stage / "summary.json").write_text(json.dumps(row, indent=1, default=float))
         out.mkdir(exist_ok=True)
+        # an earlier run's figures this run does not write would sit beside its
+        # summary as if they were its own
+        for name in OUTPUTS:
+            if not (stage / name).exists():
+                (out / name).unlink(missing_ok=True)
         for f in sorted(stage.iterdir()):
             os.replace(f, out / f.name)
+    except OSError as e:
+        raise LogError(
+            f"{out}: cannot write the results there ({e.strerror})"
+        ) from None
     finally:
         shutil.rmtree(stage, ignore_errors=True)
