@@ -404,3 +404,11 @@ def test_a_thrust_curve_in_other_units_is_refused(tmp_path, column, factor, isp)
     np.savetxt(path, a, delimiter=",", header="time,thrust", comments="")
     with pytest.raises(LogError, match=f"^{path}: .* specific impulse of {isp} s"):
         dr.read_motor(path, propellant_mass=1.9)
+    # through the rocket file, the line names the key that holds the mass too
+    folder = _folder(tmp_path / "flight")
+    (folder / "motor.csv").write_text(path.read_text())
+    toml = folder / "rocket.toml"
+    with pytest.raises(
+        LogError, match=rf"^{toml}: \[motor\] propellant_initial_mass_kg = 1.9 with "
+    ):
+        dr.read_rocket(toml)

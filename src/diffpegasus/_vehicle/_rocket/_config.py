@@ -373,6 +373,10 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
             raise LogError(
                 f"{path}: [motor] needs propellant_initial_mass_kg: {e}"
             ) from None
+        if prop is not None and "specific impulse" in str(e):
+            raise LogError(
+                f"{path}: [motor] propellant_initial_mass_kg = {prop:g} with {e}"
+            ) from None
         raise
     prop = motor.propellant_mass
     rocket_mass = _number(rk, "mass_without_motor_kg", path, "rocket")
