@@ -6,11 +6,11 @@ fit (converged or not), the apogee reconstructed and predicted from the log up t
 ascent, the team's CD at the knots inside the 95 % band, what `diagnose` names,
 and the wall time.
 
-`python experiments/rocket_unseen_real20b.py FOLDER [FLIGHT ...] [--out FILE]`:
+`python experiments/rocket_other_teams.py FOLDER [FLIGHT ...] [--out FILE]`:
 FOLDER holds one folder per flight (default flights: astra, erebus11, genesis);
 the JSON goes to `--out` (default
-experiments/results/rocket_unseen_flights_real20b.json). Minutes per flight.
-`rocket_unseen_flights_real20b_before.json` is the same run on the code before
+experiments/results/rocket_other_teams.json). Minutes per flight.
+`rocket_other_teams_before.json` is the same run on the code before
 the readers' and the knots' fixes (Erebus 11's log was refused there).
 """
 
@@ -21,11 +21,7 @@ import time
 
 
 FLIGHTS = ("astra", "erebus11", "genesis")
-OUT = (
-    pathlib.Path(__file__).resolve().parent
-    / "results"
-    / "rocket_unseen_flights_real20b.json"
-)
+OUT = pathlib.Path(__file__).resolve().parent / "results" / "rocket_other_teams.json"
 
 
 def one(folder: pathlib.Path) -> dict:

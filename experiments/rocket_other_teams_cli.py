@@ -6,12 +6,12 @@ with its notebook cell), `logs/` (byte copies), `motor/`, `drag/`.
 
 Run (this repository's src on PYTHONPATH):
 
-    python experiments/rocket_unseen_real20a.py FOLDER ... --out DIR [--reuse] [--before DIR]
+    python experiments/rocket_other_teams_cli.py FOLDER ... --out DIR [--reuse] [--before DIR]
 
 For each FOLDER it calls `python -m diffpegasus rocket fit FOLDER/rocket.toml --out
 DIR/NAME` and `python -m diffpegasus rocket diagnose FOLDER/rocket.toml --json`,
 timing each (`--reuse` keeps a run whose output exists), reads the log again, and
-writes experiments/results/rocket_unseen_flights_real20a.json: the events; the
+writes experiments/results/rocket_other_teams_cli.json: the events; the
 apogee logged (the barometer's highest before its first fall faster than free fall,
 as `summary.json`'s) and the flight card's; the apogees reconstructed and predicted
 (from the log to 2 s after burnout) against both, in %; the altitude RMS over the
@@ -30,7 +30,7 @@ import numpy as np
 
 
 HERE = pathlib.Path(__file__).resolve().parent
-RESULT = HERE / "results" / "rocket_unseen_flights_real20a.json"
+RESULT = HERE / "results" / "rocket_other_teams_cli.json"
 
 
 def _run(args, log_path):
