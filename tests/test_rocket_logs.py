@@ -812,3 +812,33 @@ def test_apogee_not_taken_from_a_pulse_after_the_climb_stopped(tmp_path, dip):
     from diffpegasus._rocket._data import logged_apogee
 
     assert logged_apogee(log) == pytest.approx(truth.H_APOGEE + 0.75, abs=1.0)
+
+
+def test_words_in_cells_read_as_empty(tmp_path):
+    """An altimeter export (`time, altitude, temperature, events, voltages`) whose
+    last rows move the event words into the temperature column and leave the last
+    two empty (an RRC3 did this for its last 21 rows): the rows are whole, only the
+    temperature is missing; a word in the altitude column mid-file is one empty
+    cell. Each is said in a message; no row is dropped."""
+    t = np.arange(-0.5, 30.0, 0.05)
+    h, _ = truth.flight(t)
+    rows = [
+        f"{a:.2f},{b:.3f},{31.9 - 0.0065 * b:.1f}, -,3.81"
+        for a, b in zip(t, h, strict=True)
+    ]
+    tail = len(rows) - 21
+    for i in range(tail, len(rows)):
+        rows[i] = f"{t[i]:.2f},{h[i]:.3f}, -,,"
+    rows[300] = f"{t[300]:.2f}, -,31.9, -,3.81"
+    path = tmp_path / "log.csv"
+    path.write_text("time,altitude,temperature,events,voltages\n" + "\n".join(rows))
+    log = read_rocket_log(path)
+    alt, temp = log["altitude"], log["temperature"]
+    offset = next(iter(log.time_offsets.values()))
+    assert alt.t[-1] + offset == pytest.approx(t[-1])  # the last row read
+    assert len(alt.t) == len(t) - 1  # only the word's cell left out
+    assert temp.t[-1] + offset == pytest.approx(t[tail - 1])
+    said = " ".join(log.messages)
+    assert "column 'temperature': 21 cell(s) hold a word" in said
+    assert "column 'altitude': 1 cell(s) hold a word" in said
+    assert "row 301" in said and "dropped the last" not in said
