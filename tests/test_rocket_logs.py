@@ -842,3 +842,47 @@ def test_words_in_cells_read_as_empty(tmp_path):
     assert "column 'temperature': 21 cell(s) hold a word" in said
     assert "column 'altitude': 1 cell(s) hold a word" in said
     assert "row 301" in said and "dropped the last" not in said
+
+
+def test_main_opened_seconds_into_a_long_descent(tmp_path):
+    """A main that slows the descent from 27 to 8.6 m/s 4 s into a descent of
+    six minutes under it (Lince's: 26.9 to 10.9 m/s, 3 s after the record leaves
+    the top), after an ejection charge's dip 700 m below the top: the density's
+    bend of the long leg outweighs the short one in the first splits, and the
+    dip is no descent. Closed form: a 80 m/s^2 boost for 3 s, a drag-free coast,
+    free fall to 27 m/s, then the main's rate 7.2 exp(h / 17 km) m/s (density
+    scale height 8.5 km) to the ground."""
+    dt, g = 0.05, G0
+    t = np.arange(-1.0, 480.0, dt)
+    t_apo = 3.0 + 240.0 / g
+    h_apo = 360.0 + 240.0**2 / (2 * g)
+    t_drogue = t_apo + 27.0 / g  # free fall to the drogue's rate
+    t_main = t_drogue + 4.0
+    h = np.where(t < 3.0, 40.0 * np.clip(t, 0, None) ** 2, 0.0)
+    coast = (t >= 3.0) & (t < t_drogue)
+    h[coast] = h_apo - 0.5 * g * (t[coast] - t_apo) ** 2
+    h_main = h_apo - 27.0**2 / (2 * g) - 27.0 * 4.0
+    drogue = (t >= t_drogue) & (t < t_main)
+    h[drogue] = h_main + 27.0 * (t_main - t[drogue])
+    # under the main: dh/dt = -7.2 exp(h / 17000), closed form
+    s = t[t >= t_main] - t_main
+    under = -17000.0 * np.log(np.exp(-h_main / 17000.0) + 7.2 * s / 17000.0)
+    h[t >= t_main] = np.maximum(under, 0.0)
+    h = h - 700.0 * ((t > t_apo + 0.9) & (t < t_apo + 1.4))
+    h = h + np.random.default_rng(7).normal(0, 0.3, t.size)
+    path = tmp_path / "log.csv"
+    np.savetxt(
+        path,
+        np.column_stack([t, h]),
+        delimiter=",",
+        fmt="%.3f",
+        header="time (s),altitude (m)",
+        comments="",
+    )
+    log = read_rocket_log(path)
+    t_landing = t_main + 17000.0 * (1 - np.exp(-h_main / 17000.0)) / 7.2
+    assert _file_time(log, "apogee") == pytest.approx(t_apo, abs=0.1)
+    # a break on 20 Hz samples with 0.3 m noise: within a few samples
+    assert _file_time(log, "main") == pytest.approx(t_main, abs=0.3)
+    assert log.events["main"].value == pytest.approx(h_main, abs=10.0)
+    assert _file_time(log, "landing") == pytest.approx(t_landing, abs=0.5)
