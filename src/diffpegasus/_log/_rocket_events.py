@@ -27,8 +27,6 @@ _DEPLOY_RATIO = 0.6
 # the descent's breaks are searched on at most this many bin averages (a 4 kHz log
 # descends for 10^6 samples; the breaks need no more than ~0.05 s)
 _MOST_DESCENT = 4000
-# the descent's binary segmentation: levels of splits (4000 bins halve to 12 in ~9)
-_DESCENT_DEPTH = 9
 # No canopy lets a rocket down slower than 1 m/s: below it the rocket is not descending
 _MIN_DESCENT = 1.0
 
@@ -422,30 +420,21 @@ def descent_changes(
     t: np.ndarray, h: np.ndarray, t_apogee: float, h_apogee: float
 ) -> list[tuple[float, float, float]]:
     """Where the descent rate drops by more than `_DEPLOY_RATIO`: [(time, rate
-    before, rate after)], m/s positive down, on the record after it last reads
-    within 3 % of the apogee, by binary segmentation (the best break of a
-    continuous two-line fit, then each side again, three levels deep), each break
-    then fitted again between its neighbours. Binary segmentation splits a long
-    leg first, where the density's slow bend outweighs a short leg at the record's
-    start or end (a main opened seconds after apogee, then minutes under it): the
-    first and last legs are searched `_DESCENT_DEPTH` levels deep for a break
-    nearer their end of the record than the leg's other end, kept where the mean
-    rates on either side of it differ by the deployment's factor."""
-    # from where the record leaves the top 3 % for good: an ejection charge's dip
-    # below it that recovers is no descent
-    after = np.flatnonzero(t > t_apogee)
-    top = after[h[after] >= h_apogee - 0.03 * abs(h_apogee)]
-    sel = after[after > top[-1]] if top.size else after
+    before, rate after)], m/s positive down, by binary segmentation (the best break
+    of a continuous two-line fit, then each side again, three levels deep), each
+    break then fitted again between its neighbours."""
+    sel = np.flatnonzero((t > t_apogee) & (h < h_apogee - 0.03 * abs(h_apogee)))
     if sel.size < 12:
         return []
     tt, hh = _binned(t[sel], h[sel], _MOST_DESCENT)
+    found = []
 
-    def search(a, b, depth, found):
+    def search(a, b, depth):
         if depth == 0 or b - a < 12:
-            return found
+            return
         r = _two_lines(tt[a:b], hh[a:b])
         if r is None:
-            return found
+            return
         k, s1, s2 = r
         k += a
         if (
@@ -454,11 +443,11 @@ def descent_changes(
             and tt[b - 1] - tt[k] >= 1.0
         ):
             found.append((float(tt[k]), -s1, -s2))
-        search(a, k, depth - 1, found)
-        search(k, b, depth - 1, found)
-        return found
+        search(a, k, depth - 1)
+        search(k, b, depth - 1)
 
-    found = sorted(search(0, len(tt), 3, []))
+    search(0, len(tt), 3)
+    found.sort()
     # each break again between its neighbours, free of the other changes' bends
     cuts = [0] + [int(np.searchsorted(tt, f[0])) for f in found] + [len(tt)]
     refined = []
@@ -468,33 +457,7 @@ def descent_changes(
         # a drop that does not hold between its neighbours was a local wiggle
         if r is not None and -r[1] > _MIN_DESCENT and -r[2] < _DEPLOY_RATIO * -r[1]:
             refined.append((float(tt[a + r[0]]), -r[1], -r[2]))
-
-    def rate(a, b):  # m/s down: a straight line through bins a..b-1
-        return -float(np.polyfit(tt[a:b], hh[a:b], 1)[0])
-
-    n = len(tt)
-    cuts = [0] + [int(np.searchsorted(tt, f[0])) for f in refined] + [n]
-    extra = []
-    for lo, hi in dict.fromkeys([(cuts[0], cuts[1]), (cuts[-2], cuts[-1])]):
-        for f in search(lo, hi, _DESCENT_DEPTH, []):
-            k = int(np.searchsorted(tt, f[0]))
-            if min(k - lo, hi - k) < 3:
-                continue
-            # nearer the record's start than the leg's end, or its end than the
-            # leg's start: where the first splits are blind
-            if not ((lo == 0 and k - lo < hi - k) or (hi == n and hi - k < k - lo)):
-                continue
-            before, after_ = rate(lo, k), rate(k, hi)
-            if before > _MIN_DESCENT and after_ < _DEPLOY_RATIO * before:
-                # its time from two lines over the short leg and as much of the
-                # long one, where the density's bend is small
-                start = lo == 0 and k - lo < hi - k
-                a, b = (lo, 2 * k - lo) if start else (2 * k - hi, hi)
-                r = _two_lines(tt[a:b], hh[a:b]) if b - a >= 12 else None
-                held = r is not None and -r[2] < _DEPLOY_RATIO * -r[1]
-                extra.append((float(tt[a + r[0]]) if held else f[0], before, after_))
-                break  # the widest split's break: the search's first
-    return sorted(refined + extra)
+    return refined
 
 
 def shocks(t: np.ndarray, x: np.ndarray, t_from: float) -> list[float]:
