@@ -880,3 +880,70 @@ def test_landing_in_the_logs_last_seconds_under_a_slowing_canopy(tmp_path):
     # noisy descent
     assert log.events["landing"].t == pytest.approx(t_land, abs=0.4)
     assert "the descent stops" in log.events["landing"].how
+
+
+@pytest.mark.parametrize("dip", [False, True])
+def test_apogee_not_taken_from_a_pulse_after_the_climb_stopped(tmp_path, dip):
+    """A pressure pulse 1.4 s after apogee reads 50 m above the top within 0.3 s
+    and decays over a second (an RRC3 altimeter at 20 Hz did this, 62 m above a
+    flat top): the rocket had stopped climbing, and no rocket climbs at 200 m/s
+    after it did; the apogee is the top before the pulse. With `dip`, the
+    barometer also reads 90 m low for 0.2 s 0.6 s before the top (an ejection
+    charge there): those samples are off the arc and do not bend it."""
+    rng = np.random.default_rng(5)
+    t = np.arange(-0.5, 60.0, 0.05)
+    h, _ = truth.flight(t)
+    h = h + rng.normal(0, 0.5, t.size)
+    s = t - (truth.T_APOGEE + 1.4)
+    h = h + 60 * np.clip(s / 0.3, 0, 1) * np.exp(-np.maximum(s - 0.3, 0) / 0.3)
+    if dip:
+        d = t - (truth.T_APOGEE - 0.6)
+        h = h - 90 * ((d > 0) & (d < 0.2))
+    path = tmp_path / "log.csv"
+    np.savetxt(
+        path,
+        np.column_stack([t, h]),
+        delimiter=",",
+        fmt="%.3f",
+        header="time (s),altitude (m)",
+        comments="",
+    )
+    log = read_rocket_log(path)
+    assert h.max() > truth.H_APOGEE + 40  # the pulse reads higher
+    # as without the pulse (0.05 + 0.1 * noise s and 0.5 + noise m in
+    # test_events_at_other_rates_and_noise; the dip leaves ten fewer samples)
+    assert _file_time(log, "apogee") == pytest.approx(truth.T_APOGEE, abs=0.1)
+    assert log.events["apogee"].value == pytest.approx(truth.H_APOGEE, abs=1.0)
+    from diffpegasus._rocket._data import logged_apogee
+
+    assert logged_apogee(log) == pytest.approx(truth.H_APOGEE + 0.75, abs=1.0)
+
+
+def test_words_in_cells_read_as_empty(tmp_path):
+    """An altimeter export (`time, altitude, temperature, events, voltages`) whose
+    last rows move the event words into the temperature column and leave the last
+    two empty (an RRC3 did this for its last 21 rows): the rows are whole, only the
+    temperature is missing; a word in the altitude column mid-file is one empty
+    cell. Each is said in a message; no row is dropped."""
+    t = np.arange(-0.5, 30.0, 0.05)
+    h, _ = truth.flight(t)
+    rows = [
+        f"{a:.2f},{b:.3f},{31.9 - 0.0065 * b:.1f}, -,3.81"
+        for a, b in zip(t, h, strict=True)
+    ]
+    tail = len(rows) - 21
+    for i in range(tail, len(rows)):
+        rows[i] = f"{t[i]:.2f},{h[i]:.3f}, -,,"
+    rows[300] = f"{t[300]:.2f}, -,31.9, -,3.81"
+    path = tmp_path / "log.csv"
+    path.write_text("time,altitude,temperature,events,voltages\n" + "\n".join(rows))
+    log = read_rocket_log(path)
+    alt, temp = log["altitude"], log["temperature"]
+    offset = next(iter(log.time_offsets.values()))
+    assert alt.t[-1] + offset == pytest.approx(t[-1])  # the last row read
+    assert len(alt.t) == len(t) - 1  # only the word's cell left out
+    assert temp.t[-1] + offset == pytest.approx(t[tail - 1])
+    said = " ".join(log.messages)
+    assert "column 'temperature': 21 cell(s) hold a word" in said
+    assert "column 'altitude': 1 cell(s) hold a word" in said
+    assert "row 301" in said and "dropped the last" not in said

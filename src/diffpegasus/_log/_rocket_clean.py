@@ -317,8 +317,10 @@ def impossible_tail(
 
     def allowed(good, i):
         dt = t[i] - t[good]
+        # a reading above the apogee (a pressure pulse) may fall back to it at once
         return (
-            np.sqrt(2 * G0 * np.maximum(top - h[good], 0.0)) * dt
+            np.maximum(h[good] - h_apogee - margin, 0.0)
+            + np.sqrt(2 * G0 * np.maximum(top - h[good], 0.0)) * dt
             + 0.5 * G0 * dt**2
             + margin
         )

@@ -256,13 +256,79 @@ def first_fall(t: np.ndarray, h: np.ndarray, t_lift: float) -> int | None:
     return int(s[falls[ok[0]]]) if ok.size else None
 
 
+def first_pulse(t: np.ndarray, h: np.ndarray, t_lift: float) -> int | None:
+    """Index of the last sample before the first pressure pulse above the top, or
+    `None`. A pulse is a rise to a new highest altitude after the record stayed at
+    or below its top for longer than three of the sensor's own steps between
+    readings (and longer than the flight's climb rate into that top, averaged over
+    a tenth of the climb time, needs to gain five times the noise), by more than
+    that climb rate allows since the top plus five times the noise, to a peak the
+    record then falls from faster than free fall (`first_fall`'s margin) and back
+    below where the rise began before it ever reads higher, from a top above half
+    the record's highest. A rocket slowing to its apogee cannot
+    speed up again, and what it reaches it cannot leave faster than free fall:
+    such a spike is an ejection charge's or a gust's pressure, not the apogee; a
+    stall in a fast climb that the climb then resumes (a transonic pressure
+    wobble) is not one."""
+    m = _median3(h)
+    s = np.flatnonzero(t >= t_lift)
+    if s.size < 3:
+        return None
+    ts, ms = t[s], m[s]
+    run = np.maximum.accumulate(ms)
+    # where the record first reached its highest so far (a later equal reading
+    # does not restart the pause)
+    new_high = np.concatenate([[True], ms[1:] > run[:-1]])
+    at_top = np.maximum.accumulate(np.where(new_high, np.arange(len(ms)), 0))
+    w = 0.1 * np.maximum(ts[at_top] - ts[0], 1.0)
+    rate = (run - np.interp(ts[at_top] - w, ts, ms)) / w
+    margin = _K_NOISE * robust_sigma(h) + quantum(h)
+    fall = run - ms > 0.5 * G0 * (ts - ts[at_top]) ** 2 + margin + 0.5 * G0 * w**2
+    moved = np.flatnonzero(np.diff(h) != 0)
+    step = float(np.median(np.diff(t[moved]))) if moved.size > 1 else 0.0
+    k = np.arange(1, len(ms))
+    top = at_top[k - 1]
+    pause = ts[k - 1] - ts[top]
+    new = np.flatnonzero(
+        (ms[k] > run[k - 1])
+        & (pause > 3 * step)
+        & (pause * np.maximum(rate[top], 0.0) > margin)
+        & (run[k - 1] - ms[0] > 0.5 * (ms.max() - ms[0]))
+    )
+    for i in k[new]:
+        base, i0, v = run[i - 1], at_top[i - 1], max(rate[at_top[i - 1]], 0.0)
+        p = i
+        while p + 1 < len(ms) and ms[p + 1] >= ms[p]:
+            p += 1
+        fast = ms[i : p + 1] - base > v * (ts[i : p + 1] - ts[i0]) + margin
+        # a pulse falls back below where it rose from before the record climbs
+        # above its peak (a climb resumed after a stall goes higher)
+        higher = np.flatnonzero(ms[p + 1 :] > ms[p])
+        back = np.flatnonzero(ms[p + 1 :] < base)
+        end = higher[0] if higher.size else len(ms)
+        if fast.any() and back.size and back[0] < end and fall[p + 1 :][:end].any():
+            return int(s[i - 1])
+    return None
+
+
+def top_end(t: np.ndarray, h: np.ndarray, t_lift: float) -> int | None:
+    """Where the apogee search ends (exclusive index): at the record's first fall
+    faster than free fall (`first_fall`) or just after the last sample before its
+    first pulse (`first_pulse`), whichever comes first; `None` if neither."""
+    fall, pulse = first_fall(t, h, t_lift), first_pulse(t, h, t_lift)
+    ends = [e for e in (fall, None if pulse is None else pulse + 1) if e is not None]
+    return min(ends) if ends else None
+
+
 def apogee(t: np.ndarray, h: np.ndarray, t_lift: float) -> tuple[float, float]:
     """Apogee time and altitude: the vertex of `H - g (t - ta)^2 / 2` fitted to the
     samples within 5 % of the climb time of the highest one (at least five on each
-    side) before the first fall faster than free fall (`first_fall`). Near apogee
+    side) before the first fall faster than free fall or pulse (`top_end`). Near apogee
     the vertical speed is near zero, so drag leaves gravity alone to bend the path;
-    the fixed curvature makes the vertex robust to noise."""
-    end = first_fall(t, h, t_lift)
+    the fixed curvature makes the vertex robust to noise. Samples off the arc by
+    more than five times the fit's own scatter (a pressure pulse) are left out and
+    the arc fitted again."""
+    end = top_end(t, h, t_lift)
     if end is not None and end >= 3:
         t, h = t[:end], h[:end]
     i = int(np.argmax(_median3(h)))
@@ -274,7 +340,20 @@ def apogee(t: np.ndarray, h: np.ndarray, t_lift: float) -> tuple[float, float]:
         return float(t[i]), float(h[i])
     # h + g t^2 / 2 = (H - g ta^2 / 2) + g ta t: a straight line in t
     a = np.column_stack([np.ones_like(tw), tw])
-    (c0, c1), *_ = np.linalg.lstsq(a, hw + 0.5 * G0 * tw**2, rcond=None)
+    y = hw + 0.5 * G0 * tw**2
+    keep = np.ones(len(tw), bool)
+    floor = robust_sigma(h) + quantum(h) / _K_NOISE
+    for _ in range(3):
+        (c0, c1), *_ = np.linalg.lstsq(a[keep], y[keep], rcond=None)
+        # a pressure pulse's samples (far off the arc by the fit's own scatter)
+        # do not bend it
+        r = y - a @ np.array([c0, c1])
+        mid = float(np.median(r[keep]))
+        scale = max(1.4826 * float(np.median(np.abs(r[keep] - mid))), floor)
+        inside = np.abs(r - mid) <= _K_NOISE * scale
+        if inside.sum() < 3 or np.array_equal(inside, keep):
+            break
+        keep = inside
     ta = c1 / G0
     if not (tw[0] <= ta <= tw[-1]):
         return float(t[i]), float(h[i])

@@ -665,6 +665,8 @@ def _problem(
             continue
         if j in clocks and clock_seconds(cell) is not None:
             continue
+        if _word(cell):
+            continue  # read as an empty cell, with a message
         where = f"column {header.names[j]!r}, row {r}: {_shown(raw[j])}"
         if j in clocks and _CLOCK.fullmatch(cell):
             return (
@@ -679,6 +681,13 @@ def _problem(
     return None
 
 
+def _word(cell: str) -> bool:
+    """A cell with no digit in it (`-`, `Drogue`, `n/a`): a logger's word where a
+    number would be (an event name moved into another column), not a number
+    mistyped (`12O.5`)."""
+    return not any(c.isdigit() for c in cell)
+
+
 def _read_carefully(
     header: Header, columns: list[int], clocks: frozenset[int] = frozenset()
 ):
@@ -689,6 +698,7 @@ def _read_carefully(
     numbers: list[int] = []  # each read row's number
     bad: list[tuple[int, str]] = []  # (row, why) of unreadable rows
     clocked: set[int] = set()
+    words: dict[int, list] = {}  # column: [count, first row, first word]
     notes: list[str] = []
     with open(path, "rb") as f:
         for _ in range(header.skip):
@@ -739,9 +749,12 @@ def _read_carefully(
                     values.append(math.nan)
                 elif _NUMBER.fullmatch(cell):
                     values.append(float(cell))
-                else:
+                elif j in clocks and clock_seconds(cell) is not None:
                     values.append(clock_seconds(cell))
                     clocked.add(j)
+                else:  # a word (`_problem` let no other cell through)
+                    values.append(math.nan)
+                    words.setdefault(j, [0, r, raw[j]])[0] += 1
             rows.append(values)
             numbers.append(r)
     if not rows:
@@ -755,6 +768,12 @@ def _read_carefully(
     messages = notes + [
         f"{path.name}: column {header.names[j]!r}: clock times read as seconds"
         for j in sorted(clocked)
+    ]
+    messages += [
+        f"{path.name}: column {header.names[j]!r}: {n} cell(s) hold a word, not a "
+        f"number ({_shown(w)} at row {r} first; the logger wrote another column's "
+        "text there?), read as empty"
+        for j, (n, r, w) in sorted(words.items())
     ]
     if bad:
         messages.append(

@@ -138,13 +138,13 @@ def baro_channel(log):
 
 def logged_apogee(log) -> float:
     """m AGL: the highest barometric altitude after liftoff, before the record's
-    first fall faster than free fall (an ejection charge's pressure pulse, whose
-    recovery may read above the top: see the apogee event)."""
-    from .._log._rocket_events import first_fall
+    first fall faster than free fall or pulse (an ejection charge's pressure pulse,
+    which may read above the top: see the apogee event)."""
+    from .._log._rocket_events import top_end
 
     t, h = baro_channel(log)
     up = t > 0
-    end = first_fall(t, h, 0.0)
+    end = top_end(t, h, 0.0)
     if end is not None and np.any(up[:end]):
         up = up & (np.arange(len(t)) < end)
     return float(np.max(h[up]))
