@@ -57,6 +57,12 @@ TOML = [
         r"\[motor\] Holddown_time_s is not a key .* did you mean holddown_time_s\?",
     ),
     (
+        "misspelt geometry key",
+        "nozzle_position_m = 0.0",
+        "nozle_position_m = 0.0",
+        r"\[geometry\] nozle_position_m is not a key .* did you mean nozzle_position_m\?",
+    ),
+    (
         "misspelt required key",
         "mass_without_motor_kg = 8.2",
         "mass_without_motr_kg = 8.2",
@@ -119,6 +125,21 @@ def test_a_damaged_rocket_file_is_one_line(tmp_path, old, new, pattern):
     with pytest.raises(LogError, match=f"^{toml}: {pattern}") as e:
         dr.read_rocket(toml)
     assert "\n" not in str(e.value)
+
+
+def test_a_misspelt_parachute_key_is_one_line(tmp_path):
+    """A stage's drag area misspelt (before, the stage fell without it)."""
+    folder = _folder(tmp_path)
+    toml = folder / "rocket.toml"
+    toml.write_text(
+        toml.read_text() + '\n[[parachutes]]\nname = "Drogue"\ncds_m2 = 0.9\n'
+    )
+    with pytest.raises(
+        LogError,
+        match=r"\[\[parachutes\]\] entry 1: cds_m2 is not a key .* "
+        r"did you mean cd_s_m2\?",
+    ):
+        dr.read_rocket(toml)
 
 
 def test_a_note_beside_a_key_stays_a_note(tmp_path):

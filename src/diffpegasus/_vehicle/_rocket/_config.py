@@ -183,7 +183,18 @@ KEYS = {
     ),
     "atmosphere": ("surface_temperature_K", "era5_near_surface_temperature_K"),
     "results": ("recorded_apogee_agl_m", "preflight_simulated_apogee_agl_m"),
+    "geometry": (
+        "nose",
+        "fins",
+        "tail",
+        "transition",
+        "nozzle_position_m",
+        "motor_center_of_mass_m",
+        "motor_inertia_kgm2",
+    ),
 }
+# the keys read from each [[parachutes]] stage
+PARACHUTE_KEYS = ("cd_s_m2", "cd_s_m2_design", "trigger_altitude_agl_m", "lag_s")
 # m: the pad's elevation, from the Dead Sea shore to the highest ground
 ELEVATION_RANGE = (-500.0, 9000.0)
 
@@ -235,18 +246,23 @@ def _tables(doc, path) -> dict:
                 f"{path}: {section} = {table!r} is not a table (write [{section}] "
                 "with its keys below it)"
             )
-        for key in table:
-            if key in keys:
-                continue
-            near = [k for k in keys if _near(key, k)]
-            if near:
-                raise LogError(
-                    f"{path}: [{section}] {key} is not a key the rocket is read "
-                    f"from; did you mean {near[0]}? (rename a note so it is not "
-                    "one or two letters from a key)"
-                )
+        _misspelt(table, keys, path, f"[{section}]")
         out[section] = table
     return out
+
+
+def _misspelt(table: dict, keys, path, where: str) -> None:
+    """Refuse a key of `table` one or two letters from one of `keys` (see `_near`)."""
+    for key in table:
+        if key in keys:
+            continue
+        near = [k for k in keys if _near(key, k)]
+        if near:
+            raise LogError(
+                f"{path}: {where} {key} is not a key the rocket is read from; did "
+                f"you mean {near[0]}? (rename a note so it is not one or two "
+                "letters from a key)"
+            )
 
 
 def _file(table, key, folder, path, section) -> pathlib.Path:
@@ -496,7 +512,7 @@ def _parachutes(doc, path) -> tuple:
     stage order. A single `[parachutes]` table without a stage's keys (a note that
     the flight had none) gives none; a number that is not one is refused."""
     chutes = doc.get("parachutes", [])
-    keys = ("cd_s_m2", "cd_s_m2_design", "trigger_altitude_agl_m", "lag_s")
+    keys = PARACHUTE_KEYS
     if isinstance(chutes, dict):
         if any(k in chutes for k in keys):
             raise LogError(
@@ -510,6 +526,7 @@ def _parachutes(doc, path) -> tuple:
     for k, c in enumerate(chutes, 1):
         if not isinstance(c, dict):
             raise LogError(f"{path}: [[parachutes]] entry {k} = {c!r} is not a table")
+        _misspelt(c, keys, path, f"[[parachutes]] entry {k}:")
         for key in keys:
             v = c.get(key)
             if v is not None and (
