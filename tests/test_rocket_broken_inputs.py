@@ -312,6 +312,27 @@ def test_a_mass_the_motor_cannot_lift_is_refused(tmp_path):
         dr.read_rocket(toml)
 
 
+def test_a_hold_down_past_the_burn_is_refused(tmp_path):
+    """On a hold-down the rocket is released with what thrust is left: released
+    after the burn it never lifts (before, the check looked at the curve's peak at
+    ignition, and the fit flew a rocket that stayed on the rail); released early it
+    does, lighter by the propellant burned."""
+    folder = _folder(tmp_path)
+    toml = folder / "rocket.toml"
+    burn = dr.read_motor(folder / "motor.csv", propellant_mass=1.9).burn_time
+    text = toml.read_text()
+    toml.write_text(
+        text.replace("dry_mass_kg = 1.6", "dry_mass_kg = 1.6\nholddown_time_s = 0.5")
+    )
+    assert dr.read_rocket(toml).holddown == 0.5
+    late = f"dry_mass_kg = 1.6\nholddown_time_s = {burn + 1:g}"
+    toml.write_text(text.replace("dry_mass_kg = 1.6", late))
+    with pytest.raises(
+        LogError, match=rf"peak thrust 0 N after its {burn + 1:g} s hold-down"
+    ):
+        dr.read_rocket(toml)
+
+
 def test_rocket_outputs_are_complete_or_absent(tmp_path, monkeypatch):
     """A figure that fails after others were drawn leaves no --out folder and no
     staging folder beside it; a second run leaves none of the first's figures it

@@ -251,6 +251,23 @@ def _tables(doc, path) -> dict:
     return out
 
 
+def _lifts(motor, loaded: float, holddown: float, path) -> None:
+    """Refuse a rocket its motor cannot lift off once released: the peak thrust
+    from the release on (the hold-down's end, else ignition) against the weight
+    then (the propellant burned on the hold-down gone)."""
+    t, f, burned = motor.tables()
+    after = np.r_[np.interp(holddown, t, f), f[t > holddown]]
+    mass = loaded - motor.propellant_mass * float(np.interp(holddown, t, burned))
+    if not np.max(after) > mass * G0:
+        when = "at ignition" if holddown == 0 else f"after its {holddown:g} s hold-down"
+        raise LogError(
+            f"{path}: the motor's peak thrust {np.max(after):g} N {when} "
+            f"({motor.name}) does not lift the {mass:g} kg rocket (its weight is "
+            f"{mass * G0:g} N): a mass in grams ([rocket] mass_without_motor_kg), a "
+            "thrust curve in other units, or a hold-down past the burn?"
+        )
+
+
 def _misspelt(table: dict, keys, path, where: str) -> None:
     """Refuse a key of `table` one or two letters from one of `keys` (see `_near`)."""
     for key in table:
@@ -396,14 +413,12 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
         raise
     prop = motor.propellant_mass
     rocket_mass = _number(rk, "mass_without_motor_kg", path, "rocket")
-    loaded = rocket_mass + motor_dry + prop
-    if not np.max(motor.thrust) > loaded * G0:
-        raise LogError(
-            f"{path}: the motor's peak thrust {np.max(motor.thrust):g} N "
-            f"({motor.name}) does not lift the {loaded:g} kg rocket at ignition "
-            f"(its weight is {loaded * G0:g} N): a mass in grams, or "
-            "a thrust curve in other units?"
-        )
+    holddown = _number(
+        mo, "holddown_time_s", path, "motor", default=0.0, positive=False
+    )
+    if holddown < 0:
+        raise LogError(f"{path}: [motor] holddown_time_s = {holddown:g} is negative")
+    _lifts(motor, rocket_mass + motor_dry + prop, holddown, path)
     inclination = _number(la, "inclination_deg", path, "launch")
     if not 0 < inclination <= 90:
         raise LogError(
@@ -447,11 +462,6 @@ def read_rocket(path, *, attitude: bool = False) -> Rocket:
             return None
         return read_drag_curve(_file(ae, key, folder, path, "aero"))
 
-    holddown = _number(
-        mo, "holddown_time_s", path, "motor", default=0.0, positive=False
-    )
-    if holddown < 0:
-        raise LogError(f"{path}: [motor] holddown_time_s = {holddown:g} is negative")
     elevation = _number(la, "elevation_m", path, "launch", default=0.0, positive=False)
     if not ELEVATION_RANGE[0] <= elevation <= ELEVATION_RANGE[1]:
         raise LogError(
