@@ -737,6 +737,21 @@ def test_temperature_unit(tmp_path):
         )
 
 
+def _altitude_log(tmp_path, t, h):
+    """An altimeter's `time (s),altitude (m)` file of `t`, `h` to the millimetre,
+    read."""
+    path = tmp_path / "log.csv"
+    np.savetxt(
+        path,
+        np.column_stack([t, h]),
+        delimiter=",",
+        fmt="%.3f",
+        header="time (s),altitude (m)",
+        comments="",
+    )
+    return read_rocket_log(path)
+
+
 @pytest.mark.parametrize("glitch", [False, True])
 def test_apogee_not_taken_from_an_ejection_pulse_that_reads_higher(tmp_path, glitch):
     """An ejection charge 0.6 s after apogee: the barometer reads 300 m low for a
@@ -755,16 +770,7 @@ def test_apogee_not_taken_from_an_ejection_pulse_that_reads_higher(tmp_path, gli
     h = h + 70 * np.exp(-(((s - 1.2) / 0.2) ** 2))
     if glitch:
         h = h - 120 * ((t > 2.0) & (t < 2.3))
-    path = tmp_path / "log.csv"
-    np.savetxt(
-        path,
-        np.column_stack([t, h]),
-        delimiter=",",
-        fmt="%.3f",
-        header="time (s),altitude (m)",
-        comments="",
-    )
-    log = read_rocket_log(path)
+    log = _altitude_log(tmp_path, t, h)
     assert h.max() > truth.H_APOGEE + 30  # the pulse's recovery reads higher
     # the vertex of the top before the pulse: as without it (0.05 + 0.1 * noise s
     # and 0.5 + noise m in test_events_at_other_rates_and_noise)
@@ -899,16 +905,7 @@ def test_apogee_not_taken_from_a_pulse_after_the_climb_stopped(tmp_path, dip):
     if dip:
         d = t - (truth.T_APOGEE - 0.6)
         h = h - 90 * ((d > 0) & (d < 0.2))
-    path = tmp_path / "log.csv"
-    np.savetxt(
-        path,
-        np.column_stack([t, h]),
-        delimiter=",",
-        fmt="%.3f",
-        header="time (s),altitude (m)",
-        comments="",
-    )
-    log = read_rocket_log(path)
+    log = _altitude_log(tmp_path, t, h)
     assert h.max() > truth.H_APOGEE + 40  # the pulse reads higher
     # as without the pulse (0.05 + 0.1 * noise s and 0.5 + noise m in
     # test_events_at_other_rates_and_noise; the dip leaves ten fewer samples)
